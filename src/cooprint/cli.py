@@ -1,0 +1,150 @@
+"""``cooprint`` command line: thin wrappers over :mod:`cooprint.jobs`.
+
+Exit codes: 0 success, 2 bad input (one line on stderr, no traceback unless ``--verbose``),
+130 interrupted.
+"""
+
+from __future__ import annotations
+
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Iterator
+
+import click
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
+
+from cooprint import __version__
+from cooprint.errors import UserError
+
+STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing chunks",
+               "render": "drawing picture"}
+
+
+@contextmanager
+def stage_progress(enabled: bool) -> Iterator[Any]:
+    """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr."""
+    if not enabled:
+        yield None
+        return
+    console = Console(stderr=True)
+    with Progress(TextColumn("{task.description:<16}"), BarColumn(), TaskProgressColumn(),
+                  TimeElapsedColumn(), console=console, transient=False) as bars:
+        tasks: dict[str, Any] = {}
+
+        def update(stage: str, done: int, total: int) -> None:
+            if stage not in tasks:
+                tasks[stage] = bars.add_task(STAGE_NAMES.get(stage, stage), total=max(total, 1))
+            bars.update(tasks[stage], completed=done, total=max(total, 1))
+
+        yield update
+
+
+def _settings(config: tuple[str, ...], overrides: dict[str, Any]) -> Any:
+    from cooprint.config import load_settings
+
+    return load_settings(*config, overrides=overrides)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="cooprint")
+@click.option("-v", "--verbose", is_flag=True, help="Show tracebacks for errors.")
+@click.pass_context
+def cli(ctx: click.Context, verbose: bool) -> None:
+    """Cooperative 3D printing: cut a mesh into chunks that a fleet of mobile printers can print.
+
+    Units: mm, s, mm/s, degrees.
+    """
+    ctx.obj = {"verbose": verbose}
+
+
+config_option = click.option(
+    "--robot", "--config", "config", multiple=True, type=click.Path(dir_okay=False),
+    help="TOML file with [robot], [chunking], [mesh] sections (repeatable; later files win).")
+
+
+@cli.command()
+@click.argument("mesh", type=click.Path(dir_okay=False))
+@config_option
+def info(mesh: str, config: tuple[str, ...]) -> None:
+    """Report a mesh (triangles, size, volume, repairs) and the robot's slope limits for it."""
+    from cooprint.chunking import slope_limits
+    from cooprint.io.mesh import fmt_report, load_mesh
+
+    settings = _settings(config, {})
+    solid = load_mesh(mesh, settings.mesh)
+    click.echo(fmt_report(solid.report))
+    h = solid.bounds[1, 2] - solid.bounds[0, 2]
+    lim = slope_limits(settings.robot, h)
+    click.echo(f"  robot '{settings.robot.name}': theta_min {lim.theta_min_deg:.2f} deg, "
+               f"theta_max {lim.theta_max_deg:.2f} deg" + ("" if lim.feasible else "  (infeasible)"))
+
+
+@cli.command()
+@click.argument("mesh", type=click.Path(dir_okay=False))
+@click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
+@click.option("--theta", type=float, help="Slope of the chunk interfaces, degrees [default: theta_max].")
+@click.option("--shift", type=float, help="Distance between cutting planes, mm [default: bd - h/tan(theta)].")
+@click.option("--top-width", type=float, help="Width of the centre chunk at the top, mm [default: 0].")
+@click.option("--centre-angle", type=float, help="Direction of the centre line, degrees from +X [default: 0].")
+@click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
+              help="Number of robots (seed strategy).")
+@config_option
+@click.option("--force", is_flag=True, help="Replace OUT if it exists.")
+@click.option("--no-picture", is_flag=True, help="Skip chunks.png.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary.")
+def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_width: float | None,
+          centre_angle: float | None, robots: int, config: tuple[str, ...], force: bool,
+          no_picture: bool, quiet: bool) -> None:
+    """Cut MESH into watertight sloped chunks (seed §3) and write them to OUT.
+
+    Writes OUT/job.json (chunk table, planes, dependencies, robots), OUT/chunks/<id>.stl and
+    OUT/chunks.png.
+    """
+    from cooprint.io.bundle import check_destination
+    from cooprint.jobs import chunk_job, write_chunk_bundle
+
+    settings = _settings(config, {"chunking.theta_deg": theta, "chunking.shift": shift,
+                                  "chunking.top_width": top_width,
+                                  "chunking.centre_angle_deg": centre_angle})
+    check_destination(Path(out), force)
+    with stage_progress(not quiet) as progress:
+        job = chunk_job(mesh, settings, robots, progress)
+        record = write_chunk_bundle(job, out, force, not no_picture, progress)
+    if quiet:
+        return
+    st, plan = record["stats"], record["plan"]
+    click.echo(f"{len(job.chunks.chunks)} chunks, theta {plan['theta_deg']:.2f} deg "
+               f"(limits {plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), shift {plan['shift_mm']:.1f} mm, "
+               f"volume error {st['volume_rel_error']:.1e}")
+    for r in record["robots"]:
+        click.echo(f"  robot {r['name']}: {' -> '.join(r['chunks']) or '(idle)'}")
+    click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl" + ("" if no_picture else f", {out}/chunks.png"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: runs the CLI and maps errors to exit codes."""
+    args = sys.argv[1:] if argv is None else argv
+    verbose = "-v" in args or "--verbose" in args
+    try:
+        cli.main(args=args, prog_name="cooprint", standalone_mode=False)
+    except UserError as exc:
+        if verbose:
+            raise
+        click.echo(f"cooprint: error: {exc}", err=True)
+        return exc.exit_code
+    except click.exceptions.Abort:
+        click.echo("cooprint: interrupted", err=True)
+        return 130
+    except click.ClickException as exc:
+        exc.show()
+        return 2
+    except KeyboardInterrupt:
+        click.echo("cooprint: interrupted", err=True)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,11 @@
+"""Settings: the robot profile and job settings, read from TOML and validated field by field."""
+
+from cooprint.config.settings import (
+    ChunkingSettings,
+    JobSettings,
+    MeshSettings,
+    RobotProfile,
+    load_settings,
+)
+
+__all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "RobotProfile", "load_settings"]

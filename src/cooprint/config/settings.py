@@ -1,0 +1,175 @@
+"""Typed, validated settings.
+
+Each section of the TOML file is a frozen dataclass; every numeric field carries its allowed range
+and unit in its metadata, so one validator gives every field the same clear message::
+
+    robot.toml: robot.build_depth = -3.0: expected a number > 0 (mm)
+
+Defaults live in ``defaults.toml`` next to this module. Files given by the user are merged over
+them field by field, then command-line overrides (``{"chunking.theta_deg": 60}``) over those.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import asdict, dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any, Mapping
+
+from cooprint.errors import ConfigError
+
+
+def _num(lo: float | None = None, hi: float | None = None, *, unit: str = "", lo_open: bool = False,
+         optional: bool = False, doc: str = "") -> dict[str, Any]:
+    return {"lo": lo, "hi": hi, "unit": unit, "lo_open": lo_open, "optional": optional, "doc": doc}
+
+
+@dataclass(frozen=True)
+class RobotProfile:
+    """A mobile FDM printer (seed §2-3, Fig. 1 and 3). Lengths in mm, speeds in mm/s."""
+
+    name: str = "mobile-fdm"
+    build_depth: float = field(default=300.0, metadata=_num(0, 1e5, unit="mm", lo_open=True,
+                               doc="nozzle to the front of the body, along the facing axis (bd)"))
+    nozzle_height: float = field(default=100.0, metadata=_num(0, 1e4, unit="mm", lo_open=True,
+                                 doc="nozzle tip to the lowest part of the printhead body (nh)"))
+    nozzle_depth: float = field(default=25.0, metadata=_num(0, 1e4, unit="mm", lo_open=True,
+                                doc="reach of the printhead body ahead of the nozzle (nd)"))
+    body_width: float = field(default=300.0, metadata=_num(0, 1e5, unit="mm", lo_open=True))
+    body_length: float = field(default=350.0, metadata=_num(0, 1e5, unit="mm", lo_open=True))
+    print_speed: float = field(default=40.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    travel_speed: float = field(default=120.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+
+
+@dataclass(frozen=True)
+class ChunkingSettings:
+    """How the chunker cuts (seed §3). ``None`` means: derive from the robot and the mesh."""
+
+    theta_deg: float | None = field(default=None, metadata=_num(0, 90, unit="deg", lo_open=True,
+                                    optional=True, doc="slope of the chunk interfaces"))
+    shift: float | None = field(default=None, metadata=_num(0, 1e6, unit="mm", lo_open=True,
+                                optional=True, doc="distance between parallel cutting planes (s)"))
+    top_width: float = field(default=0.0, metadata=_num(0, 1e6, unit="mm"))
+    centre_angle_deg: float = field(default=0.0, metadata=_num(-360, 360, unit="deg"))
+    centre_offset: float = field(default=0.0, metadata=_num(-1e6, 1e6, unit="mm"))
+
+
+@dataclass(frozen=True)
+class MeshSettings:
+    """Mesh loading and repair."""
+
+    max_hole_fraction: float = field(default=0.15, metadata=_num(0, 1, doc="largest hole closed "
+                                     "silently, as perimeter / bounding-box diagonal"))
+
+
+@dataclass(frozen=True)
+class JobSettings:
+    """Everything a job needs besides the mesh."""
+
+    robot: RobotProfile = field(default_factory=RobotProfile)
+    chunking: ChunkingSettings = field(default_factory=ChunkingSettings)
+    mesh: MeshSettings = field(default_factory=MeshSettings)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict for job.json (``None`` fields dropped, as TOML has no null)."""
+        return {k: {f: v for f, v in sec.items() if v is not None} for k, sec in asdict(self).items()}
+
+
+_SECTIONS: dict[str, type] = {"robot": RobotProfile, "chunking": ChunkingSettings, "mesh": MeshSettings}
+
+
+def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> float | None:
+    lo, hi, unit = meta["lo"], meta["hi"], meta["unit"]
+    rng = []
+    if lo is not None:
+        rng.append(f"{'>' if meta['lo_open'] else '>='} {lo:g}")
+    if hi is not None:
+        rng.append(f"<= {hi:g}")
+    expect = "a number " + " and ".join(rng) + (f" ({unit})" if unit else "")
+    if value is None and meta["optional"]:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
+    v = float(value)
+    ok = math.isfinite(v)
+    if ok and lo is not None:
+        ok = v > lo if meta["lo_open"] else v >= lo
+    if ok and hi is not None:
+        ok = v <= hi
+    if not ok:
+        raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
+    return v
+
+
+def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> Any:
+    known = {f.name: f for f in fields(cls)}
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        if key not in known:
+            raise ConfigError(f"{where}unknown field {section}.{key}; expected one of: "
+                              + ", ".join(sorted(known)))
+        f = known[key]
+        name = f"{section}.{key}"
+        if f.metadata:
+            out[key] = _check_value(where, name, value, f.metadata)
+        elif not isinstance(value, str) or not value.strip():
+            raise ConfigError(f"{where}{name} = {value!r}: expected a non-empty string")
+        else:
+            out[key] = value
+    return cls(**out)
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such settings file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read settings file ({exc})") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+
+
+def _defaults() -> dict[str, Any]:
+    text = resources.files("cooprint.config").joinpath("defaults.toml").read_text(encoding="utf-8")
+    return tomllib.loads(text)
+
+
+def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None) -> JobSettings:
+    """Read the shipped defaults, then each TOML file in ``paths``, then ``overrides``.
+
+    Parameters
+    ----------
+    paths
+        TOML files with any of the sections ``[robot]``, ``[chunking]``, ``[mesh]``.
+    overrides
+        ``{"section.field": value}``, e.g. from command-line flags; ``None`` values are ignored.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the field, the value given and what was expected.
+    """
+    merged: dict[str, dict[str, Any]] = {s: {} for s in _SECTIONS}
+    layers: list[tuple[str, Mapping[str, Any]]] = [("defaults.toml: ", _defaults())]
+    layers += [(f"{p}: ", _read_toml(Path(p))) for p in paths]
+    for where, data in layers:
+        for section, values in data.items():
+            if section not in _SECTIONS:
+                raise ConfigError(f"{where}unknown section [{section}]; expected one of: "
+                                  + ", ".join(f"[{s}]" for s in _SECTIONS))
+            if not isinstance(values, dict):
+                raise ConfigError(f"{where}{section} must be a table [{section}]")
+            _build(section, _SECTIONS[section], values, where)  # validate with its own file name
+            merged[section].update(values)
+    for key, value in (overrides or {}).items():
+        if value is None:
+            continue
+        section, _, name = key.partition(".")
+        _build(section, _SECTIONS[section], {name: value}, "option: ")
+        merged[section][name] = value
+    return JobSettings(**{s: _build(s, cls, merged[s], "") for s, cls in _SECTIONS.items()})

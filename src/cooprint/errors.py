@@ -1,0 +1,25 @@
+"""Errors a user can cause and fix.
+
+Every stage raises :class:`UserError` (or a subclass) for bad input; the CLI turns it into a
+one-line message on stderr and exit code 2. Anything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+
+class UserError(Exception):
+    """Bad input: a file, a field or a value the user can correct. Exit code 2."""
+
+    exit_code = 2
+
+
+class ConfigError(UserError):
+    """A setting is missing, of the wrong type or out of range."""
+
+
+class MeshError(UserError):
+    """A mesh file cannot be read, or cannot be made into a watertight solid."""
+
+
+class InfeasibleError(UserError):
+    """The job cannot be printed by the given robots (slope or reach limits)."""

@@ -1,0 +1,57 @@
+"""Test meshes made in code (the suite never reads ../shared)."""
+
+from __future__ import annotations
+
+import manifold3d as m3d
+import numpy as np
+import trimesh
+
+from cooprint.models import car_manifold
+
+
+def to_trimesh(man: m3d.Manifold) -> trimesh.Trimesh:
+    mesh = man.to_mesh64()
+    return trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts),
+                           process=False)
+
+
+def box(x: float = 40.0, y: float = 300.0, z: float = 30.0) -> m3d.Manifold:
+    """Axis-aligned box centred in x, y, standing on z = 0."""
+    return m3d.Manifold.cube((x, y, z), center=True).translate((0, 0, z / 2))
+
+
+def cylinder(r: float = 20.0, h: float = 120.0, segments: int = 96) -> m3d.Manifold:
+    return m3d.Manifold.cylinder(h, r, r, segments)
+
+
+def tube(r_out: float = 25.0, r_in: float = 10.0, h: float = 60.0, segments: int = 96) -> m3d.Manifold:
+    """A pipe: every horizontal section has a hole."""
+    return cylinder(r_out, h, segments) - cylinder(r_in, h + 2, segments).translate((0, 0, -1))
+
+
+def lying_tube(r_out: float = 30.0, r_in: float = 18.0, length: float = 400.0) -> m3d.Manifold:
+    """A pipe lying along Y: cuts across it have holes and islands."""
+    t = tube(r_out, r_in, length)
+    return t.rotate((90, 0, 0)).translate((0, length / 2, r_out))
+
+
+def car(length: float = 420.0) -> m3d.Manifold:
+    """A car-like union of boxes and cylinders, length along Y (the chunking direction)."""
+    return car_manifold(length)
+
+
+def thin_walls(length: float = 300.0) -> m3d.Manifold:
+    """Two 1.2 mm walls on a base plate."""
+    base = m3d.Manifold.cube((60, length, 2), center=True).translate((0, 0, 1))
+    wall = m3d.Manifold.cube((1.2, length, 40), center=True)
+    return base + wall.translate((-20, 0, 22)) + wall.translate((20, 0, 22))
+
+
+def with_hole(man: m3d.Manifold, n_faces: int = 2) -> trimesh.Trimesh:
+    """The mesh with ``n_faces`` adjacent triangles removed: a small hole."""
+    tm = to_trimesh(man)
+    keep = np.ones(len(tm.faces), dtype=bool)
+    start = len(tm.faces) // 2
+    keep[start:start + n_faces] = False
+    tm.update_faces(keep)
+    return tm

@@ -1,0 +1,56 @@
+import pytest
+
+from cooprint.config import JobSettings, load_settings
+from cooprint.errors import ConfigError
+
+
+def test_defaults_match_dataclass_defaults():
+    # the shipped TOML and the dataclass defaults describe the same robot
+    assert load_settings() == JobSettings()
+
+
+def test_file_overrides_defaults(tmp_path):
+    f = tmp_path / "r.toml"
+    f.write_text("[robot]\nname = 'big'\nbuild_depth = 900\n[chunking]\ntheta_deg = 50\n")
+    s = load_settings(f)
+    assert s.robot.name == "big" and s.robot.build_depth == 900.0
+    assert s.robot.nozzle_height == JobSettings().robot.nozzle_height
+    assert s.chunking.theta_deg == 50.0
+
+
+def test_overrides_win_over_files_and_none_is_ignored(tmp_path):
+    f = tmp_path / "r.toml"
+    f.write_text("[chunking]\nshift = 10\n")
+    s = load_settings(f, overrides={"chunking.shift": 20.0, "chunking.theta_deg": None})
+    assert s.chunking.shift == 20.0 and s.chunking.theta_deg is None
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("[robot]\nbuild_depth = -3\n", "robot.build_depth = -3: expected a number > 0 and <= 100000 (mm)"),
+    ("[robot]\nnozzle_height = 'tall'\n", "robot.nozzle_height = 'tall': expected a number"),
+    ("[robot]\nbuild_depth = nan\n", "robot.build_depth = nan"),
+    ("[robot]\nprint_speed = true\n", "robot.print_speed = True"),
+    ("[chunking]\ntheta_deg = 95\n", "chunking.theta_deg = 95: expected a number > 0 and <= 90 (deg)"),
+    ("[robot]\nwheels = 4\n", "unknown field robot.wheels; expected one of:"),
+    ("[printer]\nx = 1\n", "unknown section [printer]"),
+    ("[robot]\nname = ''\n", "robot.name = '': expected a non-empty string"),
+    ("[robot\n", "invalid TOML"),
+])
+def test_bad_fields_name_file_field_value_and_range(tmp_path, text, needle):
+    f = tmp_path / "bad.toml"
+    f.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_settings(f)
+    msg = str(err.value)
+    assert str(f) in msg and needle in msg
+    assert "\n" not in msg
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ConfigError, match="no such settings file"):
+        load_settings(tmp_path / "nope.toml")
+
+
+def test_bad_override_is_named_as_option():
+    with pytest.raises(ConfigError, match=r"option: chunking.shift = -1"):
+        load_settings(overrides={"chunking.shift": -1})

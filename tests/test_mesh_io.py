@@ -1,0 +1,143 @@
+import gzip
+
+import manifold3d as m3d
+import numpy as np
+import pytest
+import trimesh
+
+from cooprint.config import MeshSettings
+from cooprint.errors import MeshError
+from cooprint.io.mesh import load_mesh, solid_from_trimesh
+
+from solids import box, car, to_trimesh, with_hole
+
+CUBE_VOLUME = 20.0 * 30.0 * 10.0
+
+
+@pytest.fixture
+def cube_tm():
+    return to_trimesh(box(20, 30, 10))
+
+
+@pytest.mark.parametrize("name", ["a.stl", "a_ascii.stl", "a.obj", "a.ply", "a.3mf",
+                                  "a.stl.gz", "a.obj.gz", "a.ply.gz", "a.3mf.gz"])
+def test_every_format_loads_the_same_solid(tmp_path, cube_tm, name):
+    path = tmp_path / name
+    base = name.removesuffix(".gz")
+    if base == "a_ascii.stl":
+        data = trimesh.exchange.stl.export_stl_ascii(cube_tm).encode()
+    else:
+        data = cube_tm.export(file_type=base.rsplit(".", 1)[1])
+        data = data.encode() if isinstance(data, str) else data
+    path.write_bytes(gzip.compress(data) if name.endswith(".gz") else data)
+    s = load_mesh(path)
+    assert s.volume == pytest.approx(CUBE_VOLUME, rel=1e-6)
+    assert s.report.triangles == 12
+    assert s.report.watertight_as_read
+    np.testing.assert_allclose(s.bounds, [[-10, -15, 0], [10, 15, 10]], atol=1e-5)
+
+
+def test_report_counts_and_no_repairs_on_clean_mesh(cube_tm):
+    s = solid_from_trimesh(cube_tm, fmt="stl")
+    assert s.report.repairs == ()
+    assert s.report.vertices == 8
+
+
+def test_inverted_mesh_is_turned_outward(cube_tm):
+    cube_tm.invert()
+    s = solid_from_trimesh(cube_tm)
+    assert s.volume == pytest.approx(CUBE_VOLUME)
+    assert any("inside-out" in r for r in s.report.repairs)
+
+
+def test_inconsistent_winding_is_fixed():
+    tm = to_trimesh(car())
+    faces = tm.faces.copy()
+    faces[::7] = faces[::7, ::-1]
+    s = solid_from_trimesh(trimesh.Trimesh(tm.vertices, faces, process=False))
+    assert s.volume == pytest.approx(car().volume(), rel=1e-9)
+    assert any("winding" in r for r in s.report.repairs)
+
+
+def test_duplicate_and_degenerate_triangles_are_dropped(cube_tm):
+    faces = np.vstack([cube_tm.faces, cube_tm.faces[:2], [[0, 0, 1]]])
+    s = solid_from_trimesh(trimesh.Trimesh(cube_tm.vertices, faces, process=False))
+    assert s.report.triangles == 12
+    assert any("degenerate or duplicate" in r for r in s.report.repairs)
+
+
+@pytest.mark.parametrize("n_faces", [1, 2, 5])
+def test_small_hole_is_closed_and_reported(n_faces):
+    man = m3d.Manifold.sphere(30, 96)
+    s = solid_from_trimesh(with_hole(man, n_faces))
+    assert s.volume == pytest.approx(man.volume(), rel=1e-3)
+    assert any("closed" in r and "hole" in r for r in s.report.repairs)
+
+
+def test_big_hole_is_refused_with_the_setting_named():
+    tm = to_trimesh(box(20, 30, 10))
+    tm.update_faces(np.arange(len(tm.faces)) >= 2)  # drop one whole side
+    with pytest.raises(MeshError, match=r"too large to close .*mesh.max_hole_fraction"):
+        solid_from_trimesh(tm, MeshSettings(max_hole_fraction=0.01), path="open.stl")
+
+
+def test_non_manifold_is_refused(cube_tm):
+    faces = np.vstack([cube_tm.faces, [[0, 1, 7]], [[1, 0, 6]]])
+    with pytest.raises(MeshError, match="not watertight"):
+        solid_from_trimesh(trimesh.Trimesh(cube_tm.vertices, faces, process=False), path="nm.stl")
+
+
+def _write(tmp_path, name, data: bytes):
+    p = tmp_path / name
+    p.write_bytes(data)
+    return p
+
+
+@pytest.mark.parametrize("name, data, needle", [
+    ("empty.stl", b"", "file is empty"),
+    ("blank.obj", b"   \n\n", "file is empty"),
+    ("garbage.stl", b"\x00\xff" * 300, "truncated or not an STL"),
+    ("short.stl", b"abc", "too short for a binary STL"),
+    ("noend.stl", b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n", "no 'endsolid'"),
+    ("garbage.3mf", b"PK\x03\x04 not really a zip", "cannot read as 3MF"),
+    ("garbage.ply", b"ply\nformat nonsense\n", "cannot read as PLY"),
+    ("noface.obj", b"v 0 0 0\nv 1 0 0\n", "no triangles"),
+    ("bad.stl.gz", b"\x1f\x8b\x08\x00garbage", "cannot read gzip"),
+    ("model.xyz", b"1 2 3", "unknown mesh format 'xyz'; expected one of .stl, .obj, .ply, .3mf"),
+])
+def test_hostile_files_give_one_line_errors(tmp_path, name, data, needle):
+    p = _write(tmp_path, name, data)
+    with pytest.raises(MeshError) as err:
+        load_mesh(p)
+    assert needle in str(err.value)
+    assert str(p) in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_truncated_binary_stl(tmp_path, cube_tm):
+    data = cube_tm.export(file_type="stl")
+    p = _write(tmp_path, "cut.stl", data[:-30])
+    with pytest.raises(MeshError, match=r"header says 12 triangles \(684 bytes\) but the file has 654"):
+        load_mesh(p)
+
+
+def test_absurd_triangle_count_header_does_not_allocate(tmp_path):
+    data = b"x" * 80 + np.uint32(4_000_000_000).tobytes() + b"\0" * 100
+    with pytest.raises(MeshError, match="header says 4000000000 triangles"):
+        load_mesh(_write(tmp_path, "huge.stl", data))
+
+
+@pytest.mark.parametrize("value, needle", [(np.nan, "NaN or infinite"), (np.inf, "NaN or infinite"),
+                                            (1e12, "wrong units")])
+def test_non_finite_and_absurd_coordinates(tmp_path, cube_tm, value, needle):
+    v = cube_tm.vertices.copy()
+    v[3, 1] = value
+    tm = trimesh.Trimesh(v, cube_tm.faces, process=False)
+    p = _write(tmp_path, "bad.obj", tm.export(file_type="obj").encode())
+    with pytest.raises(MeshError, match=needle):
+        load_mesh(p)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(MeshError, match="no such file"):
+        load_mesh(tmp_path / "nope.stl")

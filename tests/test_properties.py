@@ -1,0 +1,50 @@
+"""Property tests: invariants of the chunker over slopes, shifts, centre lines and shapes."""
+
+import math
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cooprint.chunking import cut_chunks, plan_chunks
+from cooprint.config import ChunkingSettings, RobotProfile
+from cooprint.io.mesh import solid_from_trimesh
+
+from solids import box, car, cylinder, lying_tube, thin_walls, to_trimesh, tube
+from test_chunking import assert_valid_chunkset, check_physics
+
+ROBOT = RobotProfile(build_depth=500.0, nozzle_height=100.0, nozzle_depth=20.0)
+SHAPES = {
+    "box": lambda: box(40, 300, 30), "car": car, "cylinder": lambda: cylinder(40, 80),
+    "tube": lambda: tube(50, 30, 60), "lying_tube": lying_tube, "thin_walls": thin_walls,
+}
+_SOLIDS: dict = {}
+
+
+def solid(name):
+    if name not in _SOLIDS:
+        _SOLIDS[name] = solid_from_trimesh(to_trimesh(SHAPES[name]()))
+    return _SOLIDS[name]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(name=st.sampled_from(sorted(SHAPES)), theta_frac=st.floats(0.05, 1.0),
+       shift_frac=st.floats(0.05, 1.0), angle=st.sampled_from([0.0, 30.0, 90.0, -45.0]),
+       offset=st.floats(-60, 60), top=st.floats(0, 30))
+def test_chunking_invariants(name, theta_frac, shift_frac, angle, offset, top):
+    s = solid(name)
+    h = s.bounds[1, 2] - s.bounds[0, 2]
+    tmin = math.degrees(math.atan2(h, ROBOT.build_depth))
+    tmax = math.degrees(math.atan2(ROBOT.nozzle_height, ROBOT.nozzle_depth))
+    theta = tmin + (tmax - tmin) * theta_frac
+    run = h / math.tan(math.radians(theta))
+    if 2 * run + top > ROBOT.build_depth:
+        top = 0.0
+    if 2 * run > ROBOT.build_depth:
+        theta = tmax
+        run = h / math.tan(math.radians(theta))
+    shift = max((ROBOT.build_depth - run) * shift_frac, 15.0)
+    cfg = ChunkingSettings(theta_deg=theta, shift=shift, top_width=top, centre_angle_deg=angle,
+                           centre_offset=offset)
+    cs = cut_chunks(s, plan_chunks(s.vertices, ROBOT, cfg))
+    assert_valid_chunkset(s, cs, 1000.0)
+    check_physics(cs, ROBOT, tol=1e-6)
