@@ -147,10 +147,11 @@ def check_physics(cs, robot, tol=1e-6):
     for ch in cs.chunks:
         t = t_coord(plan, ch.vertices)
         assert np.ptp(t) <= robot.build_depth + tol, f"{ch.id} needs reach {np.ptp(t):.2f}"
-        if ch.role == "centre":
+        deps = _all_deps(cs, ch.id)
+        if not deps:  # the first chunk printed (C, or a side chunk when C is empty)
             continue
         sgn = 1.0 if ch.role == "right" else -1.0  # robot stands outside, faces the centre
-        prior = np.vstack([sample(cs[d]) for d in _all_deps(cs, ch.id)])
+        prior = np.vstack([sample(cs[d]) for d in deps])
         noz = sample(ch, seed=1)
         hit = printhead_overlap(prior, noz, sgn * t_coord(plan, prior), sgn * t_coord(plan, noz), robot)
         assert hit <= tol, f"{ch.id}: printed material {hit:.3f} mm into the printhead"
@@ -165,9 +166,9 @@ def _all_deps(cs, cid):
     return out
 
 
-@pytest.mark.parametrize("shape", [box(40, 300, 30), car(), tube(25, 10, 60), lying_tube()])
+@pytest.mark.parametrize("shape", [lambda: box(40, 300, 30), car, lambda: tube(25, 10, 60), lying_tube])
 def test_reach_and_printhead_clearance_hold_for_every_chunk(shape):
-    _, cs = chunked(shape, theta_deg=None)  # theta_max: the steepest printable slope
+    _, cs = chunked(shape(), theta_deg=None)  # theta_max: the steepest printable slope
     check_physics(cs, ROBOT)
 
 
@@ -203,8 +204,8 @@ def assert_valid_chunkset(solid, cs, scale):
             assert d in ids
 
 
-@pytest.mark.parametrize("shape", [box(), car(), tube(), lying_tube(), thin_walls()])
+@pytest.mark.parametrize("shape", [box, car, tube, lying_tube, thin_walls])
 def test_invariants_on_generated_shapes(shape):
-    solid, cs = chunked(shape, robot=RobotProfile(build_depth=400), shift=60.0)
+    solid, cs = chunked(shape(), robot=RobotProfile(build_depth=400), shift=60.0)
     assert_valid_chunkset(solid, cs, 1000.0)
     assert len(cs.chunks) >= 3

@@ -2,6 +2,8 @@
 
 import math
 
+import pytest
+
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -17,21 +19,28 @@ SHAPES = {
     "box": lambda: box(40, 300, 30), "car": car, "cylinder": lambda: cylinder(40, 80),
     "tube": lambda: tube(50, 30, 60), "lying_tube": lying_tube, "thin_walls": thin_walls,
 }
-_SOLIDS: dict = {}
 
 
-def solid(name):
-    if name not in _SOLIDS:
-        _SOLIDS[name] = solid_from_trimesh(to_trimesh(SHAPES[name]()))
-    return _SOLIDS[name]
+@pytest.fixture(scope="module")
+def solids():
+    """Solids built once per module, released at its end (manifold3d objects must not outlive it)."""
+    cache: dict = {}
+
+    def get(name):
+        if name not in cache:
+            cache[name] = solid_from_trimesh(to_trimesh(SHAPES[name]()))
+        return cache[name]
+
+    yield get
+    cache.clear()
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(name=st.sampled_from(sorted(SHAPES)), theta_frac=st.floats(0.05, 1.0),
        shift_frac=st.floats(0.05, 1.0), angle=st.sampled_from([0.0, 30.0, 90.0, -45.0]),
        offset=st.floats(-60, 60), top=st.floats(0, 30))
-def test_chunking_invariants(name, theta_frac, shift_frac, angle, offset, top):
-    s = solid(name)
+def test_chunking_invariants(solids, name, theta_frac, shift_frac, angle, offset, top):
+    s = solids(name)
     h = s.bounds[1, 2] - s.bounds[0, 2]
     tmin = math.degrees(math.atan2(h, ROBOT.build_depth))
     tmax = math.degrees(math.atan2(ROBOT.nozzle_height, ROBOT.nozzle_depth))
