@@ -7,15 +7,14 @@ from __future__ import annotations
 
 import manifold3d as m3d
 import numpy as np
-import trimesh
 
-from cooprint.io.mesh import Solid, solid_from_trimesh
+from cooprint.io.mesh import Solid, solid_from_arrays
 
 
 def _solid(man: m3d.Manifold, name: str) -> Solid:
     mesh = man.to_mesh64()
-    tm = trimesh.Trimesh(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts), process=False)
-    return solid_from_trimesh(tm, path=f"<{name}>", fmt="generated")
+    return solid_from_arrays(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts),
+                             path=f"<{name}>", fmt="generated")
 
 
 def car_manifold(length: float = 420.0) -> m3d.Manifold:

@@ -1,24 +1,31 @@
 """Cut a solid into watertight chunks along a :class:`ChunkPlan` (seed §3.2, Fig. 4).
 
 The seed bisected with Blender and capped the cuts by hand; here every cut is an exact
-manifold3d half-space split, so each chunk is a closed 2-manifold and the chunk volumes add up to
-the solid's volume. Parallel planes on one side are applied by recursive halving (middle plane
-first), which measured about 2x faster than peeling one chunk at a time (see DESIGN.md).
+half-space split that leaves both halves closed (:mod:`cooprint.chunking.split`, in numpy, with
+manifold3d's kernel as the fallback for self-intersecting input), so each chunk is a closed
+2-manifold and the chunk volumes add up to the solid's volume. Parallel planes on one side are
+applied by recursive halving (middle plane first), which measured about 2x faster than peeling
+one chunk at a time (see DESIGN.md).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import manifold3d
 import numpy as np
 
 from cooprint.chunking.planes import ChunkPlan, Plane
+from cooprint.chunking.split import CapError, Mesh, split_mesh
+from cooprint.geometry import compact, signed_volume
 from cooprint.io.mesh import Solid
 
 #: A chunk whose volume is below this fraction of the solid's is numerical dust, not a chunk.
 DUST = 1e-12
+#: Section points this close to a mesh vertex (times the bounding-box diagonal) become that
+#: vertex; single-precision STL resolves about 6e-8 of the diagonal.
+SNAP = 1e-6
 
 
 @dataclass(frozen=True)
@@ -99,15 +106,70 @@ class ChunkSet:
         return float(sum(c.volume for c in self.chunks))
 
 
-def _split_parallel(m: manifold3d.Manifold, planes: list[Plane]) -> list[manifold3d.Manifold]:
-    """Pieces of ``m`` between consecutive parallel planes (same normal, increasing offset):
-    ``len(planes) + 1`` pieces, innermost first."""
+class _NumpyKernel:
+    """Pieces are face arrays over one shared, growing vertex pool (see :mod:`.split`)."""
+
+    def __init__(self, solid: Solid):
+        self.pool = Mesh(solid.vertices)
+        self.whole = np.asarray(solid.faces, dtype=np.int64)
+        self.snap = SNAP * float(np.linalg.norm(np.ptp(solid.vertices, axis=0)))
+
+    def split(self, piece: np.ndarray, plane: Plane) -> tuple[np.ndarray, np.ndarray]:
+        return split_mesh(self.pool, piece, plane.normal, plane.offset, self.snap)
+
+    def extract(self, piece: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        if len(piece) == 0:
+            return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), 0.0
+        verts, faces = compact(self.pool.vertices, piece)
+        return verts, faces, signed_volume(verts, faces)
+
+
+class _ManifoldKernel:
+    """Pieces are manifold3d objects: slower, but robust to self-intersecting input."""
+
+    def __init__(self, solid: Solid):
+        self.whole = solid.manifold
+
+    def split(self, piece: manifold3d.Manifold, plane: Plane) -> tuple[manifold3d.Manifold, manifold3d.Manifold]:
+        return piece.split_by_plane(plane.normal, plane.offset)
+
+    def extract(self, piece: manifold3d.Manifold) -> tuple[np.ndarray, np.ndarray, float]:
+        mesh = piece.to_mesh64()
+        return (np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3],
+                np.asarray(mesh.tri_verts, dtype=np.int64), float(piece.volume()))
+
+
+def _split_parallel(kernel: Any, piece: Any, planes: list[Plane]) -> list[Any]:
+    """Pieces between consecutive parallel planes (same normal, increasing offset):
+    ``len(planes) + 1`` pieces, innermost first. Middle plane first (recursive halving)."""
     if not planes:
-        return [m]
+        return [piece]
     mid = len(planes) // 2
-    p = planes[mid]
-    outer, inner = m.split_by_plane(p.normal, p.offset)
-    return _split_parallel(inner, planes[:mid]) + _split_parallel(outer, planes[mid + 1:])
+    outer, inner = kernel.split(piece, planes[mid])
+    return _split_parallel(kernel, inner, planes[:mid]) + _split_parallel(kernel, outer, planes[mid + 1:])
+
+
+def _pieces(kernel: Any, plan: ChunkPlan) -> list[tuple[str, str, int, Any, tuple[Plane, ...]]]:
+    """(id, role, index, piece, bounding planes) for every chunk of the plan, centre first."""
+    right_planes = [plan.plane("R", k) for k in range(plan.n_right)]
+    left_planes = [plan.plane("L", k) for k in range(plan.n_left)]
+    r0, l0 = plan.plane("R", 0), plan.plane("L", 0)
+    centre = kernel.whole
+    right_pieces: list[Any] = []
+    left_pieces: list[Any] = []
+    if plan.n_right:  # else nothing (beyond numerical slack) lies past R_0: keep it all in C
+        right_side, centre = kernel.split(centre, r0)
+        right_pieces = _split_parallel(kernel, right_side, right_planes[1:])
+    if plan.n_left:
+        left_side, centre = kernel.split(centre, l0)
+        left_pieces = _split_parallel(kernel, left_side, left_planes[1:])
+    specs: list[tuple[str, str, int, Any, tuple[Plane, ...]]] = [("C", "centre", 0, centre, (r0, l0))]
+    for role, side, pieces, planes in (("left", "L", left_pieces, left_planes),
+                                       ("right", "R", right_pieces, right_planes)):
+        for k, piece in enumerate(pieces, start=1):
+            bounds = (planes[k - 1].flipped(),) + ((planes[k],) if k < len(planes) else ())
+            specs.append((f"{side}{k}", role, k, piece, bounds))
+    return specs
 
 
 def dependencies(chunks: tuple[Chunk, ...]) -> dict[str, tuple[str, ...]]:
@@ -144,36 +206,19 @@ def cut_chunks(solid: Solid, plan: ChunkPlan,
     ChunkSet
         Non-empty chunks only; ids keep their plane index even if a chunk between is empty.
     """
-    right_planes = [plan.plane("R", k) for k in range(plan.n_right)]
-    left_planes = [plan.plane("L", k) for k in range(plan.n_left)]
-    r0, l0 = plan.plane("R", 0), plan.plane("L", 0)
-    centre = solid.manifold
-    right_pieces: list[manifold3d.Manifold] = []
-    left_pieces: list[manifold3d.Manifold] = []
-    if plan.n_right:  # else nothing (beyond numerical slack) lies past R_0: keep it all in C
-        right_side, centre = centre.split_by_plane(r0.normal, r0.offset)
-        right_pieces = _split_parallel(right_side, right_planes[1:])
-    if plan.n_left:
-        left_side, centre = centre.split_by_plane(l0.normal, l0.offset)
-        left_pieces = _split_parallel(left_side, left_planes[1:])
-
-    specs: list[tuple[str, str, int, manifold3d.Manifold, tuple[Plane, ...]]] = [
-        ("C", "centre", 0, centre, (r0, l0))]
-    for role, side, pieces, planes in (("left", "L", left_pieces, left_planes),
-                                       ("right", "R", right_pieces, right_planes)):
-        for k, piece in enumerate(pieces, start=1):
-            bounds = (planes[k - 1].flipped(),) + ((planes[k],) if k < len(planes) else ())
-            specs.append((f"{side}{k}", role, k, piece, bounds))
+    kernel: Any = _NumpyKernel(solid)
+    try:
+        specs = _pieces(kernel, plan)
+    except CapError:  # a section that is not a valid polygon set (self-intersecting mesh)
+        kernel = _ManifoldKernel(solid)
+        specs = _pieces(kernel, plan)
 
     total = len(specs)
     chunks: list[Chunk] = []
     dust = DUST * solid.volume
-    for i, (cid, role, k, man, planes_k) in enumerate(specs):
-        vol = float(man.volume())
+    for i, (cid, role, k, piece, planes_k) in enumerate(specs):
+        verts, faces, vol = kernel.extract(piece)
         if vol > dust:
-            mesh = man.to_mesh64()
-            verts = np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3]
-            faces = np.asarray(mesh.tri_verts, dtype=np.int64)
             chunks.append(Chunk(cid, role, k, verts, faces, vol, planes_k))
         if progress:
             progress(i + 1, total)

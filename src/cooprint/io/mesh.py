@@ -13,13 +13,16 @@ import gzip
 import io
 import logging
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
+
+from typing import TYPE_CHECKING
 
 import manifold3d
 import numpy as np
-import trimesh
 
 from cooprint.config import MeshSettings
+from cooprint.geometry import compact, edge_table, is_closed, signed_volume
 from cooprint.errors import MeshError
 
 FORMATS = ("stl", "obj", "ply", "3mf")
@@ -29,6 +32,9 @@ MAX_BYTES = 2 * 1024**3
 MAX_COORD = 1e7
 
 logging.getLogger("trimesh").setLevel(logging.ERROR)
+
+if TYPE_CHECKING:  # trimesh (and scipy behind it) costs ~1 s to import: only the slow paths load it
+    import trimesh
 
 
 @dataclass(frozen=True)
@@ -70,15 +76,15 @@ class Solid:
         Where it came from and what was repaired.
     """
 
-    vertices: np.ndarray
-    faces: np.ndarray
+    vertices: np.ndarray = field(repr=False)
+    faces: np.ndarray = field(repr=False)
     report: MeshReport
-    _manifold: manifold3d.Manifold = field(repr=False, compare=False)
 
-    @property
+    @cached_property
     def manifold(self) -> manifold3d.Manifold:
-        """The same solid as a manifold3d object (built once, at load time)."""
-        return self._manifold
+        """The same solid as a manifold3d object, built on first use (it costs about 1.5 s per
+        million triangles, so the fast paths do without it)."""
+        return _to_manifold(self.vertices, self.faces)
 
     @property
     def bounds(self) -> np.ndarray:
@@ -116,26 +122,36 @@ def _read_bytes(path: Path) -> tuple[bytes, str]:
     return data, fmt
 
 
-def _check_stl(path: Path, data: bytes) -> None:
-    """Refuse truncated or padded binary STL before the reader guesses."""
+def _check_stl(path: Path, data: bytes) -> int | None:
+    """The triangle count of a binary STL, ``None`` for a plausible ASCII STL; refuse truncated
+    or padded binary STL before a reader guesses."""
+    n = 0
     if len(data) >= 84:
         n = int(np.frombuffer(data, "<u4", count=1, offset=80)[0])
         if 84 + 50 * n == len(data):
-            return
+            return n
     head = data[:1024].lstrip().lower()
     if head.startswith(b"solid") and b"facet" in data[:4096].lower():
         if b"endsolid" not in data[-4096:].lower():
             raise MeshError(f"{path}: ASCII STL has no 'endsolid' line (truncated?)")
-        return
+        return None
     if len(data) < 84:
         raise MeshError(f"{path}: too short for a binary STL ({len(data)} bytes, need at least 84)")
     raise MeshError(f"{path}: binary STL header says {n} triangles ({84 + 50 * n} bytes) but the "
                     f"file has {len(data)} bytes (truncated or not an STL)")
 
 
-def _parse(path: Path, data: bytes, fmt: str) -> trimesh.Trimesh:
+def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (n, 3) and faces (m, 3) of the file's triangles (float32 vertices for binary
+    STL, which stores them so: merging them in that precision is exact and twice as fast)."""
     if fmt == "stl":
-        _check_stl(path, data)
+        n = _check_stl(path, data)
+        if n is not None:  # binary STL: one record array, no per-triangle work
+            rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+            corners = np.frombuffer(data, rec, count=n, offset=84)["v"].reshape(-1, 3)
+            return corners.copy(), np.arange(3 * n, dtype=np.int64).reshape(-1, 3)
+    import trimesh
+
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=fmt, force="mesh", process=False)
     except Exception as exc:  # any reader failure on a user file is a user error
@@ -143,29 +159,7 @@ def _parse(path: Path, data: bytes, fmt: str) -> trimesh.Trimesh:
         raise MeshError(f"{path}: cannot read as {fmt.upper()}: {msg}") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f"{path}: contains no triangles")
-    return loaded
-
-
-def _edge_table(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Directed edges (3m, 2), how many triangles use each edge's undirected twin (3m,), and
-    whether no directed edge repeats (the winding is consistent where edges are shared)."""
-    edges = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    n = np.int64(max(int(faces.max()) + 1, 1))
-    lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
-    key = lo * n + hi
-    order = np.argsort(key)
-    sk = key[order]
-    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
-    uses = np.empty(len(key), dtype=np.int64)
-    uses[order] = np.repeat(np.diff(np.r_[starts, len(sk)]), np.diff(np.r_[starts, len(sk)]))
-    directed = np.sort(edges[:, 0] * n + edges[:, 1])
-    return edges, uses, bool((directed[1:] != directed[:-1]).all())
-
-
-def _is_closed(faces: np.ndarray) -> bool:
-    """Every edge shared by exactly two triangles, in opposite directions."""
-    _, uses, consistent = _edge_table(faces)
-    return bool(consistent and (uses == 2).all())
+    return np.asarray(loaded.vertices, dtype=np.float64), np.asarray(loaded.faces, dtype=np.int64)
 
 
 def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
@@ -174,7 +168,7 @@ def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     Returns ``None`` when the boundary does not decompose into closed loops (an edge used by
     more than two faces, or a dangling boundary edge).
     """
-    edges, uses, _ = _edge_table(faces)
+    edges, uses, _ = edge_table(faces)
     if (uses > 2).any():
         return None
     open_edges = edges[uses == 1]
@@ -202,11 +196,6 @@ def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     return loops
 
 
-def _signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    t = vertices[faces]
-    return float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() / 6.0)
-
-
 def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:
     """Triangles closing one boundary loop, wound against the loop (so edges pair up)."""
     pts = vertices[loop]
@@ -229,37 +218,44 @@ def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:
     return faces
 
 
+def _merge_vertices(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge bit-identical vertices with one lexicographic sort of their bit patterns (STL stores
+    every corner of every triangle, so this is what turns a soup into a mesh).
+
+    ``v`` is float32 (two sort keys: x and y bits packed, z) or float64 (three keys). Returns the
+    unique vertices, in sorted order, and the re-indexed faces.
+    """
+    v = np.ascontiguousarray(v + v.dtype.type(0))  # -0.0 -> 0.0
+    if v.dtype == np.float32:
+        b = v.view(np.uint32).reshape(-1, 3)
+        keys = [b[:, 2], (b[:, 0].astype(np.uint64) << np.uint64(32)) | b[:, 1]]
+    else:
+        b = v.view(np.uint64).reshape(-1, 3)
+        keys = [b[:, 2], b[:, 1], b[:, 0]]
+    order = np.lexsort(keys)
+    new = np.zeros(len(v), dtype=bool)
+    new[0] = True
+    for k in keys:
+        sk = k[order]
+        new[1:] |= sk[1:] != sk[:-1]
+    inverse = np.empty(len(v), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return v[order[new]], inverse[f]
+
+
 def _to_manifold(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold:
     mesh = manifold3d.Mesh64(vert_properties=np.ascontiguousarray(vertices, dtype=np.float64),
                              tri_verts=np.ascontiguousarray(faces, dtype=np.uint64))
     return manifold3d.Manifold(mesh)
 
 
-def solid_from_trimesh(mesh: trimesh.Trimesh, settings: MeshSettings | None = None, *,
-                       path: str = "<mesh>", fmt: str = "mesh") -> Solid:
-    """Validate and repair an in-memory mesh into a :class:`Solid` (the loader's second half)."""
-    settings = settings or MeshSettings()
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    f = np.asarray(mesh.faces, dtype=np.int64)
-    n_read = len(f)
-    if n_read == 0:
-        raise MeshError(f"{path}: contains no triangles")
-    if not np.isfinite(v).all():
-        bad = int((~np.isfinite(v).all(axis=1)).sum())
-        raise MeshError(f"{path}: {bad} vertices have NaN or infinite coordinates")
-    if np.abs(v).max() > MAX_COORD:
-        raise MeshError(f"{path}: coordinates up to {np.abs(v).max():.3g} mm exceed {MAX_COORD:.0e} mm "
-                        "(wrong units?)")
-    if f.min() < 0 or f.max() >= len(v):
-        raise MeshError(f"{path}: face indices out of range (0..{len(v) - 1})")
+def _repair(verts: np.ndarray, faces: np.ndarray, settings: MeshSettings, path: str,
+            repairs: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """The slow path, for meshes that are not already closed and consistently wound: drop
+    duplicate and zero-area triangles, fix the winding, close small holes."""
+    import trimesh
 
-    repairs: list[str] = []
-    tm = trimesh.Trimesh(v, f, process=False, validate=False)
-    nv = len(tm.vertices)
-    tm.merge_vertices()
-    if len(tm.vertices) < nv and fmt != "stl":  # STL always repeats vertices: not a repair
-        repairs.append(f"merged {nv - len(tm.vertices)} duplicate vertices")
-    watertight_as_read = _is_closed(np.asarray(tm.faces))
+    tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
     nf = len(tm.faces)
     keep = tm.nondegenerate_faces(height=0.0) & tm.unique_faces()
     if not keep.all():
@@ -268,18 +264,16 @@ def solid_from_trimesh(mesh: trimesh.Trimesh, settings: MeshSettings | None = No
         repairs.append(f"removed {nf - len(tm.faces)} degenerate or duplicate triangles")
     if len(tm.faces) < 4:
         raise MeshError(f"{path}: only {len(tm.faces)} usable triangles; not a solid")
-
-    diag = float(np.linalg.norm(tm.bounds[1] - tm.bounds[0]))
-    if not _edge_table(np.asarray(tm.faces))[2]:
+    if not edge_table(np.asarray(tm.faces))[2]:
         trimesh.repair.fix_winding(tm)
         repairs.append("made triangle winding consistent")
-
     faces = np.asarray(tm.faces, dtype=np.int64)
     verts = np.asarray(tm.vertices, dtype=np.float64)
     loops = _boundary_loops(faces)
     if loops is None:
         raise MeshError(_describe_open(path, faces))
     if loops:
+        diag = float(np.linalg.norm(np.ptp(verts, axis=0)))
         limit = settings.max_hole_fraction * diag
         perims = [float(np.linalg.norm(verts[lp] - verts[np.roll(lp, -1)], axis=1).sum()) for lp in loops]
         if max(perims) > limit:
@@ -293,33 +287,70 @@ def solid_from_trimesh(mesh: trimesh.Trimesh, settings: MeshSettings | None = No
             raise MeshError(f"{path}: not watertight: {len(loops)} holes, some cannot be triangulated")
         faces = np.vstack([faces, *caps])
         repairs.append(f"closed {len(loops)} holes ({sum(len(lp) for lp in loops)} open edges)")
-
-    if not _is_closed(faces):
+    if not is_closed(faces):
         raise MeshError(_describe_open(path, faces))
-    if _signed_volume(verts, faces) < 0:
+    return verts, faces
+
+
+def solid_from_arrays(vertices: np.ndarray, faces: np.ndarray, settings: MeshSettings | None = None,
+                      *, path: str = "<mesh>", fmt: str = "mesh") -> Solid:
+    """Validate and repair a triangle mesh into a :class:`Solid` (the loader's second half).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        mm.
+    faces : (m, 3) int
+        Vertex indices; duplicated vertices (a triangle soup, as in STL) are merged.
+    """
+    settings = settings or MeshSettings()
+    v = np.asarray(vertices)
+    v = (v if v.dtype == np.float32 else v.astype(np.float64)).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    n_read = len(f)
+    if n_read == 0:
+        raise MeshError(f"{path}: contains no triangles")
+    if not np.isfinite(v).all():
+        bad = int((~np.isfinite(v).all(axis=1)).sum())
+        raise MeshError(f"{path}: {bad} vertices have NaN or infinite coordinates")
+    if np.abs(v).max() > MAX_COORD:
+        raise MeshError(f"{path}: coordinates up to {np.abs(v).max():.3g} mm exceed {MAX_COORD:.0e} mm "
+                        "(wrong units?)")
+    if f.min() < 0 or f.max() >= len(v):
+        raise MeshError(f"{path}: face indices out of range (0..{len(v) - 1})")
+
+    repairs: list[str] = []
+    v, f = compact(v, f)  # unreferenced vertices would distort the bounding box
+    verts, faces = _merge_vertices(v, f)
+    verts = verts.astype(np.float64)
+    if fmt != "stl" and len(verts) < len(v):  # STL always repeats vertices: not a repair
+        repairs.append(f"merged {len(v) - len(verts)} duplicate vertices")
+    watertight_as_read = is_closed(faces)
+    if not watertight_as_read:
+        verts, faces = _repair(verts, faces, settings, path, repairs)
+    if signed_volume(verts, faces) < 0:  # closed but inside out
         faces = faces[:, ::-1].copy()
         repairs.append("turned inside-out normals outward")
 
-    man = _to_manifold(verts, faces)
-    if man.status() != manifold3d.Error.NoError:
-        raise MeshError(f"{path}: closed but not a valid solid ({man.status().name}); "
-                        "self-touching or self-intersecting surfaces?")
-    if man.is_empty() or man.volume() <= 0:
-        raise MeshError(f"{path}: encloses no volume")
-    # manifold3d may have dropped degenerate pieces; take its view as the truth
-    out = man.to_mesh64()
-    verts = np.asarray(out.vert_properties, dtype=np.float64)[:, :3]
-    faces = np.asarray(out.tri_verts, dtype=np.int64)
+    volume = abs(signed_volume(verts, faces))
     lo, hi = verts.min(axis=0), verts.max(axis=0)
+    if volume <= 1e-12 * float(np.prod(np.maximum(hi - lo, 1e-9))):
+        raise MeshError(f"{path}: encloses no volume (flat or zero-size mesh)")
     report = MeshReport(
         path=path, format=fmt, triangles_read=n_read, triangles=len(faces), vertices=len(verts),
         bbox_min=tuple(float(x) for x in lo), bbox_max=tuple(float(x) for x in hi),
-        volume_mm3=float(man.volume()), watertight_as_read=watertight_as_read, repairs=tuple(repairs))
-    return Solid(verts, faces, report, man)
+        volume_mm3=volume, watertight_as_read=watertight_as_read, repairs=tuple(repairs))
+    return Solid(verts, faces, report)
+
+
+def solid_from_trimesh(mesh: "trimesh.Trimesh", settings: MeshSettings | None = None, *,
+                       path: str = "<mesh>", fmt: str = "mesh") -> Solid:
+    """:func:`solid_from_arrays` for a trimesh object."""
+    return solid_from_arrays(mesh.vertices, mesh.faces, settings, path=path, fmt=fmt)
 
 
 def _describe_open(path: str, faces: np.ndarray) -> str:
-    _, uses, consistent = _edge_table(faces)
+    _, uses, consistent = edge_table(faces)
     n_open, n_nm = int((uses == 1).sum()), int((uses > 2).sum() // 3)
     parts = []
     if n_open:
@@ -348,9 +379,9 @@ def load_mesh(path: str | Path, settings: MeshSettings | None = None) -> Solid:
     """
     p = Path(path)
     data, fmt = _read_bytes(p)
-    tm = _parse(p, data, fmt)
+    vertices, faces = _parse(p, data, fmt)
     del data
-    return solid_from_trimesh(tm, settings, path=str(p), fmt=fmt)
+    return solid_from_arrays(vertices, faces, settings, path=str(p), fmt=fmt)
 
 
 def fmt_report(r: MeshReport) -> str:
@@ -365,4 +396,5 @@ def fmt_report(r: MeshReport) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["FORMATS", "MeshReport", "Solid", "fmt_report", "load_mesh", "solid_from_trimesh"]
+__all__ = ["FORMATS", "MeshReport", "Solid", "fmt_report", "load_mesh", "solid_from_arrays",
+           "solid_from_trimesh"]

@@ -47,14 +47,16 @@ def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
         return ImageFont.load_default()
 
 
-def _subdivide_shaded(tri: np.ndarray, max_edge: float, rounds: int = 5) -> np.ndarray:
-    """Split triangles (n, 3, 4: xyz + shade) with an edge longer than ``max_edge`` into four, repeatedly,
-    so that depth-sorting by centroid is right for long thin triangles (fans, slivers)."""
+def _subdivide_shaded(tri: np.ndarray, max_edge: float, rounds: int = 3,
+                      budget: int = 120_000) -> np.ndarray:
+    """Split triangles (n, 3, 4: xyz + shade) with an edge longer than ``max_edge`` into four, up to
+    ``rounds`` times and while the count stays within ``budget``, so that depth-sorting by centroid
+    is right for long thin triangles (fans, slivers)."""
     for _ in range(rounds):
         xyz = tri[:, :, :3]
         edge = np.linalg.norm(xyz - np.roll(xyz, -1, axis=1), axis=2).max(axis=1)
         big = edge > max_edge
-        if not big.any():
+        if not big.any() or len(tri) + 3 * int(big.sum()) > budget:
             break
         a, b, c = tri[big, 0], tri[big, 1], tri[big, 2]
         ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
@@ -125,7 +127,7 @@ def render_chunks(chunks: ChunkSet, path: str | Path, size: tuple[int, int] = (1
         tri, normals = tri[facing], normals[facing] / nlen[facing, None]
         shade = 0.35 + 0.65 * np.clip(normals @ light, 0.0, 1.0)
         tri = np.concatenate([tri, shade[:, None, None].repeat(3, axis=1)], axis=2)  # carry shade along
-        tri = _subdivide_shaded(tri, diag / 25)
+        tri = _subdivide_shaded(tri, diag / 15)
         proj = tri[:, :, :3] @ basis.T
         order = np.argsort(proj[:, :, 2].mean(axis=1), kind="stable")  # far (small depth) first
         colour = np.asarray(chunk_colour(ch.role, ch.index), dtype=np.float64)
