@@ -53,5 +53,7 @@ def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nda
     """Only the vertices ``faces`` use, re-indexed."""
     used = np.zeros(len(vertices), dtype=bool)
     used[faces] = True
+    if used.all():
+        return vertices, faces
     remap = np.cumsum(used) - 1
     return vertices[used], remap[faces]
