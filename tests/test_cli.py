@@ -44,6 +44,7 @@ def test_chunk_writes_the_bundle(tmp_path, car_stl, capsys):
         for p in row["planes"]:
             d = (np.asarray(tm.vertices) - p["point"]) @ np.asarray(p["normal"])
             assert d.max() < 1e-3
+        assert row["reach_mm"] <= job["settings"]["robot"]["build_depth"]
         total += row["volume_mm3"]
     assert total == pytest.approx(job["mesh"]["volume_mm3"], rel=1e-9)
     c = next(r for r in job["chunks"] if r["id"] == "C")
@@ -101,11 +102,13 @@ def test_bad_mesh_file_exits_2(tmp_path, capsys):
     assert code == 2 and "bad.stl" in err and "Traceback" not in err
 
 
-def test_verbose_shows_the_traceback(tmp_path):
+@pytest.mark.parametrize("where", ["front", "end"])
+def test_verbose_shows_the_traceback(tmp_path, where):
     bad = tmp_path / "bad.stl"
     bad.write_bytes(b"\x00" * 500)
-    r = subprocess.run([sys.executable, "-m", "cooprint", "--verbose", "chunk", str(bad), "--out",
-                        str(tmp_path / "o"), "-q"], capture_output=True, text=True)
+    args = ["chunk", str(bad), "--out", str(tmp_path / "o"), "-q"]
+    args = ["--verbose", *args] if where == "front" else [*args, "--verbose"]
+    r = subprocess.run([sys.executable, "-m", "cooprint", *args], capture_output=True, text=True)
     assert r.returncode != 0 and "Traceback" in r.stderr and "MeshError" in r.stderr
 
 

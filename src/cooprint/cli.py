@@ -125,8 +125,10 @@ def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_wid
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: runs the CLI and maps errors to exit codes."""
-    args = sys.argv[1:] if argv is None else argv
+    args = list(sys.argv[1:] if argv is None else argv)
     verbose = "-v" in args or "--verbose" in args
+    if verbose:  # accepted anywhere on the line, not only before the subcommand
+        args = ["--verbose"] + [a for a in args if a not in ("-v", "--verbose")]
     try:
         cli.main(args=args, prog_name="cooprint", standalone_mode=False)
     except UserError as exc:

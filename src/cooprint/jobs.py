@@ -11,6 +11,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
+import numpy as np
+
 from cooprint.chunking import ChunkSet, cut_chunks, plan_chunks
 from cooprint.config import JobSettings, load_settings
 from cooprint.io.bundle import atomic_dir, write_json, write_stl
@@ -68,11 +70,13 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
     """The ``job.json`` content: settings, robots, chunk table, schedule, statistics."""
     ch, asg = job.chunks, job.assignment
     rows = []
+    axis = np.asarray(ch.plan.axis)
     for c in ch.chunks:
         lo, hi = c.bounds
         rows.append({
             "id": c.id, "role": c.role, "robot": asg.robot_of(c.id), "order": asg.order_of(c.id),
             "deps": list(ch.deps[c.id]), "volume_mm3": c.volume,
+            "reach_mm": float(np.ptp(c.vertices @ axis)),
             "bbox": [lo.tolist(), hi.tolist()], "triangles": int(len(c.faces)),
             "planes": [p.to_dict() for p in c.planes], "file": f"chunks/{c.id}.stl",
         })
