@@ -12,8 +12,6 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import click
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
 
 from cooprint import __version__
 from cooprint.errors import UserError
@@ -28,6 +26,9 @@ def stage_progress(enabled: bool) -> Iterator[Any]:
     if not enabled:
         yield None
         return
+    from rich.console import Console  # rich costs ~80 ms to import: only when bars are drawn
+    from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
+
     console = Console(stderr=True)
     with Progress(TextColumn("{task.description:<16}"), BarColumn(), TaskProgressColumn(),
                   TimeElapsedColumn(), console=console, transient=False) as bars:
