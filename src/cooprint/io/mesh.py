@@ -249,26 +249,36 @@ def _to_manifold(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold
     return manifold3d.Manifold(mesh)
 
 
+def _proper_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(m,) bool: triangles with three distinct corners, non-zero area, and not a repeat of an
+    earlier triangle over the same three vertices."""
+    f = faces
+    distinct = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    area2 = np.linalg.norm(np.cross(verts[f[:, 1]] - verts[f[:, 0]], verts[f[:, 2]] - verts[f[:, 0]]), axis=1)
+    keep = distinct & (area2 > 0)
+    _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+    unique = np.zeros(len(f), dtype=bool)
+    unique[first] = True
+    return keep & unique
+
+
 def _repair(verts: np.ndarray, faces: np.ndarray, settings: MeshSettings, path: str,
             repairs: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """The slow path, for meshes that are not already closed and consistently wound: drop
     duplicate and zero-area triangles, fix the winding, close small holes."""
-    import trimesh
-
-    tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
-    nf = len(tm.faces)
-    keep = tm.nondegenerate_faces(height=0.0) & tm.unique_faces()
+    keep = _proper_faces(verts, faces)
     if not keep.all():
-        tm.update_faces(keep)
-        tm.remove_unreferenced_vertices()
-        repairs.append(f"removed {nf - len(tm.faces)} degenerate or duplicate triangles")
-    if len(tm.faces) < 4:
-        raise MeshError(f"{path}: only {len(tm.faces)} usable triangles; not a solid")
-    if not edge_table(np.asarray(tm.faces))[2]:
+        repairs.append(f"removed {int((~keep).sum())} degenerate or duplicate triangles")
+        verts, faces = compact(verts, faces[keep])
+    if len(faces) < 4:
+        raise MeshError(f"{path}: only {len(faces)} usable triangles; not a solid")
+    if not edge_table(faces)[2]:
+        import trimesh  # ~1 s to import (scipy): only for this rare repair
+
+        tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
         trimesh.repair.fix_winding(tm)
+        faces = np.asarray(tm.faces, dtype=np.int64)
         repairs.append("made triangle winding consistent")
-    faces = np.asarray(tm.faces, dtype=np.int64)
-    verts = np.asarray(tm.vertices, dtype=np.float64)
     loops = _boundary_loops(faces)
     if loops is None:
         raise MeshError(_describe_open(path, faces))
