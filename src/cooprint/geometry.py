@@ -17,8 +17,14 @@ def edge_table(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
     uses = np.empty(len(key), dtype=np.int64)
     uses[order] = np.repeat(np.diff(np.r_[starts, len(sk)]), np.diff(np.r_[starts, len(sk)]))
-    directed = np.sort(edges[:, 0] * n + edges[:, 1])
-    return edges, uses, bool((directed[1:] != directed[:-1]).all())
+    return edges, uses, winding_consistent(faces)
+
+
+def winding_consistent(faces: np.ndarray) -> bool:
+    """No directed edge used twice (neighbouring triangles run their shared edge oppositely)."""
+    n = np.int64(int(faces.max()) + 1)
+    directed = np.sort(faces.ravel() * n + faces[:, [1, 2, 0]].ravel())
+    return bool((directed[1:] != directed[:-1]).all())
 
 
 def is_closed(faces: np.ndarray) -> bool:

@@ -22,7 +22,7 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import compact, edge_table, is_closed, signed_volume
+from cooprint.geometry import compact, edge_table, is_closed, signed_volume, winding_consistent
 from cooprint.errors import MeshError
 
 FORMATS = ("stl", "obj", "ply", "3mf")
@@ -256,7 +256,12 @@ def _proper_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     distinct = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
     area2 = np.linalg.norm(np.cross(verts[f[:, 1]] - verts[f[:, 0]], verts[f[:, 2]] - verts[f[:, 0]]), axis=1)
     keep = distinct & (area2 > 0)
-    _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+    sf = np.sort(f, axis=1)
+    if len(verts) < 2**21:  # three indices pack into one int64: a 1-D sort instead of rows
+        key = (sf[:, 0] << 42) | (sf[:, 1] << 21) | sf[:, 2]
+        _, first = np.unique(key, return_index=True)
+    else:
+        _, first = np.unique(sf, axis=0, return_index=True)
     unique = np.zeros(len(f), dtype=bool)
     unique[first] = True
     return keep & unique
@@ -272,7 +277,7 @@ def _repair(verts: np.ndarray, faces: np.ndarray, settings: MeshSettings, path: 
         verts, faces = compact(verts, faces[keep])
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} usable triangles; not a solid")
-    if not edge_table(faces)[2]:
+    if not winding_consistent(faces):
         import trimesh  # ~1 s to import (scipy): only for this rare repair
 
         tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
@@ -338,11 +343,12 @@ def solid_from_arrays(vertices: np.ndarray, faces: np.ndarray, settings: MeshSet
     watertight_as_read = is_closed(faces)
     if not watertight_as_read:
         verts, faces = _repair(verts, faces, settings, path, repairs)
-    if signed_volume(verts, faces) < 0:  # closed but inside out
+    volume = signed_volume(verts, faces)
+    if volume < 0:  # closed but inside out
         faces = faces[:, ::-1].copy()
+        volume = -volume
         repairs.append("turned inside-out normals outward")
 
-    volume = abs(signed_volume(verts, faces))
     lo, hi = verts.min(axis=0), verts.max(axis=0)
     if volume <= 1e-12 * float(np.prod(np.maximum(hi - lo, 1e-9))):
         raise MeshError(f"{path}: encloses no volume (flat or zero-size mesh)")
