@@ -1,0 +1,163 @@
+"""Shared helpers of the stage benchmarks: timing whole processes and preparing meshes.
+
+Every tool is timed as a whole process under GNU ``/usr/bin/time -v``, so start-up, file
+reading and writing count exactly as a user sees them, and the peak memory is the kernel's
+maximum resident set size of the process.
+"""
+from __future__ import annotations
+
+import gzip
+import hashlib
+import re
+import shutil
+import statistics
+import struct
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+GNU_TIME = "/usr/bin/time"
+TIMEOUT_S = 1800
+EXCEPTION_LINE = re.compile(r"^[A-Za-z_.]+(Error|Exception): ")
+
+
+@dataclass(frozen=True)
+class BenchContext:
+    """What every stage benchmark gets from ``run.py``.
+
+    shared: the team's shared folder (meshes, peers); work: git-ignored scratch folder;
+    cooprint: the CLI to time; src: its sources (an editable install runs whatever is there);
+    runs: timed runs per tool; skip_peers: time cooprint only.
+    """
+
+    shared: Path
+    work: Path
+    cooprint: Path
+    src: Path
+    runs: int
+    skip_peers: bool
+
+
+def resolve_meshes(shared: Path, names: list[str]) -> list[Path]:
+    """Paths of the named meshes in ``shared/meshes`` (``.stl``/``.stl.gz`` may be left off).
+
+    Absent meshes are reported and skipped.
+    """
+    found = []
+    for name in names:
+        candidates = [shared / "meshes" / (name + ext) for ext in ("", ".stl", ".stl.gz")]
+        path = next((p for p in candidates if p.is_file()), None)
+        if path is None:
+            print(f"  skipping mesh {name!r}: not in {shared / 'meshes'}", flush=True)
+        else:
+            found.append(path)
+    return found
+
+
+class SourceWatch:
+    """Notices an edit of cooprint's sources between its timed runs: with an editable install
+    each run uses the code on disk when it starts, so such runs would mix versions."""
+
+    def __init__(self, src: Path):
+        self.src = src
+        self.seen: set[str] = set()
+
+    def check(self) -> None:
+        """Record the current state of the sources."""
+        self.seen.add(source_digest(self.src))
+
+    @property
+    def changed(self) -> bool:
+        """Whether two checks saw different sources."""
+        return len(self.seen) > 1
+
+
+def source_digest(src: Path) -> str:
+    """SHA-1 of the .py and .toml files under ``src``."""
+    sha = hashlib.sha1()
+    for path in sorted(p for p in src.rglob("*") if p.suffix in (".py", ".toml")):
+        sha.update(str(path.relative_to(src)).encode() + b"\0" + path.read_bytes())
+    return sha.hexdigest()
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One timed process: wall seconds, peak RSS in MB (2**20 bytes), exit code, stdout, and
+    the line of its output most likely to say what went wrong."""
+
+    wall_s: float
+    peak_mb: float
+    returncode: int
+    stdout: str
+    error_line: str
+
+
+def time_process(cmd: list[str], log_dir: Path, tag: str) -> Measurement:
+    """Run ``cmd`` under ``/usr/bin/time -v``; keep its output in ``log_dir/tag.*``."""
+    log_dir.mkdir(parents=True, exist_ok=True)
+    report = log_dir / f"{tag}.time"
+    try:
+        proc = subprocess.run([GNU_TIME, "-v", "-o", str(report), *cmd], capture_output=True,
+                              text=True, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        return Measurement(float(TIMEOUT_S), 0.0, -1, "", f"timed out after {TIMEOUT_S} s")
+    (log_dir / f"{tag}.out").write_text(proc.stdout)
+    (log_dir / f"{tag}.err").write_text(proc.stderr)
+    wall_s, peak_kb = parse_gnu_time(report.read_text())
+    return Measurement(wall_s, peak_kb / 1024.0, proc.returncode, proc.stdout,
+                       error_line(proc.stdout, proc.stderr))
+
+
+def error_line(stdout: str, stderr: str) -> str:
+    """The last Python exception line (``ValueError: ...``) of the output, else the last line
+    of stderr, else of stdout (Blender prints its tracebacks on stdout)."""
+    lines = [s.strip() for s in (stdout + "\n" + stderr).splitlines() if s.strip()]
+    raised = [s for s in lines if EXCEPTION_LINE.match(s)]
+    last_err = stderr.strip().splitlines()[-1:] or lines[-1:] or [""]
+    return (raised or last_err)[-1]
+
+
+def parse_gnu_time(text: str) -> tuple[float, int]:
+    """(wall seconds, max RSS kB) from the report of ``/usr/bin/time -v``."""
+    wall_s, peak_kb = float("nan"), 0
+    for line in text.splitlines():
+        key, _, value = line.strip().rpartition(": ")
+        if key.startswith("Elapsed (wall clock) time"):
+            wall_s = sum(float(part) * 60 ** i for i, part in enumerate(reversed(value.split(":"))))
+        elif key == "Maximum resident set size (kbytes)":
+            peak_kb = int(value)
+    return wall_s, peak_kb
+
+
+def median(values: list[float]) -> float | None:
+    """Median of the values, None when there are none."""
+    return statistics.median(values) if values else None
+
+
+def plural(n: int, word: str) -> str:
+    """'1 run', '3 runs'."""
+    return f"{n} {word}" + ("" if n == 1 else "s")
+
+
+def prepare_mesh(path: Path, work: Path) -> Path:
+    """Path of an uncompressed copy of ``path``: ``*.gz`` is gunzipped once into ``work/meshes``."""
+    if path.suffix != ".gz":
+        return path
+    target = work / "meshes" / path.stem
+    if not target.exists() or target.stat().st_mtime < path.stat().st_mtime:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        partial = target.with_suffix(".part")
+        with gzip.open(path, "rb") as src, open(partial, "wb") as dst:
+            shutil.copyfileobj(src, dst, 1 << 20)
+        partial.replace(target)
+    return target
+
+
+def stl_triangles(path: Path) -> int | None:
+    """Triangle count of a binary STL from its header, None for an ASCII STL."""
+    with open(path, "rb") as f:
+        head = f.read(84)
+    if len(head) < 84:
+        return None
+    count = struct.unpack("<I", head[80:84])[0]
+    return count if 84 + 50 * count == path.stat().st_size else None
