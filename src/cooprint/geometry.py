@@ -27,6 +27,12 @@ def winding_consistent(faces: np.ndarray) -> bool:
     return bool((directed[1:] != directed[:-1]).all())
 
 
+def distinct_corners(faces: np.ndarray) -> np.ndarray:
+    """(m,) bool: triangles whose three corners are three different vertices."""
+    f = faces
+    return (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+
+
 def is_closed(faces: np.ndarray) -> bool:
     """Every edge shared by exactly two triangles, in opposite directions.
 

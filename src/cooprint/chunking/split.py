@@ -21,6 +21,8 @@ from __future__ import annotations
 import manifold3d
 import numpy as np
 
+from cooprint.geometry import distinct_corners
+
 
 class CapError(RuntimeError):
     """The section of the mesh by the plane is not a set of valid polygons."""
@@ -197,5 +199,4 @@ def split_mesh(mesh: Mesh, faces: np.ndarray, normal, offset: float,
 
 def _proper(tris: np.ndarray) -> np.ndarray:
     """Drop triangles that snapping collapsed (two corners the same vertex)."""
-    ok = (tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 2] != tris[:, 0])
-    return tris[ok]
+    return tris[distinct_corners(tris)]

@@ -22,7 +22,8 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import compact, edge_table, is_closed, signed_volume, winding_consistent
+from cooprint.geometry import (compact, distinct_corners, edge_table, is_closed, signed_volume,
+                               winding_consistent)
 from cooprint.errors import MeshError
 
 FORMATS = ("stl", "obj", "ply", "3mf")
@@ -253,7 +254,7 @@ def _proper_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(m,) bool: triangles with three distinct corners, non-zero area, and not a repeat of an
     earlier triangle over the same three vertices."""
     f = faces
-    distinct = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    distinct = distinct_corners(f)
     area2 = np.linalg.norm(np.cross(verts[f[:, 1]] - verts[f[:, 0]], verts[f[:, 2]] - verts[f[:, 0]]), axis=1)
     keep = distinct & (area2 > 0)
     sf = np.sort(f, axis=1)
