@@ -163,7 +163,8 @@ def _pieces(kernel: Any, plan: ChunkPlan) -> list[tuple[str, str, int, Any, tupl
     if plan.n_left:
         left_side, centre = kernel.split(centre, l0)
         left_pieces = _split_parallel(kernel, left_side, left_planes[1:])
-    specs: list[tuple[str, str, int, Any, tuple[Plane, ...]]] = [("C", "centre", 0, centre, (r0, l0))]
+    centre_bounds = ((r0,) if plan.n_right else ()) + ((l0,) if plan.n_left else ())  # the cuts made
+    specs: list[tuple[str, str, int, Any, tuple[Plane, ...]]] = [("C", "centre", 0, centre, centre_bounds)]
     for role, side, pieces, planes in (("left", "L", left_pieces, left_planes),
                                        ("right", "R", right_pieces, right_planes)):
         for k, piece in enumerate(pieces, start=1):
