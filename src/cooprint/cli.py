@@ -17,7 +17,7 @@ from cooprint import __version__
 from cooprint.errors import UserError
 
 STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing chunks",
-               "render": "drawing picture"}
+               "render": "drawing picture", "slice": "slicing layers"}
 
 
 @contextmanager
@@ -122,6 +122,32 @@ def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_wid
     for r in record["robots"]:
         click.echo(f"  robot {r['name']}: {' -> '.join(r['chunks']) or '(idle)'}")
     click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl" + ("" if no_picture else f", {out}/chunks.png"))
+
+
+@cli.command(name="slice")
+@click.argument("mesh", type=click.Path(dir_okay=False))
+@click.option("--out", "-o", required=True, type=click.Path(dir_okay=False), help="G-code file to write.")
+@config_option
+@click.option("--layer-height", type=float, help="Layer height, mm [default: 0.2].")
+@click.option("--infill", type=float, help="Sparse infill density, 0..1 [default: 0.2].")
+@click.option("--force", is_flag=True, help="Replace OUT if it exists.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary.")
+def slice_cmd(mesh: str, out: str, config: tuple[str, ...], layer_height: float | None,
+              infill: float | None, force: bool, quiet: bool) -> None:
+    """Slice MESH for one printer and write Marlin G-code to OUT (a plain slicer run).
+
+    The same slicer turns every chunk of a cooperative job into tool paths.
+    """
+    from cooprint.io.bundle import check_file_destination
+    from cooprint.jobs import slice_job, write_gcode
+
+    settings = _settings(config, {"slicing.layer_height": layer_height, "slicing.infill_density": infill})
+    check_file_destination(Path(out), force)  # before the work, not after
+    with stage_progress(not quiet) as progress:
+        solid, sliced = slice_job(mesh, settings, progress)
+    used = write_gcode(sliced, out, Path(mesh).name, force=True)
+    if not quiet:
+        click.echo(f"{sliced.n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -18,6 +18,9 @@ from cooprint.config import JobSettings, load_settings
 from cooprint.io.bundle import atomic_dir, write_json, write_stl
 from cooprint.io.mesh import Solid, load_mesh
 from cooprint.scheduling import Assignment, assign
+
+if TYPE_CHECKING:
+    from cooprint.slicing import SlicedModel
 
 #: ``progress(stage, done, total)``: called as work advances.
 Progress = Callable[[str, int, int], None]
@@ -120,6 +123,30 @@ def write_chunk_bundle(job: ChunkJob, out: str | Path, force: bool = False, pict
                 progress("render", 1, 1)
         write_json(tmp / "job.json", record)
     return record
+
+
+def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
+              progress: Progress | None = None) -> tuple[Solid, "SlicedModel"]:
+    """Load (unless given a Solid) and slice a whole model for one robot."""
+    from cooprint.slicing import slice_solid
+
+    settings = settings or load_settings()
+    solid = mesh if isinstance(mesh, Solid) else load_mesh(mesh, settings.mesh)
+    layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
+    return solid, slice_solid(solid, settings.slicing, layer_progress)
+
+
+def write_gcode(sliced: "SlicedModel", out: str | Path, name: str, force: bool = False) -> float:
+    """Write ``sliced`` as Marlin G-code to ``out`` atomically; return filament used, mm."""
+    from cooprint.io.bundle import atomic_file
+    from cooprint.program.gcode import end_code, start_code, write_layers
+
+    with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
+        fh.write(start_code(sliced.settings, name))
+        used = write_layers(fh, sliced.layers, sliced.settings)
+        fh.write(end_code())
+        fh.write(f"; filament used [mm] = {used:.2f}\n")
+    return used
 
 
 def run_chunk(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),

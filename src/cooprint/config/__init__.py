@@ -5,7 +5,9 @@ from cooprint.config.settings import (
     JobSettings,
     MeshSettings,
     RobotProfile,
+    SlicingSettings,
     load_settings,
 )
 
-__all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "RobotProfile", "load_settings"]
+__all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "RobotProfile", "SlicingSettings",
+           "load_settings"]

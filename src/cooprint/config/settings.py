@@ -22,8 +22,9 @@ from cooprint.errors import ConfigError
 
 
 def _num(lo: float | None = None, hi: float | None = None, *, unit: str = "", lo_open: bool = False,
-         optional: bool = False, doc: str = "") -> dict[str, Any]:
-    return {"lo": lo, "hi": hi, "unit": unit, "lo_open": lo_open, "optional": optional, "doc": doc}
+         optional: bool = False, integer: bool = False, doc: str = "") -> dict[str, Any]:
+    return {"lo": lo, "hi": hi, "unit": unit, "lo_open": lo_open, "optional": optional,
+            "integer": integer, "doc": doc}
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,41 @@ class MeshSettings:
                                      "silently, as perimeter / bounding-box diagonal"))
 
 
+def _choice(*options: str, doc: str = "") -> dict[str, Any]:
+    return {"choices": options, "doc": doc}
+
+
+@dataclass(frozen=True)
+class SlicingSettings:
+    """How a chunk (or a whole model) becomes layers and tool paths (seed §4.2.1).
+
+    Defaults are PrusaSlicer 2.5's for a 0.4 mm nozzle: 0.2 mm layers, 2 perimeters,
+    4 top / 4 bottom solid layers, 20% rectilinear infill, 1.75 mm filament.
+    """
+
+    layer_height: float = field(default=0.2, metadata=_num(0, 10, unit="mm", lo_open=True))
+    first_layer_height: float = field(default=0.2, metadata=_num(0, 10, unit="mm", lo_open=True))
+    nozzle_diameter: float = field(default=0.4, metadata=_num(0, 10, unit="mm", lo_open=True))
+    extrusion_width: float = field(default=0.45, metadata=_num(0, 20, unit="mm", lo_open=True))
+    perimeters: int = field(default=2, metadata=_num(0, 100, integer=True))
+    top_layers: int = field(default=4, metadata=_num(0, 1000, integer=True))
+    bottom_layers: int = field(default=4, metadata=_num(0, 1000, integer=True))
+    infill_density: float = field(default=0.2, metadata=_num(0, 1, doc="0 = hollow, 1 = solid"))
+    infill_pattern: str = field(default="rectilinear", metadata=_choice("rectilinear", "grid", "triangles"))
+    infill_angle_deg: float = field(default=45.0, metadata=_num(-360, 360, unit="deg"))
+    outer_perimeter_first: bool = field(default=False, metadata={"boolean": True})
+    seam: str = field(default="aligned", metadata=_choice("aligned", "nearest", "rear"))
+    min_area: float = field(default=0.05, metadata=_num(0, 1e6, unit="mm2",
+                            doc="islands and infill regions smaller than this are not printed"))
+    filament_diameter: float = field(default=1.75, metadata=_num(0, 10, unit="mm", lo_open=True))
+    perimeter_speed: float = field(default=45.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    infill_speed: float = field(default=80.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    first_layer_speed: float = field(default=30.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    travel_speed: float = field(default=130.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    nozzle_temperature: float = field(default=210.0, metadata=_num(0, 500, unit="C"))
+    bed_temperature: float = field(default=60.0, metadata=_num(0, 200, unit="C"))
+
+
 @dataclass(frozen=True)
 class JobSettings:
     """Everything a job needs besides the mesh."""
@@ -71,13 +107,15 @@ class JobSettings:
     robot: RobotProfile = field(default_factory=RobotProfile)
     chunking: ChunkingSettings = field(default_factory=ChunkingSettings)
     mesh: MeshSettings = field(default_factory=MeshSettings)
+    slicing: SlicingSettings = field(default_factory=SlicingSettings)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict for job.json (``None`` fields dropped, as TOML has no null)."""
         return {k: {f: v for f, v in sec.items() if v is not None} for k, sec in asdict(self).items()}
 
 
-_SECTIONS: dict[str, type] = {"robot": RobotProfile, "chunking": ChunkingSettings, "mesh": MeshSettings}
+_SECTIONS: dict[str, type] = {"robot": RobotProfile, "chunking": ChunkingSettings, "mesh": MeshSettings,
+                              "slicing": SlicingSettings}
 
 
 def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> float | None:
@@ -87,11 +125,15 @@ def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> 
         rng.append(f"{'>' if meta['lo_open'] else '>='} {lo:g}")
     if hi is not None:
         rng.append(f"<= {hi:g}")
-    expect = "a number " + " and ".join(rng) + (f" ({unit})" if unit else "")
+    kind = "a whole number " if meta["integer"] else "a number "
+    expect = kind + " and ".join(rng) + (f" ({unit})" if unit else "")
     if value is None and meta["optional"]:
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (
+            meta["integer"] and not float(value).is_integer()):
         raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
+    if meta["integer"]:
+        return int(value)  # type: ignore[return-value]
     v = float(value)
     ok = math.isfinite(v)
     if ok and lo is not None:
@@ -112,7 +154,16 @@ def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> An
                               + ", ".join(sorted(known)))
         f = known[key]
         name = f"{section}.{key}"
-        if f.metadata:
+        if "choices" in f.metadata:
+            if value not in f.metadata["choices"]:
+                raise ConfigError(f"{where}{name} = {value!r}: expected one of "
+                                  + ", ".join(repr(c) for c in f.metadata["choices"]))
+            out[key] = value
+        elif f.metadata.get("boolean"):
+            if not isinstance(value, bool):
+                raise ConfigError(f"{where}{name} = {value!r}: expected true or false")
+            out[key] = value
+        elif f.metadata:
             out[key] = _check_value(where, name, value, f.metadata)
         elif not isinstance(value, str) or not value.strip():
             raise ConfigError(f"{where}{name} = {value!r}: expected a non-empty string")

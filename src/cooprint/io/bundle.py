@@ -56,13 +56,43 @@ def atomic_dir(out: str | Path, force: bool = False) -> Iterator[Path]:
         raise
 
 
-def _relax_permissions(root: Path) -> None:
-    """mkdtemp makes a private 0700 folder; give the bundle the user's usual permissions."""
+def check_file_destination(out: Path, force: bool) -> None:
+    """Refuse an existing file unless ``force``, a folder, or a missing parent; fail early."""
+    if out.is_dir():
+        raise UserError(f"{out}: is a folder; give a file name")
+    if out.exists() and not force:
+        raise UserError(f"{out}: exists; use --force to replace it")
+    if not out.resolve().parent.is_dir():
+        raise UserError(f"{out}: parent folder {out.resolve().parent} does not exist")
+
+
+@contextmanager
+def atomic_file(out: str | Path, force: bool = False) -> Iterator[Path]:
+    """Yield a temporary path beside ``out``; on success it is renamed to ``out``. An existing
+    ``out`` is refused unless ``force``; on failure nothing is left behind."""
+    out = Path(out)
+    check_file_destination(out, force)
+    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.resolve().parent)
+    import os
+
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        _relax_permissions(tmp, 0o666)
+        tmp.replace(out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _relax_permissions(root: Path, mode: int = 0o777) -> None:
+    """mkdtemp/mkstemp make private 0700/0600 entries; give them the user's usual permissions."""
     import os
 
     mask = os.umask(0)
     os.umask(mask)
-    root.chmod(0o777 & ~mask)
+    root.chmod(mode & ~mask)
 
 
 def _jsonable(obj: Any) -> Any:

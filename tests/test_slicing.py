@@ -1,0 +1,175 @@
+"""Slicer: exact layers on a cube, skins, infill inside the model, volume, G-code read back."""
+
+import math
+import re
+
+import numpy as np
+import pytest
+
+from cooprint.cli import main
+from cooprint.config import SlicingSettings, load_settings
+from cooprint.errors import ConfigError
+from cooprint.io.mesh import solid_from_arrays
+from cooprint.program.gcode import gcode_text
+from cooprint.slicing import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, layer_tops, slice_solid
+from cooprint.slicing.infill import hatch
+from cooprint.slicing.paths import extrusion_area
+
+from solids import box, to_trimesh, tube
+
+
+def solid(man):
+    tm = to_trimesh(man)
+    return solid_from_arrays(tm.vertices, tm.faces)
+
+
+@pytest.fixture(scope="module")
+def cube():
+    return slice_solid(solid(box(20, 20, 10)), SlicingSettings())
+
+
+def test_layer_count_and_heights():
+    s = SlicingSettings(first_layer_height=0.3, layer_height=0.2)
+    tops = layer_tops(10.0, s)
+    assert len(tops) == 1 + math.ceil((10 - 0.3) / 0.2)
+    assert tops[0] == pytest.approx(0.3) and np.allclose(np.diff(tops), 0.2)
+    assert tops[-1] >= 10.0 - 1e-9
+
+
+def test_cube_perimeters_are_exact_squares(cube):
+    w = 0.45
+    assert cube.n_layers == 50
+    for layer in cube.layers:
+        outer = [layer.path(k) for k in range(len(layer)) if layer.role[k] == PERIMETER_OUTER]
+        inner = [layer.path(k) for k in range(len(layer)) if layer.role[k] == PERIMETER_INNER]
+        assert len(outer) == 1 and len(inner) == 1
+        for ring, half in ((outer[0], 10 - w / 2), (inner[0], 10 - 1.5 * w)):
+            assert np.allclose(ring[0], ring[-1])  # closed loop
+            assert np.allclose(np.abs(ring).max(axis=0), half)
+            assert np.allclose(np.sort(np.abs(ring[:-1]), axis=0), half)  # only the four corners
+
+
+def test_skins_on_top_and_bottom_layers_only(cube):
+    roles = [set(layer.role.tolist()) for layer in cube.layers]
+    for i, r in enumerate(roles):
+        solid_layer = i < 4 or i >= 50 - 4
+        assert (SKIN in r) == solid_layer, i
+        assert (INFILL in r) == (not solid_layer), i
+
+
+def test_rectilinear_infill_alternates_direction(cube):
+    def direction(layer):
+        k = next(k for k in range(len(layer)) if layer.role[k] == INFILL)
+        d = np.diff(layer.path(k), axis=0)[0]
+        return round(math.degrees(math.atan2(abs(d[1]), d[0]))) % 180
+
+    assert {direction(cube.layers[10]), direction(cube.layers[11])} == {45, 135}
+
+
+def test_every_extrusion_inside_the_cross_section():
+    t = tube(25, 10, 20)
+    sliced = slice_solid(solid(t), SlicingSettings())
+    for layer in sliced.layers:
+        for k in range(len(layer)):
+            if layer.role[k] == TRAVEL:
+                continue
+            p = layer.path(k)
+            r = np.linalg.norm(p, axis=1)
+            half = layer.width[k] / 2
+            assert r.max() <= 25 - half + 0.05 and r.min() >= 10 + half - 0.05
+            mid = np.linalg.norm((p[1:] + p[:-1]) / 2, axis=1)
+            assert mid.min() >= 10 + half - 0.05  # no line crosses the hole
+
+
+def test_solid_infill_extrudes_the_model_volume():
+    s = SlicingSettings(infill_density=1.0)
+    sliced = slice_solid(solid(box(20, 20, 10)), s)
+    vol = 0.0
+    for layer in sliced.layers:
+        lengths = layer.lengths()
+        printing = layer.role != TRAVEL
+        vol += float((extrusion_area(layer.width[printing], layer.height) * lengths[printing]).sum())
+    assert vol == pytest.approx(20 * 20 * 10, rel=0.08)
+
+
+def test_hatch_square():
+    sq = [np.array([[0, 0], [10, 0], [10, 10], [0, 10]], dtype=float)]
+    seg = hatch(sq, 1.0, 0.0)
+    assert len(seg) == 10  # y = 0..9 (half-open at the top edge)
+    assert np.allclose(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1), 10.0)
+    # boustrophedon: consecutive lines run in opposite directions
+    dx = seg[:, 1, 0] - seg[:, 0, 0]
+    assert np.all(np.sign(dx[1:]) == -np.sign(dx[:-1]))
+    holed = sq + [np.array([[3, 3], [3, 7], [7, 7], [7, 3]], dtype=float)]
+    seg = hatch(holed, 1.0, 0.0)
+    assert len(seg) == 14  # four lines through the hole are split in two
+    assert np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1).sum() == pytest.approx(100 - 4 * 4)
+
+
+@pytest.mark.parametrize("text, needle", [
+    ('[slicing]\ninfill_pattern = "honeycomb"\n', "slicing.infill_pattern = 'honeycomb': expected one of"),
+    ("[slicing]\nperimeters = 2.5\n", "slicing.perimeters = 2.5: expected a whole number"),
+    ("[slicing]\nouter_perimeter_first = 1\n", "expected true or false"),
+    ("[slicing]\ninfill_density = 1.5\n", "slicing.infill_density = 1.5: expected a number >= 0 and <= 1"),
+])
+def test_slicing_settings_are_validated(tmp_path, text, needle):
+    f = tmp_path / "s.toml"
+    f.write_text(text)
+    with pytest.raises(ConfigError, match=re.escape(needle)):
+        load_settings(f)
+
+
+def read_gcode(text):
+    """An independent reader: absolute XYZ, relative E; returns extruding moves and totals."""
+    x = y = z = 0.0
+    relative = False
+    moves, e_total = [], 0.0
+    for line in text.splitlines():
+        line = line.split(";", 1)[0].strip()
+        if not line:
+            continue
+        cmd = line.split()[0]
+        words = dict((w[0], float(w[1:])) for w in line.split()[1:] if w[0] in "XYZEFS")
+        if cmd in ("G90", "G91"):
+            relative = cmd == "G91"
+        elif cmd in ("G0", "G1"):
+            if relative:
+                nx, ny, nz = x + words.get("X", 0), y + words.get("Y", 0), z + words.get("Z", 0)
+            else:
+                nx, ny, nz = words.get("X", x), words.get("Y", y), words.get("Z", z)
+            e = words.get("E", 0.0)
+            if e > 0:
+                moves.append((x, y, nx, ny, nz, e))
+                e_total += e
+            x, y, z = nx, ny, nz
+    moves = np.array(moves)
+    return moves, e_total, len(np.unique(moves[:, 4]))
+
+
+def test_gcode_reads_back(cube):
+    text = gcode_text(cube.layers, cube.settings, "cube")
+    for must in ("G21", "G90", "M83", "M104 S210", "M140 S60", ";LAYER:0", ";LAYER:49"):
+        assert must in text
+    moves, e_total, layers = read_gcode(text)
+    assert layers == 50
+    assert np.abs(moves[:, [0, 1, 2, 3]]).max() <= 10.0
+    fil = math.pi * (1.75 / 2) ** 2
+    expected = sum(float((extrusion_area(L.width[L.role != TRAVEL], L.height) * L.lengths()[L.role != TRAVEL]).sum())
+                   for L in cube.layers)
+    assert e_total * fil == pytest.approx(expected, rel=1e-3)
+    m = re.search(r"; filament used \[mm\] = ([0-9.]+)", text)
+    assert float(m.group(1)) == pytest.approx(e_total, rel=1e-4)
+
+
+def test_slice_cli(tmp_path, capsys):
+    stl = tmp_path / "c.stl"
+    to_trimesh(box(20, 20, 10)).export(stl)
+    out = tmp_path / "c.gcode"
+    assert main(["slice", str(stl), "--out", str(out), "-q"]) == 0
+    assert out.read_text().count(";LAYER:") == 50
+    before = out.read_text()
+    assert main(["slice", str(stl), "--out", str(out), "-q"]) == 2
+    assert "use --force" in capsys.readouterr().err
+    assert out.read_text() == before
+    assert main(["slice", str(stl), "--out", str(out), "-q", "--force", "--layer-height", "0.25"]) == 0
+    assert out.read_text().count(";LAYER:") == 1 + math.ceil((10 - 0.2) / 0.25)
