@@ -55,5 +55,5 @@ def test_chunking_invariants(solids, name, theta_frac, shift_frac, angle, offset
     cfg = ChunkingSettings(theta_deg=theta, shift=shift, top_width=top, centre_angle_deg=angle,
                            centre_offset=offset)
     cs = cut_chunks(s, plan_chunks(s.vertices, ROBOT, cfg))
-    assert_valid_chunkset(s, cs, 1000.0)
+    assert_valid_chunkset(s, cs)
     check_physics(cs, ROBOT, tol=1e-6)
