@@ -11,7 +11,11 @@ from pathlib import Path
 from cooprint.chunking import cut_chunks, plan_chunks
 from cooprint.config import ChunkingSettings, RobotProfile
 from cooprint.models import car, cylinder
+from cooprint.config import SlicingSettings
+from cooprint.io.mesh import solid_from_arrays
 from cooprint.render.chunks import render_chunks
+from cooprint.render.paths import render_layer, render_model
+from cooprint.slicing import slice_solid
 
 IMG = Path(__file__).parent / "img"
 
@@ -34,5 +38,22 @@ def main() -> None:
               f"shift {plan.shift:.1f} mm, build depth {robot.build_depth:g} mm")
 
 
+def slicer_figures() -> None:
+    """A part with two holes, sliced (seed Fig. 7 and 9); 0.5 mm layers so that lines show."""
+    import manifold3d as m3d
+    import numpy as np
+
+    part = (m3d.Manifold.cylinder(20, 25, 25, 96) - m3d.Manifold.cylinder(22, 10, 10, 64).translate((0, 0, -1))
+            + m3d.Manifold.cube((40, 8, 20), center=True).translate((0, 0, 10)))
+    mesh = part.to_mesh64()
+    solid = solid_from_arrays(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
+    sliced = slice_solid(solid, SlicingSettings(layer_height=0.5, first_layer_height=0.5))
+    render_layer(sliced.layers[2], IMG / "slice_layer.png", title="layer 3: bottom skin")
+    render_layer(sliced.layers[20], IMG / "slice_layer_infill.png",
+                 title="layer 21: perimeters and 20% rectilinear infill")
+    render_model(sliced.layers, IMG / "slice_model.png", title="sliced part (0.5 mm layers for visibility)")
+
+
 if __name__ == "__main__":
     main()
+    slicer_figures()
