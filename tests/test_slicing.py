@@ -92,6 +92,15 @@ def test_solid_infill_extrudes_the_model_volume():
     assert vol == pytest.approx(20 * 20 * 10, rel=0.08)
 
 
+def test_parallel_slicing_gives_the_same_layers():
+    sol = solid(tube(25, 10, 12))  # 60 layers: two blocks
+    one = slice_solid(sol, SlicingSettings(), workers=1)
+    two = slice_solid(sol, SlicingSettings(), workers=2)
+    assert one.n_layers == two.n_layers == 60
+    for a, b in zip(one.layers, two.layers):
+        assert np.array_equal(a.points, b.points) and np.array_equal(a.role, b.role)
+
+
 def test_hatch_square():
     sq = [np.array([[0, 0], [10, 0], [10, 10], [0, 10]], dtype=float)]
     seg = hatch(sq, 1.0, 0.0)

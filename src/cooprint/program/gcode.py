@@ -16,6 +16,7 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, ROLE_NAMES, SKIN, TRAVEL, LayerPaths, extrusion_area
 
+_G1 = "G1 X%.3f Y%.3f E%.5f\n"
 ROLE_TYPES = {PERIMETER_OUTER: "WALL-OUTER", PERIMETER_INNER: "WALL-INNER", SKIN: "SKIN", INFILL: "FILL"}
 
 
@@ -64,10 +65,9 @@ def write_layers(out: TextIO, layers: Iterable[LayerPaths], s: SlicingSettings, 
             seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
             e = extrusion_area(layer.width[k], layer.height) * seg / fil_area
             total_e += float(e.sum())
-            out.write(f";TYPE:{ROLE_TYPES[role]}\n")
-            lines = [f"G1 X{x:.3f} Y{y:.3f} E{de:.5f}" for (x, y), de in zip(p[1:].tolist(), e.tolist())]
-            lines[0] += f" F{f:.0f}"
-            out.write("\n".join(lines) + "\n")
+            out.write(f";TYPE:{ROLE_TYPES[role]}\nG1 F{f:.0f}\n")
+            rows = np.column_stack([p[1:], e]).ravel().tolist()
+            out.write(_G1 * len(e) % tuple(rows))  # one C-level format for the whole path
     return total_e
 
 

@@ -16,6 +16,9 @@ Stages, each on whole layers:
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Callable
 
@@ -23,7 +26,7 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import SlicingSettings
-from cooprint.io.mesh import Solid
+from cooprint.io.mesh import Solid, to_manifold
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths
 
@@ -74,49 +77,110 @@ def _closed(ring: np.ndarray, start: int) -> np.ndarray:
     return np.vstack([r, r[:1]])
 
 
+#: Layers per unit of work. Fixed (not derived from the number of processes) so that the result
+#: is the same whatever the parallelism: each block starts its travel from the same corner.
+BLOCK = 48
+#: Section outlines are simplified to this deviation, mm (PrusaSlicer's resolution is 0.0125).
+SIMPLIFY = 0.005
+#: From this many blocks on, slice_solid uses worker processes by default.
+PARALLEL_BLOCKS = 3
+
+
 def slice_solid(solid: Solid, settings: SlicingSettings,
-                progress: Callable[[int, int], None] | None = None) -> SlicedModel:
+                progress: Callable[[int, int], None] | None = None, workers: int | None = None) -> SlicedModel:
     """Layers of ordered tool paths for a watertight solid.
+
+    Parameters
+    ----------
+    workers
+        Processes to use (default: one per CPU, at most 4); blocks of ``BLOCK`` layers are sliced
+        independently, so 1 and N workers give identical results.
 
     Returns
     -------
     SlicedModel
         One :class:`LayerPaths` per layer, bottom first; XY in the solid's frame, z absolute.
     """
-    s = settings
     zmin, zmax = float(solid.bounds[0, 2]), float(solid.bounds[1, 2])
-    tops = layer_tops(zmax - zmin, s)
-    heights = np.diff(np.concatenate([[0.0], tops]))
-    man = solid.manifold
-    sections = [man.slice(zmin + t - hh / 2) for t, hh in zip(tops, heights)]
-    n = len(tops)
-    rear = np.array([solid.bounds[1, 0], solid.bounds[1, 1]])
-
-    layers = []
-    here = np.array([solid.bounds[0, 0], solid.bounds[0, 1]])
-    for i in range(n):
-        cs = sections[i]
-        above = sections[i + 1:i + 1 + s.top_layers]
-        below = sections[max(0, i - s.bottom_layers):i]
-        covered_above = _intersection(above) if len(above) == s.top_layers and above else CrossSection()
-        covered_below = _intersection(below) if len(below) == s.bottom_layers and below else CrossSection()
-        paths: list[tuple[np.ndarray, int, float]] = []
-        islands = _islands(cs, s.min_area)
-        # islands nearest-first from where the nozzle is
-        remaining = list(islands)
-        while remaining:
-            centres = np.array([np.mean(_rings(isl)[0], axis=0) if _rings(isl) else here for isl in remaining])
-            k = int(np.argmin(((centres - here) ** 2).sum(axis=1)))
-            isl = remaining.pop(k)
-            here = _island_paths(isl, i, s, covered_above, covered_below, paths, here, rear)
-        layers.append(_with_travel(zmin + float(tops[i]), float(heights[i]), paths))
-        if progress:
-            progress(i + 1, n)
-    return SlicedModel(tuple(layers), s)
+    n = len(layer_tops(zmax - zmin, settings))
+    blocks = [(lo, min(lo + BLOCK, n)) for lo in range(0, n, BLOCK)]
+    if workers is None:  # a pool costs ~0.3 s to start: worth it from a few hundred layers on
+        workers = min(os.cpu_count() or 1, 4) if len(blocks) >= PARALLEL_BLOCKS else 1
+    workers = min(workers, len(blocks))
+    global _WORKER
+    _WORKER = _Job(solid.vertices, solid.faces, settings, solid.manifold)
+    layers: list[LayerPaths] = []
+    try:
+        if workers <= 1:
+            parts = map(_work_block, blocks)
+            pool = None
+        else:  # forked workers share the parent's job (and its manifold) copy-on-write
+            pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+            parts = pool.map(_work_block, blocks)
+        for part in parts:
+            layers += part
+            if progress:
+                progress(len(layers), n)
+        if pool is not None:
+            pool.shutdown()
+    finally:
+        _WORKER = None
+    return SlicedModel(tuple(layers), settings)
 
 
-def _island_paths(isl: CrossSection, layer: int, s: SlicingSettings, covered_above: CrossSection,
-                  covered_below: CrossSection, paths: list, here: np.ndarray, rear: np.ndarray) -> np.ndarray:
+class _Job:
+    """Everything a block of layers needs: the solid as manifold3d, the layer planes."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, settings: SlicingSettings,
+                 man: manifold3d.Manifold | None = None):
+        self.s = settings
+        self.man = man if man is not None else to_manifold(vertices, faces)
+        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        self.zmin = float(lo[2])
+        self.tops = layer_tops(float(hi[2] - lo[2]), settings)
+        self.heights = np.diff(np.concatenate([[0.0], self.tops]))
+        self.start = np.array([lo[0], lo[1]])
+        self.rear = np.array([hi[0], hi[1]])
+
+    def section(self, i: int) -> CrossSection:
+        cs = self.man.slice(self.zmin + float(self.tops[i] - self.heights[i] / 2))
+        return cs.simplify(SIMPLIFY)
+
+    def block(self, lo: int, hi: int) -> list[LayerPaths]:
+        """Layers ``lo .. hi - 1``, sliced with the neighbours their skins need."""
+        s, n = self.s, len(self.tops)
+        first, last = max(0, lo - s.bottom_layers), min(n, hi + s.top_layers)
+        sections = {i: self.section(i) for i in range(first, last)}
+        here = self.start
+        out = []
+        for i in range(lo, hi):
+            # sparse where the next top_layers and the previous bottom_layers sections all cover
+            # (PrusaSlicer's rule); solid skin elsewhere: at the top, the bottom, and near both
+            above = [sections[k] for k in range(i + 1, min(n, i + 1 + s.top_layers))]
+            below = [sections[k] for k in range(max(0, i - s.bottom_layers), i)]
+            full = len(above) == s.top_layers and len(below) == s.bottom_layers
+            covered = _intersection(above + below) if full and above + below else None
+            paths: list[tuple[np.ndarray, int, float]] = []
+            remaining = _islands(sections[i], s.min_area)
+            while remaining:  # islands nearest-first from where the nozzle is
+                b = np.array([isl.bounds() for isl in remaining])  # xmin, ymin, xmax, ymax
+                centres = (b[:, :2] + b[:, 2:]) / 2
+                k = int(np.argmin(((centres - here) ** 2).sum(axis=1)))
+                here = _island_paths(remaining.pop(k), i, s, covered, paths, here, self.rear)
+            out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
+        return out
+
+
+_WORKER: _Job | None = None
+
+
+def _work_block(block: tuple[int, int]) -> list[LayerPaths]:
+    assert _WORKER is not None
+    return _WORKER.block(*block)
+
+
+def _island_paths(isl: CrossSection, layer: int, s: SlicingSettings, covered: CrossSection | None,
+                  paths: list, here: np.ndarray, rear: np.ndarray) -> np.ndarray:
     """Append one island's perimeters, skin and infill to ``paths``; return the nozzle position."""
     w = s.extrusion_width
     loops = []
@@ -137,9 +201,10 @@ def _island_paths(isl: CrossSection, layer: int, s: SlicingSettings, covered_abo
     fill = isl.offset(-(s.perimeters * w) + 0.25 * w, manifold3d.JoinType.Miter) if s.perimeters else isl
     if fill.is_empty() or fill.area() < s.min_area:
         return here
-    solid_part = (fill - covered_above) + (fill - covered_below)
-    solid_part = solid_part ^ fill
-    sparse = fill - solid_part
+    if covered is None or covered.is_empty():
+        solid_part, sparse = fill, CrossSection()
+    else:
+        solid_part, sparse = fill - covered, fill ^ covered
     angle = s.infill_angle_deg + 90.0 * (layer % 2)
     for seg in hatch(_rings(solid_part), w, angle) if not solid_part.is_empty() else []:
         paths.append((seg, SKIN, w))
