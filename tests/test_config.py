@@ -35,6 +35,10 @@ def test_overrides_win_over_files_and_none_is_ignored(tmp_path):
     ("[printer]\nx = 1\n", "unknown section [printer]"),
     ("[robot]\nname = ''\n", "robot.name = '': expected a non-empty string"),
     ("[robot\n", "invalid TOML"),
+    ('[slicing]\ninfill_pattern = "honeycomb"\n', "slicing.infill_pattern = 'honeycomb': expected one of"),
+    ("[slicing]\nperimeters = 2.5\n", "slicing.perimeters = 2.5: expected a whole number"),
+    ("[slicing]\nouter_perimeter_first = 1\n", "slicing.outer_perimeter_first = 1: expected true or false"),
+    ("[slicing]\ninfill_density = 1.5\n", "slicing.infill_density = 1.5: expected a number >= 0 and <= 1"),
 ])
 def test_bad_fields_name_file_field_value_and_range(tmp_path, text, needle):
     f = tmp_path / "bad.toml"
