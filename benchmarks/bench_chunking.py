@@ -7,16 +7,16 @@ whole process, runs alternating (cooprint 1, Blender 1, cooprint 2, ...), and th
 from __future__ import annotations
 
 import json
-import subprocess
 from pathlib import Path
 
-from harness import (BenchContext, Measurement, SourceWatch, median, plural, prepare_mesh,
-                     stl_triangles, time_process)
+from harness import (BenchContext, Measurement, SourceWatch, fmt, median, plural, prepare_mesh,
+                     ratio, stl_triangles, summarise, time_process, timed, tool_version)
 
 NAME = "chunking"
 TITLE = "Chunking"
 DEFAULT_MESHES = ["cylinder_tall.stl", "baja_car.stl", "nefertiti.stl", "benchy.stl",
                   "nefertiti_1p6M.stl.gz"]
+PEER_PACKAGES = ["blender", "python3-numpy"]
 THETA_DEG = 60.0
 SHIFT_MM = 60.0
 ROBOT_TOML = """\
@@ -54,12 +54,6 @@ def startup_s(ctx: BenchContext, cmd: list[str], tool: str) -> float | None:
     return median([time_process(cmd, logs, f"{tool}_{i}").wall_s for i in range(1, ctx.runs + 1)])
 
 
-def tool_version(cmd: list[str]) -> str:
-    """First line that ``cmd`` prints."""
-    out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
-    return out.strip().splitlines()[0]
-
-
 def blender_script(ctx: BenchContext) -> Path:
     """The seed's chunker, run inside Blender."""
     return ctx.shared / "peers" / "blender_chunker.py"
@@ -89,27 +83,6 @@ def bench_mesh(ctx: BenchContext, source: Path, robot: Path, watch: SourceWatch)
         row["blender"] = summarise(blender_runs) | blender_volumes(blender_runs)
         row["chunk_diff"] = compare_chunks(coop["volumes"], row["blender"]["volumes"])
     return row
-
-
-def timed(cmd: list[str], out: Path, tool: str, i: int, runs: int) -> Measurement:
-    """One timed run, with a progress line."""
-    m = time_process(cmd, out / "logs", f"{tool}_{i}")
-    status = "ok" if m.returncode == 0 else f"FAILED (exit {m.returncode})"
-    print(f"  {out.name:<20} {tool:<8} run {i}/{runs}: {m.wall_s:7.2f} s "
-          f"{m.peak_mb:7.0f} MB  {status}", flush=True)
-    return m
-
-
-def summarise(runs: list[Measurement]) -> dict:
-    """Per-run numbers and the medians over the successful runs."""
-    ok = [m for m in runs if m.returncode == 0]
-    failed = [m for m in runs if m.returncode != 0]
-    return {"wall_s": [m.wall_s for m in runs], "peak_mb": [round(m.peak_mb, 1) for m in runs],
-            "returncodes": [m.returncode for m in runs],
-            "wall_median_s": median([m.wall_s for m in ok]),
-            "peak_median_mb": median([m.peak_mb for m in ok]),
-            "error": (failed[-1].error_line or f"exit code {failed[-1].returncode}")
-            if failed else None}
 
 
 def cooprint_volumes(job_json: Path, runs: list[Measurement]) -> dict:
@@ -208,11 +181,6 @@ def table_row(row: dict) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
-def fmt(value, spec: str) -> str:
-    """``value`` formatted, or an em dash when it is missing."""
-    return "—" if value is None else format(value, spec)
-
-
 def wall(tool: dict) -> str:
     """Median wall time, or why there is none."""
     return failed(tool) or fmt(tool.get("wall_median_s"), ".2f")
@@ -227,11 +195,6 @@ def failed(tool: dict) -> str:
     """'failed' when some run of the tool failed, else an empty string."""
     bad = [rc for rc in tool.get("returncodes", []) if rc != 0]
     return f"failed {len(bad)}/{len(tool['returncodes'])}" if bad else ""
-
-
-def ratio(num: float | None, den: float | None, unit: str) -> str:
-    """num / den with two decimals and ``unit``, or a dash."""
-    return "—" if num is None or not den else f"{num / den:.2f}{unit}"
 
 
 def chunk_count(c: dict, b: dict) -> str:

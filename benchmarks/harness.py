@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import gzip
 import hashlib
+import os
 import re
 import shutil
+import signal
 import statistics
 import struct
 import subprocess
@@ -18,6 +20,7 @@ from pathlib import Path
 
 GNU_TIME = "/usr/bin/time"
 TIMEOUT_S = 1800
+TIMED_OUT = "timed out after"
 EXCEPTION_LINE = re.compile(r"^[A-Za-z_.]+(Error|Exception): ")
 
 
@@ -92,20 +95,56 @@ class Measurement:
     error_line: str
 
 
-def time_process(cmd: list[str], log_dir: Path, tag: str) -> Measurement:
-    """Run ``cmd`` under ``/usr/bin/time -v``; keep its output in ``log_dir/tag.*``."""
+def time_process(cmd: list[str], log_dir: Path, tag: str,
+                 timeout_s: float = TIMEOUT_S) -> Measurement:
+    """Run ``cmd`` under ``/usr/bin/time -v``; keep its output in ``log_dir/tag.*``.
+
+    After ``timeout_s`` the whole process group is killed (``time`` and the tool it runs) and
+    the measurement says ``timed out after ... s``.
+    """
     log_dir.mkdir(parents=True, exist_ok=True)
     report = log_dir / f"{tag}.time"
-    try:
-        proc = subprocess.run([GNU_TIME, "-v", "-o", str(report), *cmd], capture_output=True,
-                              text=True, timeout=TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        return Measurement(float(TIMEOUT_S), 0.0, -1, "", f"timed out after {TIMEOUT_S} s")
-    (log_dir / f"{tag}.out").write_text(proc.stdout)
-    (log_dir / f"{tag}.err").write_text(proc.stderr)
+    with subprocess.Popen([GNU_TIME, "-v", "-o", str(report), *cmd], stdout=subprocess.PIPE,
+                          stderr=subprocess.PIPE, text=True, start_new_session=True) as proc:
+        try:
+            stdout, stderr = proc.communicate(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            return Measurement(float(timeout_s), 0.0, -1, "", f"{TIMED_OUT} {timeout_s:g} s")
+    (log_dir / f"{tag}.out").write_text(stdout)
+    (log_dir / f"{tag}.err").write_text(stderr)
     wall_s, peak_kb = parse_gnu_time(report.read_text())
-    return Measurement(wall_s, peak_kb / 1024.0, proc.returncode, proc.stdout,
-                       error_line(proc.stdout, proc.stderr))
+    return Measurement(wall_s, peak_kb / 1024.0, proc.returncode, stdout,
+                       error_line(stdout, stderr))
+
+
+def timed(cmd: list[str], out: Path, tool: str, i: int, runs: int,
+          timeout_s: float = TIMEOUT_S) -> Measurement:
+    """One timed run (logs in ``out/logs``), with a progress line."""
+    m = time_process(cmd, out / "logs", f"{tool}_{i}", timeout_s)
+    status = "ok" if m.returncode == 0 else f"FAILED (exit {m.returncode})"
+    print(f"  {out.name:<20} {tool:<8} run {i}/{runs}: {m.wall_s:7.2f} s "
+          f"{m.peak_mb:7.0f} MB  {status}", flush=True)
+    return m
+
+
+def summarise(runs: list[Measurement]) -> dict:
+    """Per-run numbers and the medians over the successful runs."""
+    ok = [m for m in runs if m.returncode == 0]
+    failed = [m for m in runs if m.returncode != 0]
+    return {"wall_s": [m.wall_s for m in runs], "peak_mb": [round(m.peak_mb, 1) for m in runs],
+            "returncodes": [m.returncode for m in runs],
+            "wall_median_s": median([m.wall_s for m in ok]),
+            "peak_median_mb": median([m.peak_mb for m in ok]),
+            "error": (failed[-1].error_line or f"exit code {failed[-1].returncode}")
+            if failed else None}
+
+
+def tool_version(cmd: list[str]) -> str:
+    """First line that ``cmd`` prints."""
+    out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+    return out.strip().splitlines()[0]
 
 
 def error_line(stdout: str, stderr: str) -> str:
@@ -132,6 +171,16 @@ def parse_gnu_time(text: str) -> tuple[float, int]:
 def median(values: list[float]) -> float | None:
     """Median of the values, None when there are none."""
     return statistics.median(values) if values else None
+
+
+def fmt(value, spec: str) -> str:
+    """``value`` formatted, or an em dash when it is missing."""
+    return "—" if value is None else format(value, spec)
+
+
+def ratio(num: float | None, den: float | None, unit: str) -> str:
+    """num / den with two decimals and ``unit``, or a dash."""
+    return "—" if num is None or not den else f"{num / den:.2f}{unit}"
 
 
 def plural(n: int, word: str) -> str:

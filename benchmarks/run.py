@@ -3,11 +3,11 @@
     .venv/bin/python benchmarks/run.py [--runs N] [--meshes NAME...] [--stages NAME...]
                                        [--skip-peers]
 
-A stage is a module ``bench_<stage>.py`` with NAME, TITLE, DEFAULT_MESHES,
-``run(ctx, meshes) -> dict`` (JSON-ready, with at least ``runs``, ``tools`` and
-``sources_changed``) and ``render(result) -> str``; add it to STAGES. Each stage's result
-is kept in docs/bench/<NAME>.json and the page is rebuilt from all of them, so re-running one
-stage keeps the sections of the others.
+A stage is a module ``bench_<stage>.py`` with NAME, TITLE, DEFAULT_MESHES, PEER_PACKAGES
+(Debian packages of its peers), ``run(ctx, meshes) -> dict`` (JSON-ready, with at least
+``runs``, ``tools`` and ``sources_changed``) and ``render(result) -> str``; add it to STAGES.
+Each stage's result is kept in docs/bench/<NAME>.json and the page is rebuilt from all of them,
+so re-running one stage keeps the sections of the others.
 """
 from __future__ import annotations
 
@@ -21,16 +21,16 @@ import sys
 from pathlib import Path
 
 import bench_chunking
+import bench_slicing
 from harness import BenchContext, plural, resolve_meshes
 
-STAGES = [bench_chunking]
+STAGES = [bench_chunking, bench_slicing]
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 WORK = REPO / "benchmarks" / "_work"
 RESULTS = REPO / "docs" / "bench"
 PAGE = REPO / "docs" / "benchmarks.md"
 COOPRINT = REPO / ".venv" / "bin" / "cooprint"
-PEER_PACKAGES = ["blender", "python3-numpy", "time"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,11 +43,12 @@ def main(argv: list[str] | None = None) -> int:
     if not COOPRINT.exists():
         print(f"benchmarks: {COOPRINT} not found; run `make test` or `make demo` first.")
         return 1
-    ensure_packages(["time"] if args.skip_peers else PEER_PACKAGES)
+    stages = [s for s in STAGES if s.NAME in args.stages]
+    ensure_packages(["time"] + ([] if args.skip_peers else peer_packages(stages)))
     ctx = BenchContext(shared=SHARED, work=WORK, cooprint=COOPRINT, src=REPO / "src",
                        runs=args.runs, skip_peers=args.skip_peers)
     machine = machine_info()
-    for stage in [s for s in STAGES if s.NAME in args.stages]:
+    for stage in stages:
         print(f"== {stage.TITLE}", flush=True)
         meshes = resolve_meshes(SHARED, args.meshes or stage.DEFAULT_MESHES)
         result = stage.run(ctx, meshes)
@@ -88,6 +89,11 @@ def ensure_packages(packages: list[str]) -> None:
     if subprocess.run(install).returncode != 0:
         subprocess.run(["apt-get", "update"], check=True)
         subprocess.run(install, check=True)
+
+
+def peer_packages(stages: list) -> list[str]:
+    """The Debian packages of the stages' peers, each once."""
+    return list(dict.fromkeys(p for s in stages for p in s.PEER_PACKAGES))
 
 
 def installed(package: str) -> bool:
@@ -154,9 +160,10 @@ def render_page(results: list[dict], machine: dict) -> str:
         "`--runs N` timed runs per tool (default 3), `--meshes NAME...` (default: each stage's "
         "list; meshes absent from `../shared/meshes` are skipped), `--stages NAME...` "
         f"(default: all of {', '.join(modules)}), `--skip-peers` (time cooprint only). The "
-        "peers are installed with `apt-get install -y " + " ".join(PEER_PACKAGES) + "` when "
-        "missing. Each stage's raw numbers are kept in `docs/bench/<stage>.json` and this page "
-        "is rebuilt from all of them, so re-running one stage keeps the others' sections.",
+        "peers are installed with `apt-get install -y "
+        + " ".join(["time", *peer_packages(STAGES)]) + "` when missing. Each stage's raw "
+        "numbers are kept in `docs/bench/<stage>.json` and this page is rebuilt from all of "
+        "them, so re-running one stage keeps the others' sections.",
         "",
         f"- **Date:** {now()}",
         f"- **Machine:** {describe(machine)}",
