@@ -118,7 +118,7 @@ def read_gcode(text):
     """An independent reader: absolute XYZ, relative E; returns extruding moves and totals."""
     x = y = z = 0.0
     relative = False
-    moves, e_total = [], 0.0
+    moves, e_total, retracted = [], 0.0, 0.0
     for line in text.splitlines():
         line = line.split(";", 1)[0].strip()
         if not line:
@@ -133,10 +133,12 @@ def read_gcode(text):
             else:
                 nx, ny, nz = words.get("X", x), words.get("Y", y), words.get("Z", z)
             e = words.get("E", 0.0)
-            if e > 0:
+            if e > 0 and (nx, ny) != (x, y):  # unretracts (E without XY) only undo retracts
                 moves.append((x, y, nx, ny, nz, e))
                 e_total += e
+            retracted += -e if (nx, ny) == (x, y) else 0.0
             x, y, z = nx, ny, nz
+    assert abs(retracted) < 1e-6  # every retract is undone
     moves = np.array(moves)
     return moves, e_total, len(np.unique(moves[:, 4]))
 
@@ -168,3 +170,18 @@ def test_slice_cli(tmp_path, capsys):
     assert out.read_text() == before
     assert main(["slice", str(stl), "--out", str(out), "-q", "--force", "--layer-height", "0.25"]) == 0
     assert out.read_text().count(";LAYER:") == 1 + math.ceil((10 - 0.2) / 0.25)
+
+
+def test_small_sparse_regions_are_filled_solid():
+    # a 6 x 6 mm column: its fill area (~26 mm2) is below the 70 mm2 threshold, as in PrusaSlicer
+    sliced = slice_solid(solid(box(6, 6, 10)), SlicingSettings())
+    middle = sliced.layers[25]
+    assert SKIN in set(middle.role.tolist()) and INFILL not in set(middle.role.tolist())
+    sparse = slice_solid(solid(box(6, 6, 10)), SlicingSettings(solid_infill_below_area=0.0)).layers[25]
+    assert INFILL in set(sparse.role.tolist()) and SKIN not in set(sparse.role.tolist())
+
+
+def test_long_travels_retract_and_unretract(cube):
+    text = gcode_text(cube.layers, cube.settings, "cube")
+    assert text.count("G1 E-0.80000 F2100") == text.count("G1 E0.80000 F2100") > 0
+    assert "E0.00000" not in text  # no extruding move that does not move

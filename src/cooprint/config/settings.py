@@ -87,6 +87,8 @@ class SlicingSettings:
     infill_density: float = field(default=0.2, metadata=_num(0, 1, doc="0 = hollow, 1 = solid"))
     infill_pattern: str = field(default="rectilinear", metadata=_choice("rectilinear", "grid", "triangles"))
     infill_angle_deg: float = field(default=45.0, metadata=_num(-360, 360, unit="deg"))
+    solid_infill_below_area: float = field(default=70.0, metadata=_num(0, 1e6, unit="mm2",
+                                           doc="sparse regions smaller than this are filled solid"))
     outer_perimeter_first: bool = field(default=False, metadata={"boolean": True})
     seam: str = field(default="aligned", metadata=_choice("aligned", "nearest", "rear"))
     min_area: float = field(default=0.05, metadata=_num(0, 1e6, unit="mm2",
@@ -96,6 +98,10 @@ class SlicingSettings:
     infill_speed: float = field(default=80.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     first_layer_speed: float = field(default=30.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     travel_speed: float = field(default=130.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    retract_length: float = field(default=0.8, metadata=_num(0, 50, unit="mm"))
+    retract_speed: float = field(default=35.0, metadata=_num(0, 1e3, unit="mm/s", lo_open=True))
+    retract_before_travel: float = field(default=2.0, metadata=_num(0, 1e4, unit="mm",
+                                         doc="travels shorter than this do not retract"))
     nozzle_temperature: float = field(default=210.0, metadata=_num(0, 500, unit="C"))
     bed_temperature: float = field(default=60.0, metadata=_num(0, 200, unit="C"))
 

@@ -58,11 +58,21 @@ def write_layers(out: TextIO, layers: Iterable[LayerPaths], s: SlicingSettings, 
             role = int(layer.role[k])
             f = _speed(role, li, s) * 60.0
             if role == TRAVEL:
+                hop = float(np.linalg.norm(p[-1] - p[0]))
+                retract = s.retract_length > 0 and hop >= s.retract_before_travel
+                if retract:
+                    out.write(f"G1 E{-s.retract_length:.5f} F{s.retract_speed * 60:.0f}\n")
                 out.write(f"G0 X{p[-1, 0]:.3f} Y{p[-1, 1]:.3f} F{f:.0f}\n")
+                if retract:
+                    out.write(f"G1 E{s.retract_length:.5f} F{s.retract_speed * 60:.0f}\n")
                 continue
             if k == 0:  # a layer's first path starts wherever the last layer ended: go there
                 out.write(f"G0 X{p[0, 0]:.3f} Y{p[0, 1]:.3f} F{s.travel_speed * 60:.0f}\n")
             seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+            moving = seg > 1e-6  # a repeated point is no move
+            p, seg = np.vstack([p[:1], p[1:][moving]]), seg[moving]
+            if len(seg) == 0:
+                continue
             e = extrusion_area(layer.width[k], layer.height) * seg / fil_area
             total_e += float(e.sum())
             out.write(f";TYPE:{ROLE_TYPES[role]}\nG1 F{f:.0f}\n")

@@ -81,7 +81,7 @@ def _closed(ring: np.ndarray, start: int) -> np.ndarray:
 #: is the same whatever the parallelism: each block starts its travel from the same corner.
 BLOCK = 48
 #: Section outlines are simplified to this deviation, mm (PrusaSlicer's resolution is 0.0125).
-SIMPLIFY = 0.005
+SIMPLIFY = 0.0125
 #: From this many blocks on, slice_solid uses worker processes by default.
 PARALLEL_BLOCKS = 3
 
@@ -205,6 +205,10 @@ def _island_paths(isl: CrossSection, layer: int, s: SlicingSettings, covered: Cr
         solid_part, sparse = fill, CrossSection()
     else:
         solid_part, sparse = fill - covered, fill ^ covered
+        small = [p for p in sparse.decompose() if p.area() < s.solid_infill_below_area]
+        if small:  # PrusaSlicer's solid infill threshold: small sparse regions are filled solid
+            solid_part = CrossSection.batch_boolean([solid_part, *small], manifold3d.OpType.Add)
+            sparse = sparse - CrossSection.batch_boolean(small, manifold3d.OpType.Add)
     angle = s.infill_angle_deg + 90.0 * (layer % 2)
     for seg in hatch(_rings(solid_part), w, angle) if not solid_part.is_empty() else []:
         paths.append((seg, SKIN, w))
