@@ -47,37 +47,49 @@ def end_code() -> str:
 
 
 def write_layers(out: TextIO, layers: Iterable[LayerPaths], s: SlicingSettings, first_index: int = 0) -> float:
-    """Write the moves of ``layers``; return the filament length used, mm."""
+    """Write the moves of ``layers``; return the filament length used, mm.
+
+    Per layer, segment lengths and E values are computed for all paths at once and turned into
+    Python numbers once; each path is then one ``%`` format of its slice of them.
+    """
     fil_area = math.pi * (s.filament_diameter / 2) ** 2
+    travel_f = f"F{s.travel_speed * 60:.0f}"
+    retract = f"G1 E{-s.retract_length:.5f} F{s.retract_speed * 60:.0f}\n" if s.retract_length > 0 else ""
+    unretract = f"G1 E{s.retract_length:.5f} F{s.retract_speed * 60:.0f}\n" if s.retract_length > 0 else ""
     total_e = 0.0
     for li, layer in enumerate(layers, start=first_index):
-        out.write(f";LAYER:{li}\n;Z:{layer.z:.3f}\nG0 Z{layer.z:.3f} F{s.travel_speed * 60:.0f}\n")
-        pts = layer.points
-        for k in range(len(layer)):
-            p = pts[layer.offsets[k]:layer.offsets[k + 1]]
+        out.write(f";LAYER:{li}\n;Z:{layer.z:.3f}\nG0 Z{layer.z:.3f} {travel_f}\n")
+        m = len(layer)
+        if m == 0:
+            continue
+        pts, offsets = layer.points, layer.offsets
+        path_of = np.repeat(np.arange(m), np.diff(offsets))
+        seg_path = path_of[:-1]
+        length = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        # segments inside one extruding path that move (a repeated point is no move)
+        keep = (seg_path == path_of[1:]) & (length > 1e-6) & (layer.role[seg_path] != TRAVEL)
+        idx = np.flatnonzero(keep)
+        e = extrusion_area(layer.width[seg_path[idx]], layer.height) * length[idx] / fil_area
+        total_e += float(e.sum())
+        rows = np.column_stack([pts[idx + 1], e]).ravel().tolist()
+        count = np.bincount(seg_path[idx], minlength=m)
+        start = np.concatenate([[0], np.cumsum(count)])
+        first, last = pts[offsets[:-1]], pts[offsets[1:] - 1]
+        hop = np.linalg.norm(last - first, axis=1)
+        for k in range(m):
             role = int(layer.role[k])
-            f = _speed(role, li, s) * 60.0
             if role == TRAVEL:
-                hop = float(np.linalg.norm(p[-1] - p[0]))
-                retract = s.retract_length > 0 and hop >= s.retract_before_travel
-                if retract:
-                    out.write(f"G1 E{-s.retract_length:.5f} F{s.retract_speed * 60:.0f}\n")
-                out.write(f"G0 X{p[-1, 0]:.3f} Y{p[-1, 1]:.3f} F{f:.0f}\n")
-                if retract:
-                    out.write(f"G1 E{s.retract_length:.5f} F{s.retract_speed * 60:.0f}\n")
+                long_hop = retract and hop[k] >= s.retract_before_travel
+                out.write((retract if long_hop else "") + f"G0 X{last[k, 0]:.3f} Y{last[k, 1]:.3f} {travel_f}\n"
+                          + (unretract if long_hop else ""))
+                continue
+            c = int(count[k])
+            if c == 0:
                 continue
             if k == 0:  # a layer's first path starts wherever the last layer ended: go there
-                out.write(f"G0 X{p[0, 0]:.3f} Y{p[0, 1]:.3f} F{s.travel_speed * 60:.0f}\n")
-            seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
-            moving = seg > 1e-6  # a repeated point is no move
-            p, seg = np.vstack([p[:1], p[1:][moving]]), seg[moving]
-            if len(seg) == 0:
-                continue
-            e = extrusion_area(layer.width[k], layer.height) * seg / fil_area
-            total_e += float(e.sum())
-            out.write(f";TYPE:{ROLE_TYPES[role]}\nG1 F{f:.0f}\n")
-            rows = np.column_stack([p[1:], e]).ravel().tolist()
-            out.write(_G1 * len(e) % tuple(rows))  # one C-level format for the whole path
+                out.write(f"G0 X{first[k, 0]:.3f} Y{first[k, 1]:.3f} {travel_f}\n")
+            out.write(f";TYPE:{ROLE_TYPES[role]}\nG1 F{_speed(role, li, s) * 60:.0f}\n")
+            out.write(_G1 * c % tuple(rows[3 * start[k]:3 * (start[k] + c)]))
     return total_e
 
 
