@@ -9,7 +9,6 @@ from PIL import Image
 
 from cooprint.cli import main
 from cooprint.jobs import run_chunk
-from cooprint.render.chunks import CENTRE_COLOUR
 
 from solids import car, to_trimesh
 

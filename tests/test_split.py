@@ -1,6 +1,5 @@
 """The numpy plane splitter: closed halves, exact volumes, degenerate planes, fallback."""
 
-import manifold3d as m3d
 import numpy as np
 import pytest
 
