@@ -27,6 +27,34 @@ def winding_consistent(faces: np.ndarray) -> bool:
     return bool((directed[1:] != directed[:-1]).all())
 
 
+def edge_loops(src: np.ndarray, dst: np.ndarray) -> list[np.ndarray] | None:
+    """Closed loops of the directed edges ``src[i] -> dst[i]``, each an (k,) vertex array.
+
+    At a pinch vertex (two edges out) any choice closes a loop. Returns ``None`` when an edge
+    leads to a vertex with no edge out (the edges do not form closed loops).
+    """
+    nxt: dict[int, list[int]] = {}
+    for a, b in zip(src.tolist(), dst.tolist()):
+        nxt.setdefault(a, []).append(b)
+    loops = []
+    while nxt:
+        start = next(iter(nxt))
+        loop, cur = [], start
+        while True:
+            loop.append(cur)
+            outs = nxt.get(cur)
+            if not outs:
+                return None
+            nb = outs.pop()
+            if not outs:
+                del nxt[cur]
+            cur = nb
+            if cur == start:
+                break
+        loops.append(np.asarray(loop, dtype=np.int64))
+    return loops
+
+
 def distinct_corners(faces: np.ndarray) -> np.ndarray:
     """(m,) bool: triangles whose three corners are three different vertices."""
     f = faces

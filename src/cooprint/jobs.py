@@ -139,14 +139,10 @@ def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
 def write_gcode(sliced: "SlicedModel", out: str | Path, name: str, force: bool = False) -> float:
     """Write ``sliced`` as Marlin G-code to ``out`` atomically; return filament used, mm."""
     from cooprint.io.bundle import atomic_file
-    from cooprint.program.gcode import end_code, start_code, write_layers
+    from cooprint.program.gcode import write_program
 
     with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
-        fh.write(start_code(sliced.settings, name))
-        used = write_layers(fh, sliced.layers, sliced.settings)
-        fh.write(end_code())
-        fh.write(f"; filament used [mm] = {used:.2f}\n")
-    return used
+        return write_program(fh, sliced.layers, sliced.settings, name)
 
 
 def run_chunk(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),

@@ -21,7 +21,7 @@ from __future__ import annotations
 import manifold3d
 import numpy as np
 
-from cooprint.geometry import distinct_corners
+from cooprint.geometry import distinct_corners, edge_loops
 
 
 class CapError(RuntimeError):
@@ -69,20 +69,11 @@ def _plane_basis(normal: np.ndarray) -> np.ndarray:
 
 def _loops(src: np.ndarray, dst: np.ndarray) -> list[np.ndarray]:
     """Closed loops of directed edges ``src[i] -> dst[i]`` (every point in and out once)."""
-    nxt = dict(zip(src.tolist(), dst.tolist()))
-    if len(nxt) != len(src):
+    if len(np.unique(src)) != len(src):
         raise CapError("a section point has two outgoing edges")
-    loops = []
-    while nxt:
-        start, cur = nxt.popitem()
-        loop = [start]
-        while cur != start:
-            loop.append(cur)
-            try:
-                cur = nxt.pop(cur)
-            except KeyError:
-                raise CapError("a section loop does not close") from None
-        loops.append(np.asarray(loop, dtype=np.int64))
+    loops = edge_loops(src, dst)
+    if loops is None:
+        raise CapError("a section loop does not close")
     return loops
 
 

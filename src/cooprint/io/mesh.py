@@ -22,8 +22,8 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import (compact, distinct_corners, edge_table, is_closed, signed_volume,
-                               winding_consistent)
+from cooprint.geometry import (compact, distinct_corners, edge_loops, edge_table, is_closed,
+                               signed_volume, winding_consistent)
 from cooprint.errors import MeshError
 
 FORMATS = ("stl", "obj", "ply", "3mf")
@@ -173,28 +173,7 @@ def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     if (uses > 2).any():
         return None
     open_edges = edges[uses == 1]
-    if len(open_edges) == 0:
-        return []
-    nxt: dict[int, list[int]] = {}
-    for a, b in open_edges.tolist():
-        nxt.setdefault(a, []).append(b)
-    loops = []
-    while nxt:
-        start = next(iter(nxt))
-        loop, cur = [], start
-        while True:  # at a pinch vertex (two boundary edges out) any choice closes a loop
-            loop.append(cur)
-            outs = nxt.get(cur)
-            if not outs:
-                return None
-            nb = outs.pop()
-            if not outs:
-                del nxt[cur]
-            cur = nb
-            if cur == start:
-                break
-        loops.append(np.asarray(loop, dtype=np.int64))
-    return loops
+    return edge_loops(open_edges[:, 0], open_edges[:, 1])
 
 
 def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:

@@ -14,7 +14,7 @@ from typing import Iterable, TextIO
 import numpy as np
 
 from cooprint.config import SlicingSettings
-from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, ROLE_NAMES, SKIN, TRAVEL, LayerPaths, extrusion_area
+from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths, extrusion_area
 
 _G1 = "G1 X%.3f Y%.3f E%.5f\n"
 ROLE_TYPES = {PERIMETER_OUTER: "WALL-OUTER", PERIMETER_INNER: "WALL-INNER", SKIN: "SKIN", INFILL: "FILL"}
@@ -93,14 +93,20 @@ def write_layers(out: TextIO, layers: Iterable[LayerPaths], s: SlicingSettings, 
     return total_e
 
 
+def write_program(out: TextIO, layers: Iterable[LayerPaths], s: SlicingSettings, name: str) -> float:
+    """Start code, layers, end code and the filament total; return filament used, mm."""
+    out.write(start_code(s, name))
+    used = write_layers(out, layers, s)
+    out.write(end_code())
+    out.write(f"; filament used [mm] = {used:.2f}\n")
+    return used
+
+
 def gcode_text(layers: Iterable[LayerPaths], s: SlicingSettings, name: str = "model") -> str:
-    """The whole program as one string (start code, layers, end code)."""
+    """The whole program as one string."""
     buf = io.StringIO()
-    buf.write(start_code(s, name))
-    used = write_layers(buf, layers, s)
-    buf.write(end_code())
-    buf.write(f"; filament used [mm] = {used:.2f}\n")
+    write_program(buf, layers, s, name)
     return buf.getvalue()
 
 
-__all__ = ["ROLE_NAMES", "end_code", "gcode_text", "start_code", "write_layers"]
+__all__ = ["end_code", "gcode_text", "start_code", "write_layers", "write_program"]

@@ -16,13 +16,13 @@ ROLE_COLOURS = {PERIMETER_OUTER: (200, 60, 50), PERIMETER_INNER: (240, 150, 60),
                 INFILL: (60, 160, 90), TRAVEL: (170, 170, 170)}
 
 
-def _segments(layer: LayerPaths, z: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _segments(layer: LayerPaths) -> tuple[np.ndarray, np.ndarray]:
     """All segments of a layer (k, 2, 3) and their roles (k,), travel included."""
     pts = layer.points
     seg_path = np.repeat(np.arange(len(layer)), np.diff(layer.offsets))
     same = seg_path[1:] == seg_path[:-1]
     a, b = pts[:-1][same], pts[1:][same]
-    zz = np.full((len(a), 1), layer.z if z is None else z)
+    zz = np.full((len(a), 1), layer.z)
     seg = np.stack([np.hstack([a, zz]), np.hstack([b, zz])], axis=1)
     return seg, layer.role[seg_path[:-1][same]]
 

@@ -19,6 +19,7 @@ import math
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Callable
 
@@ -26,7 +27,7 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import SlicingSettings
-from cooprint.io.mesh import Solid, to_manifold
+from cooprint.io.mesh import Solid
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths
 
@@ -108,21 +109,15 @@ def slice_solid(solid: Solid, settings: SlicingSettings,
         workers = min(os.cpu_count() or 1, 4) if len(blocks) >= PARALLEL_BLOCKS else 1
     workers = min(workers, len(blocks))
     global _WORKER
-    _WORKER = _Job(solid.vertices, solid.faces, settings, solid.manifold)
+    _WORKER = _Job(solid, settings)  # forked workers share it (and its manifold) copy-on-write
     layers: list[LayerPaths] = []
     try:
-        if workers <= 1:
-            parts = map(_work_block, blocks)
-            pool = None
-        else:  # forked workers share the parent's job (and its manifold) copy-on-write
-            pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
-            parts = pool.map(_work_block, blocks)
-        for part in parts:
-            layers += part
-            if progress:
-                progress(len(layers), n)
-        if pool is not None:
-            pool.shutdown()
+        with (ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+              if workers > 1 else nullcontext()) as pool:
+            for part in (pool.map if pool else map)(_work_block, blocks):
+                layers += part
+                if progress:
+                    progress(len(layers), n)
     finally:
         _WORKER = None
     return SlicedModel(tuple(layers), settings)
@@ -131,11 +126,10 @@ def slice_solid(solid: Solid, settings: SlicingSettings,
 class _Job:
     """Everything a block of layers needs: the solid as manifold3d, the layer planes."""
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, settings: SlicingSettings,
-                 man: manifold3d.Manifold | None = None):
+    def __init__(self, solid: Solid, settings: SlicingSettings):
         self.s = settings
-        self.man = man if man is not None else to_manifold(vertices, faces)
-        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        self.man = solid.manifold
+        lo, hi = solid.bounds
         self.zmin = float(lo[2])
         self.tops = layer_tops(float(hi[2] - lo[2]), settings)
         self.heights = np.diff(np.concatenate([[0.0], self.tops]))
