@@ -7,7 +7,7 @@ from cooprint.chunking import cut_chunks, plan_chunks
 from cooprint.chunking import cut as cut_module
 from cooprint.chunking.split import CapError, Mesh, _check_cap, split_mesh
 from cooprint.config import ChunkingSettings, RobotProfile
-from cooprint.geometry import compact, is_closed, signed_volume
+from cooprint.geometry import compact, drop_cancelling, is_closed, signed_volume
 from cooprint.io.mesh import solid_from_arrays
 
 from solids import box, lying_tube, to_trimesh, tube
@@ -105,3 +105,12 @@ def test_numpy_and_manifold_kernels_agree_on_a_tube():
     assert set(ours) <= set(ref) and len(ours) >= 5
     for cid, vol in ours.items():
         assert vol == pytest.approx(ref[cid], rel=1e-9), cid
+
+
+def test_drop_cancelling_removes_triangles_wound_both_ways():
+    faces = np.array([[0, 1, 2], [3, 4, 5], [2, 1, 0], [1, 2, 0], [4, 5, 3], [6, 7, 8]])
+    out = drop_cancelling(faces)
+    # (0,1,2) and (1,2,0) are one winding, (2,1,0) the other: one pair cancels, one (0,1,2) stays;
+    # (3,4,5) and (4,5,3) are the same winding: both stay
+    assert sorted(map(tuple, out.tolist())) == [(0, 1, 2), (3, 4, 5), (4, 5, 3), (6, 7, 8)]
+    assert np.array_equal(drop_cancelling(faces[[1, 5]]), faces[[1, 5]])

@@ -89,6 +89,37 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(det.sum() / 6.0)
 
 
+def drop_cancelling(faces: np.ndarray) -> np.ndarray:
+    """``faces`` without pairs of the same triangle wound both ways.
+
+    Such a pair encloses no volume (a zero-thickness sliver, e.g. where a cutting plane grazes a
+    face) but puts four faces on each of its edges. Of the triangles with one vertex set, the
+    surplus of the more frequent winding is kept.
+    """
+    if len(faces) < 2:
+        return faces
+    order = np.argsort(faces, axis=1)
+    key = np.take_along_axis(faces, order, axis=1)
+    # winding parity: even for the cyclic orders (0,1,2), (1,2,0), (2,0,1) of the sort
+    even = ((order[:, 1] - order[:, 0]) % 3) == 1
+    _, group, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    group = group.ravel()
+    if count.max() < 2:
+        return faces
+    n_even = np.bincount(group, weights=even, minlength=len(count)).astype(np.int64)
+    surplus = 2 * n_even - count  # > 0: that many even ones kept, < 0: odd ones
+    # rank of each face among the faces of its group with its parity
+    idx = np.lexsort((np.arange(len(faces)), even, group))
+    g, e = group[idx], even[idx]
+    new = np.r_[True, (g[1:] != g[:-1]) | (e[1:] != e[:-1])]
+    starts = np.flatnonzero(new)
+    rank = np.arange(len(idx)) - np.repeat(starts, np.diff(np.r_[starts, len(idx)]))
+    keep_n = np.where(e, np.maximum(surplus[g], 0), np.maximum(-surplus[g], 0))
+    keep = np.zeros(len(faces), dtype=bool)
+    keep[idx] = rank < keep_n
+    return faces[keep]
+
+
 def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Only the vertices ``faces`` use, re-indexed."""
     used = np.zeros(len(vertices), dtype=bool)

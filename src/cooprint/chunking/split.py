@@ -21,7 +21,7 @@ from __future__ import annotations
 import manifold3d
 import numpy as np
 
-from cooprint.geometry import distinct_corners, edge_loops
+from cooprint.geometry import distinct_corners, drop_cancelling, edge_loops
 
 
 class CapError(RuntimeError):
@@ -184,8 +184,20 @@ def split_mesh(mesh: Mesh, faces: np.ndarray, normal, offset: float,
     dst = np.where(lone_is_pos, p_ac, p_ab)
     keep = src != dst  # both ends snapped to one vertex: no edge left
     cap_pos = _cap(mesh.vertices, src[keep], dst[keep], normal)
-    return (np.concatenate(pos_parts + [cap_pos]),
-            np.concatenate(neg_parts + [cap_pos[:, ::-1]]))
+    pos, neg = np.concatenate(pos_parts + [cap_pos]), np.concatenate(neg_parts + [cap_pos[:, ::-1]])
+    if len(cap_pos):
+        # a plane grazing a face can leave a cap triangle on that face, wound the other way:
+        # drop both (only triangles lying in the plane can be such a pair)
+        off = np.abs(mesh.vertices @ normal - offset) <= snap + 1e-9
+        pos, neg = _without_cancelling(pos, off), _without_cancelling(neg, off)
+    return pos, neg
+
+
+def _without_cancelling(faces: np.ndarray, in_plane: np.ndarray) -> np.ndarray:
+    flat = in_plane[faces].all(axis=1)
+    if flat.sum() < 2:
+        return faces
+    return np.concatenate([faces[~flat], drop_cancelling(faces[flat])])
 
 
 def _proper(tris: np.ndarray) -> np.ndarray:
