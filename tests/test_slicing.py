@@ -12,7 +12,7 @@ from cooprint.io.mesh import solid_from_arrays
 from cooprint.program.gcode import gcode_text
 from cooprint.slicing import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, layer_tops, slice_solid
 from cooprint.slicing.infill import hatch
-from cooprint.slicing.paths import extrusion_area
+from cooprint.slicing.paths import extrusion_area, extrusion_spacing
 
 from solids import box, to_trimesh, tube
 
@@ -37,12 +37,14 @@ def test_layer_count_and_heights():
 
 def test_cube_perimeters_are_exact_squares(cube):
     w = 0.45
+    sp = extrusion_spacing(w, 0.2)  # lines touch with their rounded sides: 0.407 mm apart
+    assert sp == pytest.approx(0.45 - 0.2 * (1 - math.pi / 4))
     assert cube.n_layers == 50
     for layer in cube.layers:
         outer = [layer.path(k) for k in range(len(layer)) if layer.role[k] == PERIMETER_OUTER]
         inner = [layer.path(k) for k in range(len(layer)) if layer.role[k] == PERIMETER_INNER]
         assert len(outer) == 1 and len(inner) == 1
-        for ring, half in ((outer[0], 10 - w / 2), (inner[0], 10 - 1.5 * w)):
+        for ring, half in ((outer[0], 10 - w / 2), (inner[0], 10 - w / 2 - sp)):
             assert np.allclose(ring[0], ring[-1])  # closed loop
             assert np.allclose(np.abs(ring).max(axis=0), half)
             assert np.allclose(np.sort(np.abs(ring[:-1]), axis=0), half)  # only the four corners

@@ -1,8 +1,8 @@
 """Slicer (seed §4.2.1): watertight solid -> layers -> perimeters, skins, infill -> ordered paths."""
 
 from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, ROLE_NAMES, SKIN, TRAVEL,
-                                    LayerPaths, extrusion_area)
+                                    LayerPaths, extrusion_area, extrusion_spacing)
 from cooprint.slicing.slicer import SlicedModel, layer_tops, slice_solid
 
 __all__ = ["INFILL", "PERIMETER_INNER", "PERIMETER_OUTER", "ROLE_NAMES", "SKIN", "TRAVEL", "LayerPaths",
-           "SlicedModel", "extrusion_area", "layer_tops", "slice_solid"]
+           "SlicedModel", "extrusion_area", "extrusion_spacing", "layer_tops", "slice_solid"]

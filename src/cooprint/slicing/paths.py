@@ -72,3 +72,12 @@ def extrusion_area(width: np.ndarray | float, height: float) -> np.ndarray | flo
     """Cross-section of an extruded line, mm^2: a rectangle with semicircular sides (the flow
     model of Slic3r and PrusaSlicer), ``(w - h) h + pi (h / 2)^2``."""
     return (np.asarray(width) - height) * height + np.pi * (height / 2) ** 2
+
+
+def extrusion_spacing(width: float, height: float) -> float:
+    """Centre distance of two touching lines of that flow, mm: ``w - h (1 - pi / 4)``.
+
+    Lines at this spacing overlap by their rounded sides, so that a row of them has the
+    cross-section of a full rectangle: area / spacing = height.
+    """
+    return width - height * (1 - np.pi / 4)

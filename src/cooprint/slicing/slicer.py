@@ -4,11 +4,13 @@ Stages, each on whole layers:
 
 1. layer planes: a first layer of its own height, then equal layers; each sliced at mid-height
    (manifold3d ``slice``: closed polygons with holes and islands nested);
-2. regions: islands smaller than ``min_area`` dropped; N perimeters as inward offsets by the
-   extrusion width; the rest is the fill area;
-3. skins: the part of a layer's fill area not covered by all of the next ``top_layers`` (or the
-   previous ``bottom_layers``) cross-sections is solid, as PrusaSlicer's top/bottom solid layers;
-4. infill: solid skin hatched at the extrusion width, sparse infill by pattern and density;
+2. regions: islands smaller than ``min_area`` dropped; N perimeters, the outer one's centre half a
+   width inside the outline and the next ones a line spacing (``extrusion_spacing``: lines touch
+   with their rounded sides) further in; the rest is the fill area;
+3. skins: top and bottom surfaces (what the next or previous section does not cover), grown 3 mm
+   into the fill area, are solid on ``top_layers`` / ``bottom_layers`` layers, as PrusaSlicer's
+   top/bottom solid layers; small sparse regions are solid too;
+4. infill: solid skin hatched at the line spacing, sparse infill by pattern and density;
 5. order: islands nearest-first, perimeters with a seam, then skin and infill in scan order, with
    explicit travel paths between.
 """
@@ -29,7 +31,8 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.io.mesh import Solid
 from cooprint.slicing.infill import hatch
-from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths
+from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths,
+                                    extrusion_spacing)
 
 CrossSection = manifold3d.CrossSection
 
@@ -62,8 +65,10 @@ def _rings(cs: CrossSection) -> list[np.ndarray]:
     return [np.asarray(p, dtype=np.float64) for p in cs.to_polygons() if len(p) >= 3]
 
 
-def _intersection(sections: list[CrossSection]) -> CrossSection:
-    return CrossSection.batch_boolean(list(sections), manifold3d.OpType.Intersect)
+def _union(sections: list[CrossSection]) -> CrossSection:
+    if len(sections) == 1:
+        return sections[0]
+    return CrossSection.batch_boolean(list(sections), manifold3d.OpType.Add) if sections else CrossSection()
 
 
 def _seam_start(ring: np.ndarray, settings: SlicingSettings, here: np.ndarray, rear: np.ndarray) -> int:
@@ -83,6 +88,9 @@ def _closed(ring: np.ndarray, start: int) -> np.ndarray:
 BLOCK = 48
 #: Section outlines are simplified to this deviation, mm (PrusaSlicer's resolution is 0.0125).
 SIMPLIFY = 0.0125
+#: Top and bottom surfaces are grown by this much into the fill area before they become solid
+#: skin, mm (PrusaSlicer's EXTERNAL_INFILL_MARGIN): skins anchor on the sparse infill.
+EXTERNAL_MARGIN = 3.0
 #: From this many blocks on, slice_solid uses worker processes by default.
 PARALLEL_BLOCKS = 3
 
@@ -140,29 +148,107 @@ class _Job:
         cs = self.man.slice(self.zmin + float(self.tops[i] - self.heights[i] / 2))
         return cs.simplify(SIMPLIFY)
 
+    def fill_inset(self, i: int) -> float:
+        """Distance from the outline to the edge of the fill area on layer ``i``, mm: the outer
+        perimeter's centre at w/2, the next ones a line spacing further in each, the fill starting
+        half a spacing inside the last one, overlapping it by a quarter spacing (PrusaSlicer's
+        25% infill overlap)."""
+        s = self.s
+        if not s.perimeters:
+            return 0.0
+        sp = extrusion_spacing(s.extrusion_width, float(self.heights[i]))
+        return s.extrusion_width / 2 + (s.perimeters - 0.75) * sp
+
     def block(self, lo: int, hi: int) -> list[LayerPaths]:
-        """Layers ``lo .. hi - 1``, sliced with the neighbours their skins need."""
+        """Layers ``lo .. hi - 1``, sliced with the neighbours their skins need.
+
+        Solid skin (PrusaSlicer's top/bottom solid layers): a layer's top surface is the part of
+        its section not covered by the next section, its bottom surface the part not on the
+        previous one (both without slivers thinner than a tenth of the line width), clipped to the
+        layer's fill area. Each is grown by ``EXTERNAL_MARGIN`` within that fill area, for anchoring, and made solid on
+        ``top_layers`` layers down from a top surface and ``bottom_layers`` layers up from a
+        bottom one.
+        """
         s, n = self.s, len(self.tops)
         first, last = max(0, lo - s.bottom_layers), min(n, hi + s.top_layers)
-        sections = {i: self.section(i) for i in range(first, last)}
+        sections = {i: self.section(i) for i in range(max(0, first - 1), min(n, last + 1))}
+        islands = {i: _islands(sections[i], s.min_area) for i in range(first, last)}
+        kept = {i: _union(islands[i]) for i in islands}
+        fills = {i: kept[i].offset(-self.fill_inset(i), manifold3d.JoinType.Miter) for i in kept}
+        sliver = s.extrusion_width / 10
+
+        def exposed(i: int, other: int) -> CrossSection:
+            bare = kept[i] - sections[other] if other in sections else kept[i]
+            bare = bare.offset(-sliver, manifold3d.JoinType.Miter).offset(sliver, manifold3d.JoinType.Miter)
+            bare = bare ^ fills[i]  # a surface under the perimeters only is not grown
+            if bare.is_empty():
+                return bare
+            return bare.offset(EXTERNAL_MARGIN, manifold3d.JoinType.Round) ^ fills[i]
+
+        top = {i: exposed(i, i + 1) for i in range(lo, min(n, hi + s.top_layers - 1))}
+        bottom = {i: exposed(i, i - 1) for i in range(max(0, lo - s.bottom_layers + 1), hi)}
         here = self.start
         out = []
         for i in range(lo, hi):
-            # sparse where the next top_layers and the previous bottom_layers sections all cover
-            # (PrusaSlicer's rule); solid skin elsewhere: at the top, the bottom, and near both
-            above = [sections[k] for k in range(i + 1, min(n, i + 1 + s.top_layers))]
-            below = [sections[k] for k in range(max(0, i - s.bottom_layers), i)]
-            full = len(above) == s.top_layers and len(below) == s.bottom_layers
-            covered = _intersection(above + below) if full and above + below else None
+            shells = [top[k] for k in range(i, min(n, i + s.top_layers))]
+            shells += [bottom[k] for k in range(max(0, i - s.bottom_layers + 1), i + 1)]
+            solid = _union(shells) ^ fills[i] if shells else CrossSection()
             paths: list[tuple[np.ndarray, int, float]] = []
-            remaining = _islands(sections[i], s.min_area)
+            remaining = list(islands[i])
             while remaining:  # islands nearest-first from where the nozzle is
                 b = np.array([isl.bounds() for isl in remaining])  # xmin, ymin, xmax, ymax
                 centres = (b[:, :2] + b[:, 2:]) / 2
                 k = int(np.argmin(((centres - here) ** 2).sum(axis=1)))
-                here = _island_paths(remaining.pop(k), i, s, covered, paths, here, self.rear)
+                here = self.island_paths(remaining.pop(k), i, solid, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
         return out
+
+    def island_paths(self, isl: CrossSection, layer: int, solid: CrossSection,
+                     paths: list, here: np.ndarray) -> np.ndarray:
+        """Append one island's perimeters, skin and infill to ``paths``; return the nozzle position."""
+        s = self.s
+        w = s.extrusion_width
+        sp = extrusion_spacing(w, float(self.heights[layer]))
+        loops = []
+        for p in range(s.perimeters):
+            rings = _rings(isl.offset(-(w / 2 + p * sp), manifold3d.JoinType.Miter))
+            if not rings:
+                break
+            loops.append((p, rings))
+        order = loops if s.outer_perimeter_first else loops[::-1]
+        for p, rings in order:
+            role = PERIMETER_OUTER if p == 0 else PERIMETER_INNER
+            for ring in rings:
+                start = _seam_start(ring, s, here, self.rear)
+                closed = _closed(ring, start)
+                paths.append((closed, role, w))
+                here = closed[-1]
+        fill = isl.offset(-self.fill_inset(layer), manifold3d.JoinType.Miter)
+        if fill.is_empty() or fill.area() < s.min_area:
+            return here
+        solid_part, sparse = fill ^ solid, fill - solid
+        small = [p for p in sparse.decompose() if p.area() < s.solid_infill_below_area]
+        if small:  # PrusaSlicer's solid infill threshold: small sparse regions are filled solid
+            solid_part = _union([solid_part, *small])
+            sparse = sparse - _union(small)
+        angle = s.infill_angle_deg + 90.0 * (layer % 2)
+        for seg in hatch(_rings(solid_part), sp, angle) if not solid_part.is_empty() else []:
+            paths.append((seg, SKIN, w))
+        if s.infill_density > 0 and not sparse.is_empty() and sparse.area() >= s.min_area:
+            rings = _rings(sparse)
+            if s.infill_pattern == "rectilinear":
+                dirs = [(angle, sp / s.infill_density)]
+            elif s.infill_pattern == "grid":
+                dirs = [(s.infill_angle_deg, 2 * sp / s.infill_density),
+                        (s.infill_angle_deg + 90, 2 * sp / s.infill_density)]
+            else:  # triangles
+                dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
+            for ang, spacing in dirs:
+                for seg in hatch(rings, spacing, ang):
+                    paths.append((seg, INFILL, w))
+        if paths:
+            here = paths[-1][0][-1]
+        return here
 
 
 _WORKER: _Job | None = None
@@ -171,56 +257,6 @@ _WORKER: _Job | None = None
 def _work_block(block: tuple[int, int]) -> list[LayerPaths]:
     assert _WORKER is not None
     return _WORKER.block(*block)
-
-
-def _island_paths(isl: CrossSection, layer: int, s: SlicingSettings, covered: CrossSection | None,
-                  paths: list, here: np.ndarray, rear: np.ndarray) -> np.ndarray:
-    """Append one island's perimeters, skin and infill to ``paths``; return the nozzle position."""
-    w = s.extrusion_width
-    loops = []
-    for p in range(s.perimeters):
-        ring_cs = isl.offset(-(w / 2 + p * w), manifold3d.JoinType.Miter)
-        rings = _rings(ring_cs)
-        if not rings:
-            break
-        loops.append((p, rings))
-    order = loops if s.outer_perimeter_first else loops[::-1]
-    for p, rings in order:
-        role = PERIMETER_OUTER if p == 0 else PERIMETER_INNER
-        for ring in rings:
-            start = _seam_start(ring, s, here, rear)
-            closed = _closed(ring, start)
-            paths.append((closed, role, w))
-            here = closed[-1]
-    fill = isl.offset(-(s.perimeters * w) + 0.25 * w, manifold3d.JoinType.Miter) if s.perimeters else isl
-    if fill.is_empty() or fill.area() < s.min_area:
-        return here
-    if covered is None or covered.is_empty():
-        solid_part, sparse = fill, CrossSection()
-    else:
-        solid_part, sparse = fill - covered, fill ^ covered
-        small = [p for p in sparse.decompose() if p.area() < s.solid_infill_below_area]
-        if small:  # PrusaSlicer's solid infill threshold: small sparse regions are filled solid
-            solid_part = CrossSection.batch_boolean([solid_part, *small], manifold3d.OpType.Add)
-            sparse = sparse - CrossSection.batch_boolean(small, manifold3d.OpType.Add)
-    angle = s.infill_angle_deg + 90.0 * (layer % 2)
-    for seg in hatch(_rings(solid_part), w, angle) if not solid_part.is_empty() else []:
-        paths.append((seg, SKIN, w))
-    if s.infill_density > 0 and not sparse.is_empty() and sparse.area() >= s.min_area:
-        rings = _rings(sparse)
-        if s.infill_pattern == "rectilinear":
-            dirs = [(angle, w / s.infill_density)]
-        elif s.infill_pattern == "grid":
-            dirs = [(s.infill_angle_deg, 2 * w / s.infill_density),
-                    (s.infill_angle_deg + 90, 2 * w / s.infill_density)]
-        else:  # triangles
-            dirs = [(s.infill_angle_deg + d, 3 * w / s.infill_density) for d in (0.0, 60.0, 120.0)]
-        for ang, spacing in dirs:
-            for seg in hatch(rings, spacing, ang):
-                paths.append((seg, INFILL, w))
-    if paths:
-        here = paths[-1][0][-1]
-    return here
 
 
 def _with_travel(z: float, height: float, paths: list[tuple[np.ndarray, int, float]]) -> LayerPaths:
