@@ -187,3 +187,20 @@ def test_long_travels_retract_and_unretract(cube):
     text = gcode_text(cube.layers, cube.settings, "cube")
     assert text.count("G1 E-0.80000 F2100") == text.count("G1 E0.80000 F2100") > 0
     assert "E0.00000" not in text  # no extruding move that does not move
+
+
+def test_a_model_larger_than_the_build_volume_is_refused_with_both_sizes(tmp_path, capsys):
+    stl = tmp_path / "long.stl"
+    to_trimesh(box(120, 20, 10)).export(stl)
+    out = tmp_path / "long.gcode"
+    assert main(["slice", str(stl), "--out", str(out), "-q", "--config", str(_toml(tmp_path, "build_x = 100.0"))]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "120.0 x 20.0 x 10.0 mm" in err and "100 x 1000 x 1000 mm" in err and "build_x" in err
+    assert not out.exists()
+
+
+def _toml(tmp_path, line):
+    path = tmp_path / "printer.toml"
+    path.write_text(f"[slicing]\n{line}\n")
+    return path

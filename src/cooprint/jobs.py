@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 import numpy as np
 
 from cooprint.chunking import ChunkSet, cut_chunks, plan_chunks
-from cooprint.config import JobSettings, load_settings
+from cooprint.config import JobSettings, SlicingSettings, load_settings
+from cooprint.errors import UserError
 from cooprint.io.bundle import atomic_dir, write_json, write_stl
 from cooprint.io.mesh import Solid, load_mesh
 from cooprint.scheduling import Assignment, assign
@@ -125,6 +126,16 @@ def write_chunk_bundle(job: ChunkJob, out: str | Path, force: bool = False, pict
     return record
 
 
+def check_build_volume(solid: Solid, s: SlicingSettings) -> None:
+    """Refuse a model that does not fit the single printer's build volume, naming both sizes."""
+    size = np.ptp(solid.bounds, axis=0)
+    box = np.array([s.build_x, s.build_y, s.build_z])
+    if (size > box + 1e-9).any():
+        raise UserError(f"{solid.report.path}: the model is {size[0]:.1f} x {size[1]:.1f} x {size[2]:.1f} mm, "
+                        f"larger than the build volume {box[0]:g} x {box[1]:g} x {box[2]:g} mm "
+                        "([slicing] build_x, build_y, build_z)")
+
+
 def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
               progress: Progress | None = None) -> tuple[Solid, "SlicedModel"]:
     """Load (unless given a Solid) and slice a whole model for one robot."""
@@ -132,6 +143,7 @@ def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
 
     settings = settings or load_settings()
     solid = mesh if isinstance(mesh, Solid) else load_mesh(mesh, settings.mesh)
+    check_build_volume(solid, settings.slicing)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     return solid, slice_solid(solid, settings.slicing, layer_progress)
 

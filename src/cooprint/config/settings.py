@@ -104,6 +104,10 @@ class SlicingSettings:
                                          doc="travels shorter than this do not retract"))
     nozzle_temperature: float = field(default=210.0, metadata=_num(0, 500, unit="C"))
     bed_temperature: float = field(default=60.0, metadata=_num(0, 200, unit="C"))
+    build_x: float = field(default=1000.0, metadata=_num(0, 1e6, unit="mm", lo_open=True,
+                           doc="printable size of a single-printer run (cooprint slice)"))
+    build_y: float = field(default=1000.0, metadata=_num(0, 1e6, unit="mm", lo_open=True))
+    build_z: float = field(default=1000.0, metadata=_num(0, 1e6, unit="mm", lo_open=True))
 
 
 @dataclass(frozen=True)
