@@ -3,7 +3,7 @@
 Stages, each on whole layers:
 
 1. layer planes: a first layer of its own height, then equal layers; each sliced at mid-height
-   (manifold3d ``slice``: closed polygons with holes and islands nested);
+   (:mod:`.sections`: closed polygons with holes and islands nested, a block of layers at once);
 2. regions: islands smaller than ``min_area`` dropped; N perimeters, the outer one's centre half a
    width inside the outline and the next ones a line spacing (``extrusion_spacing``: lines touch
    with their rounded sides) further in; the rest is the fill area;
@@ -31,6 +31,7 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.io.mesh import Solid
 from cooprint.slicing.infill import hatch
+from cooprint.slicing.sections import LayerSlicer
 from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths,
                                     extrusion_spacing)
 
@@ -117,7 +118,7 @@ def slice_solid(solid: Solid, settings: SlicingSettings,
         workers = min(os.cpu_count() or 1, 4) if len(blocks) >= PARALLEL_BLOCKS else 1
     workers = min(workers, len(blocks))
     global _WORKER
-    _WORKER = _Job(solid, settings)  # forked workers share it (and its manifold) copy-on-write
+    _WORKER = _Job(solid, settings)  # forked workers share it (and its arrays) copy-on-write
     layers: list[LayerPaths] = []
     try:
         with (ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
@@ -132,11 +133,11 @@ def slice_solid(solid: Solid, settings: SlicingSettings,
 
 
 class _Job:
-    """Everything a block of layers needs: the solid as manifold3d, the layer planes."""
+    """Everything a block of layers needs: the mesh prepared for slicing, the layer planes."""
 
     def __init__(self, solid: Solid, settings: SlicingSettings):
         self.s = settings
-        self.man = solid.manifold
+        self.slicer = LayerSlicer(solid.vertices, solid.faces)
         lo, hi = solid.bounds
         self.zmin = float(lo[2])
         self.tops = layer_tops(float(hi[2] - lo[2]), settings)
@@ -144,9 +145,10 @@ class _Job:
         self.start = np.array([lo[0], lo[1]])
         self.rear = np.array([hi[0], hi[1]])
 
-    def section(self, i: int) -> CrossSection:
-        cs = self.man.slice(self.zmin + float(self.tops[i] - self.heights[i] / 2))
-        return cs.simplify(SIMPLIFY)
+    def sections(self, lo: int, hi: int) -> dict[int, CrossSection]:
+        """Sections of layers ``lo .. hi - 1`` at their mid-heights, simplified."""
+        mids = self.zmin + self.tops[lo:hi] - self.heights[lo:hi] / 2
+        return {lo + k: cs.simplify(SIMPLIFY) for k, cs in enumerate(self.slicer.sections(mids))}
 
     def fill_inset(self, i: int) -> float:
         """Distance from the outline to the edge of the fill area on layer ``i``, mm: the outer
@@ -171,7 +173,7 @@ class _Job:
         """
         s, n = self.s, len(self.tops)
         first, last = max(0, lo - s.bottom_layers), min(n, hi + s.top_layers)
-        sections = {i: self.section(i) for i in range(max(0, first - 1), min(n, last + 1))}
+        sections = self.sections(max(0, first - 1), min(n, last + 1))
         islands = {i: _islands(sections[i], s.min_area) for i in range(first, last)}
         kept = {i: _union(islands[i]) for i in islands}
         fills = {i: kept[i].offset(-self.fill_inset(i), manifold3d.JoinType.Miter) for i in kept}
