@@ -204,3 +204,15 @@ def _toml(tmp_path, line):
     path = tmp_path / "printer.toml"
     path.write_text(f"[slicing]\n{line}\n")
     return path
+
+
+def test_streamed_gcode_equals_the_whole_model_written(tmp_path):
+    stl = tmp_path / "t.stl"
+    to_trimesh(tube(12, 5, 12)).export(stl)  # 60 layers: two blocks
+    from cooprint.jobs import slice_job, slice_to_gcode, write_gcode
+
+    n, used = slice_to_gcode(stl, tmp_path / "a.gcode")
+    _, sliced = slice_job(stl)
+    used_b = write_gcode(sliced, tmp_path / "b.gcode", "t.stl")
+    assert n == sliced.n_layers == 60 and used == pytest.approx(used_b)
+    assert (tmp_path / "a.gcode").read_text() == (tmp_path / "b.gcode").read_text()

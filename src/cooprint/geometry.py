@@ -20,11 +20,40 @@ def edge_table(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     return edges, uses, winding_consistent(faces)
 
 
+def _directed_keys(faces: np.ndarray, n: np.int64, reverse: bool = False) -> np.ndarray:
+    """(3m,) int64 sorted keys ``a * n + b`` of the directed edges a -> b (b -> a if ``reverse``),
+    built in place: one array of 3m plus one temporary."""
+    nxt = faces[:, [1, 2, 0]].ravel()
+    if reverse:
+        nxt *= n
+        nxt += faces.ravel()
+    else:
+        nxt += faces.ravel() * n
+    nxt.sort()
+    return nxt
+
+
 def winding_consistent(faces: np.ndarray) -> bool:
     """No directed edge used twice (neighbouring triangles run their shared edge oppositely)."""
-    n = np.int64(int(faces.max()) + 1)
-    directed = np.sort(faces.ravel() * n + faces[:, [1, 2, 0]].ravel())
-    return bool((directed[1:] != directed[:-1]).all())
+    directed = _directed_keys(np.asarray(faces, dtype=np.int64), np.int64(int(faces.max()) + 1))
+    return not bool((directed[1:] == directed[:-1]).any())
+
+
+def open_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Directed edges (src, dst) of the faces whose twin (dst -> src) no face has: the open
+    boundary. ``None`` when a directed edge repeats (the winding is inconsistent, or more than
+    two faces share an edge)."""
+    f = np.asarray(faces, dtype=np.int64)
+    n = np.int64(int(f.max()) + 1)
+    d = _directed_keys(f, n)
+    if (d[1:] == d[:-1]).any():
+        return None
+    twin = (d % n) * n + d // n
+    pos = np.minimum(np.searchsorted(d, twin), len(d) - 1)
+    lone = d[pos] != twin
+    del twin, pos
+    d = d[lone]
+    return d // n, d % n
 
 
 def edge_loops(src: np.ndarray, dst: np.ndarray) -> list[np.ndarray] | None:
@@ -71,11 +100,10 @@ def is_closed(faces: np.ndarray) -> bool:
         return False
     f = np.asarray(faces, dtype=np.int64)
     n = np.int64(int(f.max()) + 1)
-    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()
-    fwd = np.sort(a * n + b)
-    if not (fwd[1:] != fwd[:-1]).all():
+    fwd = _directed_keys(f, n)
+    if (fwd[1:] == fwd[:-1]).any():
         return False
-    return bool(np.array_equal(fwd, np.sort(b * n + a)))
+    return bool(np.array_equal(fwd, _directed_keys(f, n, reverse=True)))
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -83,10 +111,14 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     if len(faces) == 0:
         return 0.0
     v = np.asarray(vertices, dtype=np.float64)
-    p, q, r = v[faces[:, 0]].T, v[faces[:, 1]].T, v[faces[:, 2]].T  # columns: no (m, 3, 3) copy
-    det = p[0] * (q[1] * r[2] - q[2] * r[1]) + p[1] * (q[2] * r[0] - q[0] * r[2]) \
-        + p[2] * (q[0] * r[1] - q[1] * r[0])
-    return float(det.sum() / 6.0)
+    total = 0.0
+    for lo in range(0, len(faces), 1 << 16):  # in slices: a few MB of temporaries at most
+        f = faces[lo:lo + (1 << 16)]
+        p, q, r = v[f[:, 0]].T, v[f[:, 1]].T, v[f[:, 2]].T
+        det = p[0] * (q[1] * r[2] - q[2] * r[1]) + p[1] * (q[2] * r[0] - q[0] * r[2]) \
+            + p[2] * (q[0] * r[1] - q[1] * r[0])
+        total += float(det.sum())
+    return total / 6.0
 
 
 def drop_cancelling(faces: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -146,6 +146,36 @@ def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
     check_build_volume(solid, settings.slicing)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     return solid, slice_solid(solid, settings.slicing, layer_progress)
+
+
+def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | None = None,
+                   progress: Progress | None = None, force: bool = False) -> tuple[int, float]:
+    """Load, slice and write G-code to ``out`` atomically, layer block by layer block (the model
+    is never held whole); return the number of layers and the filament used, mm."""
+    from cooprint.io.bundle import atomic_file
+    from cooprint.program.gcode import write_program
+    from cooprint.slicing import iter_layers
+
+    settings = settings or load_settings()
+    solid = load_mesh(mesh, settings.mesh)
+    check_build_volume(solid, settings.slicing)
+    layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
+    counted = _Counted(iter_layers(solid, settings.slicing, layer_progress))
+    with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
+        used = write_program(fh, counted, settings.slicing, Path(mesh).name)
+    return counted.n, used
+
+
+class _Counted:
+    """An iterable that counts what went through it."""
+
+    def __init__(self, items: Iterable[Any]):
+        self.items, self.n = items, 0
+
+    def __iter__(self) -> Iterator[Any]:
+        for item in self.items:
+            self.n += 1
+            yield item
 
 
 def write_gcode(sliced: "SlicedModel", out: str | Path, name: str, force: bool = False) -> float:

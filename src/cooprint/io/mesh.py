@@ -22,7 +22,7 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import (compact, distinct_corners, edge_loops, edge_table, is_closed,
+from cooprint.geometry import (compact, distinct_corners, edge_loops, edge_table, is_closed, open_edges,
                                signed_volume, winding_consistent)
 from cooprint.errors import MeshError
 
@@ -142,15 +142,17 @@ def _check_stl(path: Path, data: bytes) -> int | None:
                     f"file has {len(data)} bytes (truncated or not an STL)")
 
 
-def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray]:
+def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Vertices (n, 3) and faces (m, 3) of the file's triangles (float32 vertices for binary
-    STL, which stores them so: merging them in that precision is exact and twice as fast)."""
+    STL, which stores them so: merging them in that precision is exact and twice as fast).
+    Faces ``None``: a triangle soup, every three vertices one triangle (binary STL)."""
     if fmt == "stl":
         n = _check_stl(path, data)
         if n is not None:  # binary STL: one record array, no per-triangle work
             rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
-            corners = np.frombuffer(data, rec, count=n, offset=84)["v"].reshape(-1, 3)
-            return corners.copy(), np.arange(3 * n, dtype=np.int64).reshape(-1, 3)
+            corners = np.empty((n, 3, 3), dtype=np.float32)
+            corners[...] = np.frombuffer(data, rec, count=n, offset=84)["v"]  # the only copy
+            return corners.reshape(-1, 3), None
     import trimesh
 
     try:
@@ -169,11 +171,8 @@ def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     Returns ``None`` when the boundary does not decompose into closed loops (an edge used by
     more than two faces, or a dangling boundary edge).
     """
-    edges, uses, _ = edge_table(faces)
-    if (uses > 2).any():
-        return None
-    open_edges = edges[uses == 1]
-    return edge_loops(open_edges[:, 0], open_edges[:, 1])
+    edges = open_edges(faces)
+    return None if edges is None else edge_loops(*edges)
 
 
 def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:
@@ -198,29 +197,41 @@ def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:
     return faces
 
 
-def _merge_vertices(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _merge_vertices(v: np.ndarray, f: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Merge bit-identical vertices with one lexicographic sort of their bit patterns (STL stores
     every corner of every triangle, so this is what turns a soup into a mesh).
 
-    ``v`` is float32 (two sort keys: x and y bits packed, z) or float64 (three keys). Returns the
-    unique vertices, in sorted order, and the re-indexed faces.
+    ``v`` is float32 (two sort keys: x and y bits packed, z) or float64 (three keys); ``f`` is
+    ``None`` for a soup (vertices 3k, 3k+1, 3k+2 make triangle k). Returns the unique vertices as
+    float64, in sorted order, and the re-indexed faces. Temporaries are dropped as soon as they
+    are used: on a large STL this step sets the loader's peak memory.
     """
-    v = np.ascontiguousarray(v + v.dtype.type(0))  # -0.0 -> 0.0
+    v += v.dtype.type(0)  # -0.0 -> 0.0, in place
     if v.dtype == np.float32:
         b = v.view(np.uint32).reshape(-1, 3)
-        keys = [b[:, 2], (b[:, 0].astype(np.uint64) << np.uint64(32)) | b[:, 1]]
+        keys = [b[:, 2].copy(), (b[:, 0].astype(np.uint64) << np.uint64(32)) | b[:, 1]]
     else:
         b = v.view(np.uint64).reshape(-1, 3)
         keys = [b[:, 2], b[:, 1], b[:, 0]]
+    del b
     order = np.lexsort(keys)
     new = np.zeros(len(v), dtype=bool)
     new[0] = True
-    for k in keys:
-        sk = k[order]
-        new[1:] |= sk[1:] != sk[:-1]
+    step = 1 << 16
+    while keys:  # a vertex is new where some key differs from the previous one, in sorted order
+        k = keys.pop()
+        for lo in range(0, len(v), step):
+            sk = k[order[max(lo - 1, 0):lo + step]]
+            new[lo + (lo == 0):lo + step] |= sk[1:] != sk[:-1]
+        del k
+    unique = v[order[new]].astype(np.float64)
+    rank = np.cumsum(new)
+    del new
+    rank -= 1
     inverse = np.empty(len(v), dtype=np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    return v[order[new]], inverse[f]
+    inverse[order] = rank
+    del order, rank
+    return unique, (inverse.reshape(-1, 3) if f is None else inverse[f])
 
 
 def to_manifold(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold:
@@ -234,9 +245,11 @@ def _proper_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(m,) bool: triangles with three distinct corners, non-zero area, and not a repeat of an
     earlier triangle over the same three vertices."""
     f = faces
-    distinct = distinct_corners(f)
-    area2 = np.linalg.norm(np.cross(verts[f[:, 1]] - verts[f[:, 0]], verts[f[:, 2]] - verts[f[:, 0]]), axis=1)
-    keep = distinct & (area2 > 0)
+    keep = distinct_corners(f)
+    for lo in range(0, len(f), 1 << 16):  # in slices: no (m, 3) float temporaries
+        g = f[lo:lo + (1 << 16)]
+        area2 = np.linalg.norm(np.cross(verts[g[:, 1]] - verts[g[:, 0]], verts[g[:, 2]] - verts[g[:, 0]]), axis=1)
+        keep[lo:lo + len(g)] &= area2 > 0
     sf = np.sort(f, axis=1)
     if len(verts) < 2**21:  # three indices pack into one int64: a 1-D sort instead of rows
         key = (sf[:, 0] << 42) | (sf[:, 1] << 21) | sf[:, 2]
@@ -295,32 +308,45 @@ def solid_from_arrays(vertices: np.ndarray, faces: np.ndarray, settings: MeshSet
     Parameters
     ----------
     vertices : (n, 3) float
-        mm.
-    faces : (m, 3) int
-        Vertex indices; duplicated vertices (a triangle soup, as in STL) are merged.
+        mm (not modified).
+    faces : (m, 3) int or None
+        Vertex indices; duplicated vertices (a triangle soup, as in STL) are merged. ``None``:
+        every three vertices are one triangle.
     """
-    settings = settings or MeshSettings()
     v = np.asarray(vertices)
-    v = (v if v.dtype == np.float32 else v.astype(np.float64)).reshape(-1, 3)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    n_read = len(f)
+    v = (v.copy() if v.dtype == np.float32 else v.astype(np.float64)).reshape(-1, 3)  # merged in place
+    return _solid_from_parsed([(v, faces)], settings, path=path, fmt=fmt)
+
+
+def _solid_from_parsed(parsed: list, settings: MeshSettings | None, *, path: str, fmt: str) -> Solid:
+    """:func:`solid_from_arrays` taking ownership of ``parsed = [(vertices, faces)]`` (popped, so
+    that the arrays die here as soon as they are merged, and modified in place)."""
+    settings = settings or MeshSettings()
+    v, faces = parsed.pop()
+    f = None if faces is None else np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    del faces
+    if f is None:
+        v = v[: len(v) // 3 * 3]
+    n_read = len(v) // 3 if f is None else len(f)
     if n_read == 0:
         raise MeshError(f"{path}: contains no triangles")
     if not np.isfinite(v).all():
         bad = int((~np.isfinite(v).all(axis=1)).sum())
         raise MeshError(f"{path}: {bad} vertices have NaN or infinite coordinates")
-    if np.abs(v).max() > MAX_COORD:
-        raise MeshError(f"{path}: coordinates up to {np.abs(v).max():.3g} mm exceed {MAX_COORD:.0e} mm "
-                        "(wrong units?)")
-    if f.min() < 0 or f.max() >= len(v):
+    reach = max(float(v.max()), -float(v.min()))
+    if reach > MAX_COORD:
+        raise MeshError(f"{path}: coordinates up to {reach:.3g} mm exceed {MAX_COORD:.0e} mm (wrong units?)")
+    if f is not None and (f.min() < 0 or f.max() >= len(v)):
         raise MeshError(f"{path}: face indices out of range (0..{len(v) - 1})")
 
     repairs: list[str] = []
-    v, f = compact(v, f)  # unreferenced vertices would distort the bounding box
+    if f is not None:
+        v, f = compact(v, f)  # unreferenced vertices would distort the bounding box
+    n_in = len(v)
     verts, faces = _merge_vertices(v, f)
-    verts = verts.astype(np.float64)
-    if fmt != "stl" and len(verts) < len(v):  # STL always repeats vertices: not a repair
-        repairs.append(f"merged {len(v) - len(verts)} duplicate vertices")
+    del v, f
+    if fmt != "stl" and len(verts) < n_in:  # STL always repeats vertices: not a repair
+        repairs.append(f"merged {n_in - len(verts)} duplicate vertices")
     watertight_as_read = is_closed(faces)
     if not watertight_as_read:
         verts, faces = _repair(verts, faces, settings, path, repairs)
@@ -376,9 +402,9 @@ def load_mesh(path: str | Path, settings: MeshSettings | None = None) -> Solid:
     """
     p = Path(path)
     data, fmt = _read_bytes(p)
-    vertices, faces = _parse(p, data, fmt)
+    parsed = [_parse(p, data, fmt)]
     del data
-    return solid_from_arrays(vertices, faces, settings, path=str(p), fmt=fmt)
+    return _solid_from_parsed(parsed, settings, path=str(p), fmt=fmt)
 
 
 def fmt_report(r: MeshReport) -> str:

@@ -27,9 +27,11 @@ class LayerSlicer:
         tz = self.vertices[:, 2][faces]
         lo = tz.min(axis=1)
         order = np.argsort(lo, kind="stable")
-        self.faces = np.asarray(faces)[order]
-        self.lo = lo[order]
         self.hi = tz.max(axis=1)[order]
+        del tz
+        self.lo = lo[order]
+        index = np.int32 if len(self.vertices) < 2**31 else np.int64  # half the memory
+        self.faces = np.asarray(faces)[order].astype(index)
 
     def rings(self, heights: np.ndarray) -> list[list[np.ndarray]]:
         """For every height (ascending), the closed rings (k, 2) of the section there."""
@@ -49,7 +51,7 @@ class LayerSlicer:
         tri = np.repeat(cand, count)
         layer = np.repeat(first, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
         del cand, first, count
-        f = self.faces[tri]
+        f = self.faces[tri].astype(np.int64)
         h = heights[layer]
         z = self.vertices[f, 2]
         above = z > h[:, None]

@@ -23,7 +23,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import nullcontext
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Iterator
 
 import manifold3d
 import numpy as np
@@ -98,18 +98,28 @@ PARALLEL_BLOCKS = 3
 
 def slice_solid(solid: Solid, settings: SlicingSettings,
                 progress: Callable[[int, int], None] | None = None, workers: int | None = None) -> SlicedModel:
-    """Layers of ordered tool paths for a watertight solid.
+    """Layers of ordered tool paths for a watertight solid (all of :func:`iter_layers`).
+
+    Returns
+    -------
+    SlicedModel
+        One :class:`LayerPaths` per layer, bottom first; XY in the solid's frame, z absolute.
+    """
+    return SlicedModel(tuple(iter_layers(solid, settings, progress, workers)), settings)
+
+
+def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int, int], None] | None = None,
+                workers: int | None = None) -> Iterator[LayerPaths]:
+    """The layers of :func:`slice_solid`, bottom first, as they are ready: a consumer that writes
+    them out (G-code) never holds the whole model.
 
     Parameters
     ----------
     workers
         Processes to use (default: one per CPU, at most 4); blocks of ``BLOCK`` layers are sliced
         independently, so 1 and N workers give identical results.
-
-    Returns
-    -------
-    SlicedModel
-        One :class:`LayerPaths` per layer, bottom first; XY in the solid's frame, z absolute.
+    progress
+        Called with (layers done, layers in all) after every block.
     """
     zmin, zmax = float(solid.bounds[0, 2]), float(solid.bounds[1, 2])
     n = len(layer_tops(zmax - zmin, settings))
@@ -119,17 +129,17 @@ def slice_solid(solid: Solid, settings: SlicingSettings,
     workers = min(workers, len(blocks))
     global _WORKER
     _WORKER = _Job(solid, settings)  # forked workers share it (and its arrays) copy-on-write
-    layers: list[LayerPaths] = []
+    done = 0
     try:
         with (ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
               if workers > 1 else nullcontext()) as pool:
             for part in (pool.map if pool else map)(_work_block, blocks):
-                layers += part
+                done += len(part)
                 if progress:
-                    progress(len(layers), n)
+                    progress(done, n)
+                yield from part
     finally:
         _WORKER = None
-    return SlicedModel(tuple(layers), settings)
 
 
 class _Job:

@@ -1,0 +1,77 @@
+"""Mesh sectioning (slicing/sections.py) against manifold3d's own slice, and the loop invariants."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cooprint.io.mesh import solid_from_trimesh
+from cooprint.slicing.sections import LayerSlicer, _cycles
+
+from solids import box, car, to_trimesh, tube
+
+
+def ring_area(r):
+    return 0.5 * float(np.sum(r[:, 0] * np.roll(r[:, 1], -1) - np.roll(r[:, 0], -1) * r[:, 1]))
+
+
+@pytest.mark.parametrize("shape", [lambda: box(20, 10, 5), lambda: tube(25, 10, 20), car])
+def test_sections_match_manifold3d(shape):
+    sol = solid_from_trimesh(to_trimesh(shape()))
+    lo, hi = sol.bounds[0, 2], sol.bounds[1, 2]
+    zs = np.linspace(lo + 0.013, hi - 0.013, 37)
+    ours = LayerSlicer(sol.vertices, sol.faces).sections(zs)
+    for z, cs in zip(zs, ours):
+        ref = sol.manifold.slice(float(z))
+        assert cs.area() == pytest.approx(ref.area(), rel=1e-9, abs=1e-9)
+        assert (cs ^ ref).area() == pytest.approx(ref.area(), rel=1e-7, abs=1e-9)
+
+
+def test_outlines_run_counter_clockwise_and_holes_clockwise():
+    sol = solid_from_trimesh(to_trimesh(tube(25, 10, 20)))
+    (rings,) = LayerSlicer(sol.vertices, sol.faces).rings(np.array([10.0]))
+    areas = sorted(ring_area(r) for r in rings)
+    assert len(areas) == 2 and areas[0] < 0 < areas[1]
+    assert areas[1] + areas[0] == pytest.approx(np.pi * (25**2 - 10**2), rel=0.01)
+
+
+def test_a_plane_through_vertices_counts_them_below():
+    sol = solid_from_trimesh(to_trimesh(box(20, 10, 5)))  # corners at z = 0 and z = 5
+    a, b, c = LayerSlicer(sol.vertices, sol.faces).sections(np.array([0.0, 2.5, 5.0]))
+    assert a.area() == pytest.approx(200.0) and b.area() == pytest.approx(200.0) and c.is_empty()
+
+
+def test_an_open_mesh_is_refused():
+    sol = solid_from_trimesh(to_trimesh(box(20, 10, 5)))
+    z = sol.vertices[sol.faces, 2]
+    side = int(np.flatnonzero((z.min(axis=1) < 2.5) & (z.max(axis=1) > 2.5))[0])  # a wall triangle
+    faces = np.delete(sol.faces, side, axis=0)
+    with pytest.raises(ValueError, match="not closed"):
+        LayerSlicer(sol.vertices, faces).rings(np.array([2.5]))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.integers(1, 40), min_size=1, max_size=12), st.randoms(use_true_random=False))
+def test_cycles_labels_and_ranks(lengths, rnd):
+    # build a permutation out of cycles of the given lengths over shuffled elements
+    n = sum(lengths)
+    perm = list(range(n))
+    rnd.shuffle(perm)
+    nxt = np.empty(n, dtype=np.int64)
+    cycles, at = [], 0
+    for L in lengths:
+        members = perm[at:at + L]
+        at += L
+        for i, m in enumerate(members):
+            nxt[m] = members[(i + 1) % L]
+        cycles.append(members)
+    label, rank = _cycles(nxt)
+    for members in cycles:
+        first = min(members)
+        assert set(label[members].tolist()) == {first}
+        # walking from the first member, ranks count 0, 1, 2 ...
+        cur, seen = first, []
+        for _ in range(len(members)):
+            seen.append(int(rank[cur]))
+            cur = nxt[cur]
+        assert seen == list(range(len(members)))
