@@ -4,10 +4,12 @@ import manifold3d as m3d
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cooprint.config import MeshSettings
 from cooprint.errors import MeshError
-from cooprint.io.mesh import load_mesh, solid_from_trimesh
+from cooprint.io.mesh import _merge_vertices, load_mesh, solid_from_trimesh
 
 from solids import box, car, to_trimesh, with_hole
 
@@ -141,3 +143,40 @@ def test_non_finite_and_absurd_coordinates(tmp_path, cube_tm, value, needle):
 def test_missing_file(tmp_path):
     with pytest.raises(MeshError, match="no such file"):
         load_mesh(tmp_path / "nope.stl")
+
+
+def test_streamed_binary_stl_equals_the_in_memory_parse(tmp_path):
+    tm = to_trimesh(car())
+    data = tm.export(file_type="stl")
+    plain, packed = _write(tmp_path, "car.stl", data), _write(tmp_path, "car.stl.gz", gzip.compress(data))
+    ref = solid_from_trimesh(tm, fmt="stl")
+    for p in (plain, packed):
+        s = load_mesh(p)
+        assert s.faces.dtype == np.int32
+        assert s.report.triangles == len(tm.faces) and s.report.vertices == ref.report.vertices
+        assert s.volume == pytest.approx(ref.volume, rel=1e-6)
+        # the same triangles, corner for corner (float32 precision of the file)
+        np.testing.assert_allclose(np.sort(s.vertices[s.faces].reshape(-1, 9), axis=0),
+                                   np.sort(tm.vertices[tm.faces].reshape(-1, 9), axis=0), atol=1e-4)
+
+
+def test_padded_binary_stl_is_refused(tmp_path, cube_tm):
+    data = cube_tm.export(file_type="stl") + b"\0" * 50
+    with pytest.raises(MeshError, match=r"header says 12 triangles \(684 bytes\) but the file has 734"):
+        load_mesh(_write(tmp_path, "pad.stl", data))
+    with pytest.raises(MeshError, match=r"header says 12 triangles"):
+        load_mesh(_write(tmp_path, "pad.stl.gz", gzip.compress(data)))
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 400), st.integers(0, 2**32 - 1))
+def test_merging_a_soup_keeps_every_corner_and_leaves_no_duplicate(n_points, seed):
+    rng = np.random.default_rng(seed)
+    # few distinct points (some -0.0, some on a grid) used many times: a soup with repeats
+    pts = np.round(rng.normal(size=(n_points, 3)) * 4) / 2
+    pts[rng.random(pts.shape) < 0.1] = -0.0
+    soup = pts[rng.integers(0, n_points, size=3 * 200)].astype(np.float32)
+    verts, faces = _merge_vertices(soup.copy(), None)
+    assert faces.dtype == np.int32
+    np.testing.assert_array_equal(verts[faces.ravel()], soup.astype(np.float64) + 0.0)
+    assert len(np.unique(verts, axis=0)) == len(verts) == len(np.unique(soup + 0.0, axis=0))

@@ -6,6 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cooprint.io.mesh import solid_from_trimesh
+from cooprint.slicing import sections
 from cooprint.slicing.sections import LayerSlicer, _cycles
 
 from solids import box, car, to_trimesh, tube
@@ -75,3 +76,15 @@ def test_cycles_labels_and_ranks(lengths, rnd):
             seen.append(int(rank[cur]))
             cur = nxt[cur]
         assert seen == list(range(len(members)))
+
+
+def test_segment_groups_change_nothing(monkeypatch):
+    sol = solid_from_trimesh(to_trimesh(car()))
+    zs = np.linspace(sol.bounds[0, 2] + 0.01, sol.bounds[1, 2] - 0.01, 23)
+    whole = LayerSlicer(sol.vertices, sol.faces).rings(zs)
+    monkeypatch.setattr(sections, "SEGMENTS", 50)  # many groups, a layer alone over the budget
+    grouped = LayerSlicer(sol.vertices, sol.faces).rings(zs)
+    assert [len(r) for r in grouped] == [len(r) for r in whole]
+    for a, b in zip(grouped, whole):
+        for ra, rb in zip(a, b):
+            np.testing.assert_array_equal(ra, rb)

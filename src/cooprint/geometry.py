@@ -20,67 +20,102 @@ def edge_table(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     return edges, uses, winding_consistent(faces)
 
 
-def _directed_keys(faces: np.ndarray, n: np.int64, reverse: bool = False) -> np.ndarray:
-    """(3m,) int64 sorted keys ``a * n + b`` of the directed edges a -> b (b -> a if ``reverse``),
-    built in place: one array of 3m plus one temporary."""
-    nxt = faces[:, [1, 2, 0]].ravel()
-    if reverse:
-        nxt *= n
-        nxt += faces.ravel()
-    else:
-        nxt += faces.ravel() * n
-    nxt.sort()
-    return nxt
+#: Faces handled per step by the whole-mesh checks below: their temporaries stay a few MB.
+STEP = 1 << 16
+
+
+def index_dtype(n_vertices: int) -> type:
+    """The integer type for face indices into ``n_vertices`` vertices: int32 while it fits
+    (half the memory of int64), int64 beyond."""
+    return np.int32 if n_vertices < 2**31 else np.int64
+
+
+def _edge_keys(faces: np.ndarray, n: np.int64) -> np.ndarray:
+    """(3m,) int64 sorted keys of the directed edges a -> b: ``2 (min n + max) + (a < b)``, so an
+    edge and its twin sort next to each other (twin first when a < b). Built a slice of faces at
+    a time: the keys are the only whole-mesh array."""
+    keys = np.empty(3 * len(faces), dtype=np.int64)
+    for lo in range(0, len(faces), STEP):
+        a = faces[lo:lo + STEP].astype(np.int64)
+        b = a[:, [1, 2, 0]]
+        k = np.minimum(a, b) * n + np.maximum(a, b)
+        k *= 2
+        k += a < b
+        keys[3 * lo:3 * lo + k.size] = k.ravel()
+    keys.sort()
+    return keys
+
+
+def _repeats(keys: np.ndarray) -> bool:
+    """Whether a sorted array holds some value twice (here: a directed edge used twice)."""
+    return bool((keys[1:] == keys[:-1]).any())
+
+
+def _vertex_count(faces: np.ndarray) -> np.int64:
+    return np.int64(int(faces.max()) + 1)
 
 
 def winding_consistent(faces: np.ndarray) -> bool:
     """No directed edge used twice (neighbouring triangles run their shared edge oppositely)."""
-    directed = _directed_keys(np.asarray(faces, dtype=np.int64), np.int64(int(faces.max()) + 1))
-    return not bool((directed[1:] == directed[:-1]).any())
+    return not _repeats(_edge_keys(faces, _vertex_count(faces)))
 
 
 def open_edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Directed edges (src, dst) of the faces whose twin (dst -> src) no face has: the open
     boundary. ``None`` when a directed edge repeats (the winding is inconsistent, or more than
     two faces share an edge)."""
-    f = np.asarray(faces, dtype=np.int64)
-    n = np.int64(int(f.max()) + 1)
-    d = _directed_keys(f, n)
-    if (d[1:] == d[:-1]).any():
+    n = _vertex_count(faces)
+    keys = _edge_keys(faces, n)
+    if _repeats(keys):
         return None
-    twin = (d % n) * n + d // n
-    pos = np.minimum(np.searchsorted(d, twin), len(d) - 1)
-    lone = d[pos] != twin
-    del twin, pos
-    d = d[lone]
-    return d // n, d % n
+    edge = keys >> 1  # without repeats, an edge is there once (open) or twice (with its twin)
+    lone = np.ones(len(keys), dtype=bool)
+    same = edge[1:] == edge[:-1]
+    del edge
+    lone[1:] &= ~same
+    lone[:-1] &= ~same
+    keys = keys[lone]
+    lo, hi = (keys >> 1) // n, (keys >> 1) % n
+    forward = (keys & 1).astype(bool)
+    src, dst = np.where(forward, lo, hi), np.where(forward, hi, lo)
+    order = np.argsort(src * n + dst)  # by source vertex: edge_loops' choices at pinch vertices
+    return src[order], dst[order]
 
 
 def edge_loops(src: np.ndarray, dst: np.ndarray) -> list[np.ndarray] | None:
-    """Closed loops of the directed edges ``src[i] -> dst[i]``, each an (k,) vertex array.
+    """Simple closed loops of the directed edges ``src[i] -> dst[i]``, each an (k,) vertex array.
 
-    At a pinch vertex (two edges out) any choice closes a loop. Returns ``None`` when an edge
-    leads to a vertex with no edge out (the edges do not form closed loops).
+    A walk that comes back to a vertex already on it closes the loop since then, so a pinch
+    vertex (two edges out) splits its boundary into simple loops, whichever edge is taken.
+    Returns ``None`` when an edge leads to a vertex with no edge out (the edges do not form
+    closed loops).
     """
     nxt: dict[int, list[int]] = {}
     for a, b in zip(src.tolist(), dst.tolist()):
         nxt.setdefault(a, []).append(b)
     loops = []
     while nxt:
-        start = next(iter(nxt))
-        loop, cur = [], start
+        cur = next(iter(nxt))
+        path: list[int] = []
+        where: dict[int, int] = {}
         while True:
-            loop.append(cur)
+            if cur in where:  # back on the walk: the part since then is a simple loop
+                i = where[cur]
+                for v in path[i:]:
+                    del where[v]
+                loops.append(np.asarray(path[i:], dtype=np.int64))
+                del path[i:]
+                if not path and cur not in nxt:
+                    break
             outs = nxt.get(cur)
             if not outs:
                 return None
+            where[cur] = len(path)
+            path.append(cur)
             nb = outs.pop()
             if not outs:
                 del nxt[cur]
             cur = nb
-            if cur == start:
-                break
-        loops.append(np.asarray(loop, dtype=np.int64))
     return loops
 
 
@@ -93,17 +128,15 @@ def distinct_corners(faces: np.ndarray) -> np.ndarray:
 def is_closed(faces: np.ndarray) -> bool:
     """Every edge shared by exactly two triangles, in opposite directions.
 
-    Equivalently: no directed edge repeats, and the directed edges reversed are the same set.
-    Two plain sorts, no argsort: about 5x faster than :func:`edge_table`.
+    One sort of the directed edges (:func:`_edge_keys`): closed means the sorted keys come in
+    pairs, an edge's two directions side by side. About 5x faster than :func:`edge_table`, and
+    the keys are its only whole-mesh array.
     """
     if len(faces) == 0:
         return False
-    f = np.asarray(faces, dtype=np.int64)
-    n = np.int64(int(f.max()) + 1)
-    fwd = _directed_keys(f, n)
-    if (fwd[1:] == fwd[:-1]).any():
-        return False
-    return bool(np.array_equal(fwd, _directed_keys(f, n, reverse=True)))
+    keys = _edge_keys(faces, _vertex_count(faces))
+    back, fwd = keys[0::2], keys[1::2]
+    return bool(len(keys) % 2 == 0 and not (back & 1).any() and np.array_equal(fwd - back, np.ones_like(back)))
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
@@ -112,8 +145,8 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
         return 0.0
     v = np.asarray(vertices, dtype=np.float64)
     total = 0.0
-    for lo in range(0, len(faces), 1 << 16):  # in slices: a few MB of temporaries at most
-        f = faces[lo:lo + (1 << 16)]
+    for lo in range(0, len(faces), STEP):  # in slices: a few MB of temporaries at most
+        f = faces[lo:lo + STEP]
         p, q, r = v[f[:, 0]].T, v[f[:, 1]].T, v[f[:, 2]].T
         det = p[0] * (q[1] * r[2] - q[2] * r[1]) + p[1] * (q[2] * r[0] - q[0] * r[2]) \
             + p[2] * (q[0] * r[1] - q[1] * r[0])
@@ -153,10 +186,11 @@ def drop_cancelling(faces: np.ndarray) -> np.ndarray:
 
 
 def compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Only the vertices ``faces`` use, re-indexed."""
+    """Only the vertices ``faces`` use, re-indexed (faces keep their integer type)."""
     used = np.zeros(len(vertices), dtype=bool)
     used[faces] = True
     if used.all():
         return vertices, faces
-    remap = np.cumsum(used) - 1
+    remap = np.cumsum(used, dtype=faces.dtype)
+    remap -= 1
     return vertices[used], remap[faces]

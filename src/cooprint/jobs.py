@@ -161,6 +161,7 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     check_build_volume(solid, settings.slicing)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     counted = _Counted(iter_layers(solid, settings.slicing, layer_progress))
+    del solid  # iter_layers keeps only what slicing needs, not the whole Solid
     with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
         used = write_program(fh, counted, settings.slicing, Path(mesh).name)
     return counted.n, used

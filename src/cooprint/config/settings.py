@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 import tomllib
 from dataclasses import asdict, dataclass, field, fields
-from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -196,7 +195,9 @@ def _read_toml(path: Path) -> dict[str, Any]:
 
 
 def _defaults() -> dict[str, Any]:
-    text = resources.files("cooprint.config").joinpath("defaults.toml").read_text(encoding="utf-8")
+    # beside this module (package data); not importlib.resources, whose tempfile/shutil/bz2/lzma
+    # imports cost every run about 1 MB and 10 ms
+    text = (Path(__file__).parent / "defaults.toml").read_text(encoding="utf-8")
     return tomllib.loads(text)
 
 

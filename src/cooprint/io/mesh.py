@@ -22,8 +22,8 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import (compact, distinct_corners, edge_loops, edge_table, is_closed, open_edges,
-                               signed_volume, winding_consistent)
+from cooprint.geometry import (compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
+                               open_edges, signed_volume, winding_consistent)
 from cooprint.errors import MeshError
 
 FORMATS = ("stl", "obj", "ply", "3mf")
@@ -71,7 +71,7 @@ class Solid:
     ----------
     vertices : (n, 3) float64
         Vertex positions, mm.
-    faces : (m, 3) int64
+    faces : (m, 3) int32 (int64 from 2**31 vertices on, :func:`~cooprint.geometry.index_dtype`)
         Triangles as vertex indices, counter-clockwise seen from outside.
     report : MeshReport
         Where it came from and what was repaired.
@@ -97,8 +97,9 @@ class Solid:
         return self.report.volume_mm3
 
 
-def _read_bytes(path: Path) -> tuple[bytes, str]:
-    """The file's (decompressed) bytes and its format name."""
+def _format(path: Path) -> tuple[str, bool]:
+    """The file's format name and whether it is gzipped; refuse unknown extensions and missing
+    files."""
     suffixes = [s.lower() for s in path.suffixes]
     gz = bool(suffixes) and suffixes[-1] == ".gz"
     fmt = (suffixes[-2] if gz and len(suffixes) > 1 else suffixes[-1] if suffixes else "").lstrip(".")
@@ -107,20 +108,55 @@ def _read_bytes(path: Path) -> tuple[bytes, str]:
                         + ", ".join(f".{f}" for f in FORMATS) + " (optionally .gz)")
     if not path.is_file():
         raise MeshError(f"{path}: no such file")
+    return fmt, gz
+
+
+def _read_bytes(path: Path, gz: bool) -> bytes:
+    """The file's (decompressed) bytes."""
     try:
-        if gz:
-            with gzip.open(path, "rb") as fh:
-                data = fh.read(MAX_BYTES + 1)
-        else:
-            with open(path, "rb") as fh:
-                data = fh.read(MAX_BYTES + 1)
+        with (gzip.open(path, "rb") if gz else open(path, "rb")) as fh:
+            data = fh.read(MAX_BYTES + 1)
     except (OSError, EOFError, gzip.BadGzipFile) as exc:
         raise MeshError(f"{path}: cannot read{' gzip' if gz else ''} file ({exc})") from None
     if len(data) > MAX_BYTES:
         raise MeshError(f"{path}: larger than {MAX_BYTES // 1024**2} MiB decompressed; refusing to load")
     if not data.strip():
         raise MeshError(f"{path}: file is empty")
-    return data, fmt
+    return data
+
+
+#: One binary STL triangle record: normal, three corners, attribute bytes.
+STL_RECORD = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+#: Records read per step by the streaming binary STL reader (about 3 MB).
+STL_STEP = 1 << 16
+
+
+def _read_binary_stl(path: Path, gz: bool) -> np.ndarray | None:
+    """The corners (3n, 3) float32 of a binary STL, read straight from the file a few MB at a
+    time (the file's bytes are never held whole). ``None`` when the file is not exactly a binary
+    STL of the size its header gives (ASCII, truncated, padded, unreadable): the general reader
+    then decides and explains."""
+    try:
+        with (gzip.open(path, "rb") if gz else open(path, "rb")) as fh:
+            head = fh.read(84)
+            if len(head) < 84:
+                return None
+            n = int(np.frombuffer(head, "<u4", count=1, offset=80)[0])
+            if 84 + STL_RECORD.itemsize * n > MAX_BYTES or (
+                    not gz and path.stat().st_size != 84 + STL_RECORD.itemsize * n):
+                return None
+            corners = np.empty((n, 3, 3), dtype=np.float32)
+            raw = np.empty(STL_RECORD.itemsize * min(n, STL_STEP), dtype=np.uint8)
+            for lo in range(0, n, STL_STEP):
+                k = min(STL_STEP, n - lo)
+                if fh.readinto(raw[:STL_RECORD.itemsize * k]) != STL_RECORD.itemsize * k:
+                    return None
+                corners[lo:lo + k] = raw[:STL_RECORD.itemsize * k].view(STL_RECORD)["v"]
+            if gz and fh.read(1):
+                return None
+    except (OSError, EOFError, gzip.BadGzipFile):
+        return None
+    return corners.reshape(-1, 3)
 
 
 def _check_stl(path: Path, data: bytes) -> int | None:
@@ -149,9 +185,8 @@ def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | 
     if fmt == "stl":
         n = _check_stl(path, data)
         if n is not None:  # binary STL: one record array, no per-triangle work
-            rec = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
             corners = np.empty((n, 3, 3), dtype=np.float32)
-            corners[...] = np.frombuffer(data, rec, count=n, offset=84)["v"]  # the only copy
+            corners[...] = np.frombuffer(data, STL_RECORD, count=n, offset=84)["v"]  # the only copy
             return corners.reshape(-1, 3), None
     import trimesh
 
@@ -197,41 +232,51 @@ def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:
     return faces
 
 
-def _merge_vertices(v: np.ndarray, f: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """Merge bit-identical vertices with one lexicographic sort of their bit patterns (STL stores
-    every corner of every triangle, so this is what turns a soup into a mesh).
+#: Vertices are merged in this many groups, chosen by a hash of their coordinates (equal
+#: vertices share a group): each group is sorted alone, so the sort's arrays are a fraction
+#: of the mesh's.
+MERGE_GROUPS = 16
 
-    ``v`` is float32 (two sort keys: x and y bits packed, z) or float64 (three keys); ``f`` is
-    ``None`` for a soup (vertices 3k, 3k+1, 3k+2 make triangle k). Returns the unique vertices as
-    float64, in sorted order, and the re-indexed faces. Temporaries are dropped as soon as they
-    are used: on a large STL this step sets the loader's peak memory.
+
+def _merge_vertices(v: np.ndarray, f: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Merge bit-identical vertices (STL stores every corner of every triangle, so this is what
+    turns a soup into a mesh).
+
+    ``v`` is float32 or float64 (modified in place: -0.0 becomes 0.0); ``f`` is ``None`` for a
+    soup (vertices 3k, 3k+1, 3k+2 make triangle k). The vertices are split into
+    ``MERGE_GROUPS`` groups by a hash of their bits, and each group is merged by a lexicographic
+    sort of its bit patterns, so that besides ``v`` only the face indices and a group's sort are
+    in memory at once (on a large STL this step sets the loader's peak memory). Returns the
+    unique vertices as float64 (group by group, sorted within a group) and the faces re-indexed,
+    in :func:`~cooprint.geometry.index_dtype`.
     """
     v += v.dtype.type(0)  # -0.0 -> 0.0, in place
-    if v.dtype == np.float32:
-        b = v.view(np.uint32).reshape(-1, 3)
-        keys = [b[:, 2].copy(), (b[:, 0].astype(np.uint64) << np.uint64(32)) | b[:, 1]]
-    else:
-        b = v.view(np.uint64).reshape(-1, 3)
-        keys = [b[:, 2], b[:, 1], b[:, 0]]
-    del b
-    order = np.lexsort(keys)
-    new = np.zeros(len(v), dtype=bool)
-    new[0] = True
-    step = 1 << 16
-    while keys:  # a vertex is new where some key differs from the previous one, in sorted order
-        k = keys.pop()
-        for lo in range(0, len(v), step):
-            sk = k[order[max(lo - 1, 0):lo + step]]
-            new[lo + (lo == 0):lo + step] |= sk[1:] != sk[:-1]
-        del k
-    unique = v[order[new]].astype(np.float64)
-    rank = np.cumsum(new)
-    del new
-    rank -= 1
-    inverse = np.empty(len(v), dtype=np.int64)
-    inverse[order] = rank
-    del order, rank
-    return unique, (inverse.reshape(-1, 3) if f is None else inverse[f])
+    bits = v.view(np.uint32 if v.dtype == np.float32 else np.uint64).reshape(-1, 3)
+    group = np.empty(len(v), dtype=np.uint8)
+    mix = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)
+    for lo in range(0, len(v), 1 << 16):
+        h = bits[lo:lo + (1 << 16)].astype(np.uint64) * mix  # wraps modulo 2**64
+        group[lo:lo + (1 << 16)] = (h[:, 0] ^ h[:, 1] ^ h[:, 2]) >> np.uint64(60)
+    inverse = np.empty(len(v), dtype=index_dtype(len(v)))
+    unique: list[np.ndarray] = []
+    done = 0
+    for g in range(MERGE_GROUPS):
+        members = np.flatnonzero(group == g)
+        if len(members) == 0:
+            continue
+        b = bits[members]
+        order = np.lexsort((b[:, 2], b[:, 1], b[:, 0]))
+        b = b[order]
+        new = np.r_[True, (b[1:] != b[:-1]).any(axis=1)]
+        del b
+        unique.append(v[members[order[new]]].astype(np.float64))
+        rank = np.cumsum(new, dtype=inverse.dtype)
+        rank += done - 1
+        inverse[members[order]] = rank
+        done += len(unique[-1])
+    del group, bits
+    verts = np.concatenate(unique)
+    return verts, (inverse.reshape(-1, 3) if f is None else inverse[f])
 
 
 def to_manifold(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold:
@@ -250,21 +295,24 @@ def _proper_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
         g = f[lo:lo + (1 << 16)]
         area2 = np.linalg.norm(np.cross(verts[g[:, 1]] - verts[g[:, 0]], verts[g[:, 2]] - verts[g[:, 0]]), axis=1)
         keep[lo:lo + len(g)] &= area2 > 0
-    sf = np.sort(f, axis=1)
     if len(verts) < 2**21:  # three indices pack into one int64: a 1-D sort instead of rows
-        key = (sf[:, 0] << 42) | (sf[:, 1] << 21) | sf[:, 2]
+        key = np.empty(len(f), dtype=np.int64)
+        for lo in range(0, len(f), 1 << 16):
+            sf = np.sort(f[lo:lo + (1 << 16)], axis=1).astype(np.int64)
+            key[lo:lo + len(sf)] = (sf[:, 0] << 42) | (sf[:, 1] << 21) | sf[:, 2]
         _, first = np.unique(key, return_index=True)
     else:
-        _, first = np.unique(sf, axis=0, return_index=True)
+        _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
     unique = np.zeros(len(f), dtype=bool)
     unique[first] = True
     return keep & unique
 
 
-def _repair(verts: np.ndarray, faces: np.ndarray, settings: MeshSettings, path: str,
-            repairs: list[str]) -> tuple[np.ndarray, np.ndarray]:
+def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """The slow path, for meshes that are not already closed and consistently wound: drop
-    duplicate and zero-area triangles, fix the winding, close small holes."""
+    duplicate and zero-area triangles, fix the winding, close small holes. Takes ownership of
+    ``mesh = [(vertices, faces)]`` (popped, so that replaced arrays die at once)."""
+    verts, faces = mesh.pop()
     keep = _proper_faces(verts, faces)
     if not keep.all():
         repairs.append(f"removed {int((~keep).sum())} degenerate or duplicate triangles")
@@ -276,7 +324,7 @@ def _repair(verts: np.ndarray, faces: np.ndarray, settings: MeshSettings, path: 
 
         tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
         trimesh.repair.fix_winding(tm)
-        faces = np.asarray(tm.faces, dtype=np.int64)
+        faces = np.asarray(tm.faces, dtype=faces.dtype)
         repairs.append("made triangle winding consistent")
     loops = _boundary_loops(faces)
     if loops is None:
@@ -294,7 +342,7 @@ def _repair(verts: np.ndarray, faces: np.ndarray, settings: MeshSettings, path: 
         caps = [_fill_loop(verts, lp) for lp in loops]
         if any(c is None for c in caps):
             raise MeshError(f"{path}: not watertight: {len(loops)} holes, some cannot be triangulated")
-        faces = np.vstack([faces, *caps])
+        faces = np.vstack([faces, *(c.astype(faces.dtype) for c in caps)])
         repairs.append(f"closed {len(loops)} holes ({sum(len(lp) for lp in loops)} open edges)")
     if not is_closed(faces):
         raise MeshError(_describe_open(path, faces))
@@ -323,7 +371,7 @@ def _solid_from_parsed(parsed: list, settings: MeshSettings | None, *, path: str
     that the arrays die here as soon as they are merged, and modified in place)."""
     settings = settings or MeshSettings()
     v, faces = parsed.pop()
-    f = None if faces is None else np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    f = None if faces is None else np.asarray(faces).reshape(-1, 3).astype(index_dtype(len(v)), copy=False)
     del faces
     if f is None:
         v = v[: len(v) // 3 * 3]
@@ -349,7 +397,9 @@ def _solid_from_parsed(parsed: list, settings: MeshSettings | None, *, path: str
         repairs.append(f"merged {n_in - len(verts)} duplicate vertices")
     watertight_as_read = is_closed(faces)
     if not watertight_as_read:
-        verts, faces = _repair(verts, faces, settings, path, repairs)
+        mesh = [(verts, faces)]
+        del verts, faces
+        verts, faces = _repair(mesh, settings, path, repairs)
     volume = signed_volume(verts, faces)
     if volume < 0:  # closed but inside out
         faces = faces[:, ::-1].copy()
@@ -401,9 +451,15 @@ def load_mesh(path: str | Path, settings: MeshSettings | None = None) -> Solid:
         One line naming the file and what is wrong with it.
     """
     p = Path(path)
-    data, fmt = _read_bytes(p)
-    parsed = [_parse(p, data, fmt)]
-    del data
+    fmt, gz = _format(p)
+    corners = _read_binary_stl(p, gz) if fmt == "stl" else None
+    if corners is not None:
+        parsed = [(corners, None)]
+        del corners
+    else:
+        data = _read_bytes(p, gz)
+        parsed = [_parse(p, data, fmt)]
+        del data
     return _solid_from_parsed(parsed, settings, path=str(p), fmt=fmt)
 
 

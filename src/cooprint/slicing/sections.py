@@ -18,40 +18,68 @@ from __future__ import annotations
 import manifold3d
 import numpy as np
 
+from cooprint.geometry import STEP, index_dtype
+
+#: Segments made in one numpy pass (about 200 bytes of temporaries each): bounds the memory of a
+#: block of layers without changing its sections.
+SEGMENTS = 1 << 15
+
 
 class LayerSlicer:
     """A closed mesh prepared for slicing (triangles sorted by their lowest corner)."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
         self.vertices = np.asarray(vertices, dtype=np.float64)
-        tz = self.vertices[:, 2][faces]
-        lo = tz.min(axis=1)
+        z = self.vertices[:, 2]
+        lo, hi = np.empty(len(faces)), np.empty(len(faces))
+        for a in range(0, len(faces), STEP):  # a slice at a time: no (m, 3) temporaries
+            tz = z[faces[a:a + STEP]]
+            lo[a:a + len(tz)], hi[a:a + len(tz)] = tz.min(axis=1), tz.max(axis=1)
         order = np.argsort(lo, kind="stable")
-        self.hi = tz.max(axis=1)[order]
-        del tz
-        self.lo = lo[order]
-        index = np.int32 if len(self.vertices) < 2**31 else np.int64  # half the memory
-        self.faces = np.asarray(faces)[order].astype(index)
+        self.lo, self.hi = lo[order], hi[order]
+        del lo, hi
+        self.faces = np.asarray(faces)[order].astype(index_dtype(len(self.vertices)), copy=False)
 
     def rings(self, heights: np.ndarray) -> list[list[np.ndarray]]:
-        """For every height (ascending), the closed rings (k, 2) of the section there."""
+        """For every height (ascending), the closed rings (k, 2) of the section there.
+
+        The segments are made in groups of consecutive layers of at most ``SEGMENTS`` segments
+        (a layer is never split): each layer's loops depend on that layer alone, so the groups
+        change nothing but the size of the temporaries.
+        """
         heights = np.asarray(heights, dtype=np.float64)
+        n = len(heights)
         out: list[list[np.ndarray]] = [[] for _ in heights]
-        if len(heights) == 0:
+        if n == 0:
             return out
         # triangles crossing some height: lo <= h < hi (corners at h count as below)
         end = int(np.searchsorted(self.lo, heights[-1], side="right"))
         cand = np.flatnonzero(self.hi[:end] > heights[0])
         first = np.searchsorted(heights, self.lo[cand], side="left")
         last = np.searchsorted(heights, self.hi[cand], side="left")
+        cross = last > first
+        cand, first, last = cand[cross], first[cross], last[cross]
+        per_layer = np.cumsum(np.bincount(first, minlength=n + 1) - np.bincount(last, minlength=n + 1))[:n]
+        lo = 0
+        while lo < n:
+            hi = lo + max(1, int(np.searchsorted(np.cumsum(per_layer[lo:]), SEGMENTS, side="right")))
+            sel = (first < hi) & (last > lo)
+            self._group_rings(heights, cand[sel], np.maximum(first[sel], lo), np.minimum(last[sel], hi), out)
+            lo = hi
+        return out
+
+    def _group_rings(self, heights: np.ndarray, cand: np.ndarray, first: np.ndarray, last: np.ndarray,
+                     out: list[list[np.ndarray]]) -> None:
+        """Append to ``out`` the rings of triangles ``cand``, each crossing layers ``first`` to
+        ``last - 1``."""
         count = last - first
-        cand, first, count = cand[count > 0], first[count > 0], count[count > 0]
         if len(cand) == 0:
-            return out
+            return
         tri = np.repeat(cand, count)
         layer = np.repeat(first, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
         del cand, first, count
         f = self.faces[tri].astype(np.int64)
+        del tri
         h = heights[layer]
         z = self.vertices[f, 2]
         above = z > h[:, None]
@@ -71,13 +99,14 @@ class LayerSlicer:
         start = np.where(lone_above[:, None], p_ab, p_ac)
         s_key = np.where(lone_above, k_ab, k_ac)
         e_key = np.where(lone_above, k_ac, k_ab)
-        del p_ab, p_ac, k_ab, k_ac, f, z, above, rot
+        del p_ab, p_ac, k_ab, k_ac, f, z, above, rot, a, b, c, h
         order = np.argsort(s_key)
         pos = np.searchsorted(s_key[order], e_key)
         pos = np.minimum(pos, len(order) - 1)
         if not np.array_equal(s_key[order][pos], e_key):
             raise ValueError("the mesh is not closed: a section does not form loops")
         nxt = order[pos]
+        del order, pos, s_key, e_key
         label, rank = _cycles(nxt)
         seq = np.lexsort((rank, label))
         pts, lab, lay = start[seq], label[seq], layer[seq]
@@ -85,7 +114,6 @@ class LayerSlicer:
         for s, e in zip(cuts[:-1].tolist(), cuts[1:].tolist()):
             if e - s >= 3:
                 out[int(lay[s])].append(pts[s:e])
-        return out
 
     def sections(self, heights: np.ndarray) -> list[manifold3d.CrossSection]:
         """:meth:`rings` as cross-sections (outlines and holes nested, overlaps united)."""

@@ -129,6 +129,7 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
     workers = min(workers, len(blocks))
     global _WORKER
     _WORKER = _Job(solid, settings)  # forked workers share it (and its arrays) copy-on-write
+    del solid  # the job has what it needs: a caller that let go of the solid gets its memory back
     done = 0
     try:
         with (ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
