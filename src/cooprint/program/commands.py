@@ -1,0 +1,489 @@
+"""The robots' command language (``.coop``, one file per robot): the record, the writer, the parser.
+
+The language (seed §4.3 and §5.1)::
+
+    ; a comment, to the end of the line ('#' too)
+    MOVE x, y, z          straight move to an absolute position, mm (commas optional)
+    TOOL ON               deposit material along the following moves
+    TOOL OFF
+    NOTIFY [event]        announce an event; a bare NOTIFY is "<robot>:<n>", n counting this
+                          robot's NOTIFYs from 1
+    WAIT event [, event]  block until every named event has been announced (by any robot)
+
+Keywords are case-insensitive; numbers are decimal (``-1``, ``2.5``, ``.5``, ``1e3``) and must be
+finite; event names are letters, digits and ``_ : . -``.
+
+Annotations are comments a robot ignores and the tools read (as slicers read ``;TYPE:`` in
+G-code): G-code export needs each extruding move's width and layer height, the simulator and the
+viewers need to know which chunk a move prints::
+
+    ;@chunk C             the following commands belong to chunk C ('-': between chunks)
+    ;@layer 12 0.2        layer 12 of that chunk (from 0), 0.2 mm thick ('-': no layer)
+    ;@path perimeter 0.45 the following moves print a perimeter 0.45 mm wide (roles: outer-perimeter,
+                          perimeter, skin, infill, travel)
+
+The writer emits an annotation wherever its value changes, so ``parse(write(p)) == p`` exactly:
+coordinates are kept on a 1 µm grid (``quantize``) and written with three decimals. The parser
+reads the MOVE lines of a file (nearly all of them) in one vectorised pass and every other line
+with the line parser, which is the reference: whatever the fast pass cannot take as written,
+the line parser reads or refuses with ``file:line:column: message``.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable, TextIO
+
+import numpy as np
+
+from cooprint.errors import UserError
+from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
+
+#: Command kinds.
+MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT = range(5)
+KIND_NAMES = ("MOVE", "TOOL ON", "TOOL OFF", "NOTIFY", "WAIT")
+#: Path roles as annotations name them (index = role number of :mod:`cooprint.slicing.paths`).
+ROLE_WORDS = {PERIMETER_OUTER: "outer-perimeter", PERIMETER_INNER: "perimeter", SKIN: "skin",
+              INFILL: "infill", TRAVEL: "travel"}
+_ROLE_OF_WORD = {w: r for r, w in ROLE_WORDS.items()}
+#: Coordinates of a program lie on this grid, mm (what the writer's three decimals hold).
+RESOLUTION = 1e-3
+FORMAT = "cooprint-coop/1"
+
+
+class ProgramError(UserError):
+    """A command file that is not valid: ``file:line:column: what is wrong``."""
+
+
+def quantize(xyz: np.ndarray) -> np.ndarray:
+    """Coordinates on the 1 µm grid: ``rint(x * 1000) / 1000`` is the double nearest to a
+    three-decimal number, which is what ``'%.3f'`` writes and ``float()`` reads back."""
+    return np.rint(np.asarray(xyz, dtype=np.float64) * 1000.0) / 1000.0
+
+
+@dataclass(frozen=True, eq=False)
+class Program:
+    """A robot's command stream (or a piece of one), one row per command.
+
+    Attributes
+    ----------
+    robot : str
+        The robot's name.
+    kind : (n,) uint8
+        ``MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT``.
+    xyz : (n, 3) float64
+        Target of a MOVE, mm, on the 1 µm grid; NaN for other commands.
+    role : (n,) uint8
+        Path role of the command (``cooprint.slicing.paths``; ``TRAVEL`` outside paths).
+    width : (n,) float64
+        Extrusion width, mm (0 outside extruding paths).
+    layer : (n,) int32
+        Layer index within the chunk, from 0 (-1: not in a layer).
+    height : (n,) float64
+        Layer thickness, mm (0: not in a layer).
+    chunk : (n,) int16
+        Index into ``chunks`` (-1: between chunks).
+    event : (n,) int32
+        For NOTIFY and WAIT, index into ``events``; -1 otherwise.
+    chunks : tuple of str
+        Chunk ids.
+    events : tuple of tuple of str
+        The event names of each NOTIFY / WAIT, in order (a NOTIFY has one).
+    """
+
+    robot: str
+    kind: np.ndarray
+    xyz: np.ndarray
+    role: np.ndarray
+    width: np.ndarray
+    layer: np.ndarray
+    height: np.ndarray
+    chunk: np.ndarray
+    event: np.ndarray
+    chunks: tuple[str, ...] = ()
+    events: tuple[tuple[str, ...], ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Program):
+            return NotImplemented
+        return (self.robot == other.robot and self.chunks == other.chunks and self.events == other.events
+                and all(np.array_equal(getattr(self, f), getattr(other, f), equal_nan=f in ("xyz",))
+                        for f in ("kind", "xyz", "role", "width", "layer", "height", "chunk", "event")))
+
+    __hash__ = None  # type: ignore[assignment]
+
+    @property
+    def moves(self) -> np.ndarray:
+        """(n,) bool: which commands are MOVEs."""
+        return self.kind == MOVE
+
+    def tool_on(self, start: bool = False) -> np.ndarray:
+        """(n,) bool: the tool is on while each command runs (a MOVE with it on deposits)."""
+        change = np.where(self.kind == TOOL_ON, 1, np.where(self.kind == TOOL_OFF, 0, -1))
+        idx = np.where(change >= 0, np.arange(len(change)), -1)
+        last = np.maximum.accumulate(idx) if len(idx) else idx
+        return np.where(last >= 0, change[np.maximum(last, 0)] == 1, start)
+
+    @staticmethod
+    def empty(robot: str) -> "Program":
+        return Program(robot, np.zeros(0, np.uint8), np.zeros((0, 3)), np.zeros(0, np.uint8), np.zeros(0),
+                       np.zeros(0, np.int32), np.zeros(0), np.zeros(0, np.int16), np.zeros(0, np.int32))
+
+    @staticmethod
+    def concat(robot: str, pieces: Iterable["Program"]) -> "Program":
+        """One program from pieces in order (their chunk tables merged, events renumbered)."""
+        pieces = list(pieces)
+        if not pieces:
+            return Program.empty(robot)
+        chunks: list[str] = []
+        for p in pieces:
+            chunks += [c for c in p.chunks if c not in chunks]
+        cols: dict[str, list[np.ndarray]] = {f: [] for f in ("kind", "xyz", "role", "width", "layer", "height",
+                                                             "chunk", "event")}
+        events: list[tuple[str, ...]] = []
+        for p in pieces:
+            remap = np.array([chunks.index(c) for c in p.chunks] + [-1], dtype=np.int16)
+            for f in ("kind", "xyz", "role", "width", "layer", "height"):
+                cols[f].append(getattr(p, f))
+            cols["chunk"].append(remap[p.chunk])  # -1 indexes the appended -1
+            cols["event"].append(np.where(p.event >= 0, p.event + len(events), -1).astype(np.int32))
+            events += p.events
+        return Program(robot, *(np.concatenate(cols[f]) for f in cols), chunks=tuple(chunks),
+                       events=tuple(events))
+
+
+def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *, role=TRAVEL, width=0.0,
+                 layer=-1, height=0.0, chunk=-1, chunks: tuple[str, ...] = (),
+                 events: tuple[tuple[str, ...], ...] = ()) -> Program:
+    """A :class:`Program` from a kind array and (n, 3) MOVE targets (rows of other commands are
+    ignored); the metadata are scalars or (n,) arrays. Events number the NOTIFY / WAIT commands in
+    order."""
+    kind = np.asarray(kind, dtype=np.uint8)
+    n = len(kind)
+    pos = np.full((n, 3), np.nan)
+    if xyz is not None:
+        m = kind == MOVE
+        pos[m] = quantize(np.asarray(xyz, dtype=np.float64).reshape(n, 3)[m])
+    sync = (kind == NOTIFY) | (kind == WAIT)
+    event = np.full(n, -1, np.int32)
+    event[sync] = np.arange(int(sync.sum()), dtype=np.int32)
+    if len(events) != int(sync.sum()):
+        raise ValueError(f"{int(sync.sum())} NOTIFY/WAIT commands but {len(events)} event lists")
+
+    def full(v, dtype):
+        return np.broadcast_to(np.asarray(v, dtype=dtype), (n,)).copy()
+
+    return Program(robot, kind, pos, full(role, np.uint8), full(width, np.float64), full(layer, np.int32),
+                   full(height, np.float64), full(chunk, np.int16), event, tuple(chunks), tuple(events))
+
+
+# ----------------------------------------------------------------------------------------------
+# writing
+
+
+def _annotations(p: Program, i: int, prev: tuple) -> tuple[str, tuple]:
+    """The annotation lines before command ``i`` (those whose value differs from ``prev``)."""
+    c, la, h, r, w = int(p.chunk[i]), int(p.layer[i]), float(p.height[i]), int(p.role[i]), float(p.width[i])
+    out = []
+    if c != prev[0]:
+        out.append(f";@chunk {p.chunks[c] if c >= 0 else '-'}\n")
+    if (la, h) != prev[1]:
+        out.append(f";@layer {la} {h!r}\n" if la >= 0 else ";@layer -\n")
+    if (r, w) != prev[2]:
+        out.append(f";@path {ROLE_WORDS[r]} {w!r}\n")
+    return "".join(out), (c, (la, h), (r, w))
+
+
+#: State before the first command: what the parser assumes until an annotation says otherwise.
+_START = (-1, (-1, 0.0), (TRAVEL, 0.0))
+
+
+def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> None:
+    """Write ``program`` as ``.coop`` text (a header of comment lines first).
+
+    Runs of MOVEs with the same annotations are formatted in one operation each.
+    """
+    out.write(f"; {FORMAT} program for robot {program.robot}\n")
+    for line in header:
+        out.write(f"; {line}\n")
+    p = program
+    n = len(p)
+    if n == 0:
+        return
+    meta_change = np.ones(n, dtype=bool)
+    meta_change[1:] = ((p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1]) | (p.height[1:] != p.height[:-1])
+                       | (p.role[1:] != p.role[:-1]) | (p.width[1:] != p.width[:-1]))
+    not_move = p.kind != MOVE
+    # a run of MOVEs ends before a command that is not a move or whose annotations change
+    breaks = np.flatnonzero(meta_change | not_move | np.r_[False, not_move[:-1]])
+    bounds = np.r_[breaks, n]
+    xyz = p.xyz.ravel().tolist()
+    state = _START
+    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        text, state = _annotations(p, a, state)
+        out.write(text)
+        k = int(p.kind[a])
+        if k == MOVE:
+            out.write("MOVE %.3f, %.3f, %.3f\n" * (b - a) % tuple(xyz[3 * a:3 * b]))
+        elif k in (TOOL_ON, TOOL_OFF):
+            out.write(KIND_NAMES[k] + "\n")
+        else:
+            out.write(f"{KIND_NAMES[k]} {', '.join(p.events[int(p.event[a])])}\n")
+
+
+def coop_text(program: Program, header: Iterable[str] = ()) -> str:
+    buf = io.StringIO()
+    write_coop(buf, program, header)
+    return buf.getvalue()
+
+
+# ----------------------------------------------------------------------------------------------
+# parsing
+
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+_EVENT = re.compile(r"[A-Za-z0-9_:.\-]+")
+_TOKEN = re.compile(r"[^\s,]+|,")
+
+
+class _Lines:
+    """Parses lines one at a time (the reference parser), keeping the annotation state and the
+    NOTIFY count."""
+
+    def __init__(self, source: str, robot: str):
+        self.source, self.robot = source, robot
+        self.notifies = 0
+        self.chunks: list[str] = []
+
+    def error(self, lineno: int, col: int, msg: str) -> ProgramError:
+        return ProgramError(f"{self.source}:{lineno}:{col}: {msg}")
+
+    def parse(self, line: str, lineno: int):
+        """``None`` (blank or comment), ``("ann", key, value)`` or ``(kind, payload)``."""
+        cut = min((i for i in (line.find(";"), line.find("#")) if i >= 0), default=len(line))
+        code, comment = line[:cut], line[cut:]
+        tokens = [(m.group(), m.start() + 1) for m in _TOKEN.finditer(code)]
+        if not tokens:
+            return self.annotation(comment, lineno, cut) if comment.startswith(";@") else None
+        word, col = tokens[0]
+        w = word.upper()
+        args = tokens[1:]
+        if w == "MOVE":
+            return MOVE, self.numbers(args, lineno, col, len(code.rstrip()) + 1)
+        if w == "TOOL":
+            words = [t for t in args if t[0] != ","]
+            if len(words) != 1 or len(args) != 1 or words[0][0].upper() not in ("ON", "OFF"):
+                at = args[0][1] if args else len(code.rstrip()) + 2
+                got = f"'{' '.join(t for t, _ in args)}'" if args else "nothing"
+                raise self.error(lineno, at, f"TOOL needs ON or OFF, got {got}")
+            return (TOOL_ON if words[0][0].upper() == "ON" else TOOL_OFF), None
+        if w == "NOTIFY":
+            if len(args) > 1 or (args and args[0][0] == ","):
+                bad = args[1] if len(args) > 1 else args[0]
+                raise self.error(lineno, bad[1], f"NOTIFY takes at most one event name, extra token '{bad[0]}'")
+            self.notifies += 1
+            name = self.event_name(args[0], lineno) if args else f"{self.robot}:{self.notifies}"
+            return NOTIFY, (name,)
+        if w == "WAIT":
+            names = self.separated(args, lineno, col, "WAIT", "event name", self.event_name)
+            if not names:
+                raise self.error(lineno, len(code.rstrip()) + 2, "WAIT needs at least one event name")
+            return WAIT, tuple(names)
+        raise self.error(lineno, col, f"unknown word '{word}' (expected MOVE, TOOL, NOTIFY or WAIT)")
+
+    def separated(self, args, lineno, col, what, item, convert):
+        """Items separated by whitespace or by single commas."""
+        out, expect_item = [], True
+        for tok, c in args:
+            if tok == ",":
+                if expect_item:
+                    raise self.error(lineno, c, f"{what}: a comma where a {item} was expected")
+                expect_item = True
+                continue
+            out.append(convert((tok, c), lineno))
+            expect_item = False
+        if out and expect_item:
+            raise self.error(lineno, args[-1][1], f"{what}: a comma with no {item} after it")
+        return out
+
+    def number(self, tok, lineno: int) -> float:
+        text, col = tok
+        if _NONFINITE.fullmatch(text):
+            raise self.error(lineno, col, f"'{text}' is not a finite number")
+        if not _NUMBER.fullmatch(text):
+            raise self.error(lineno, col, f"'{text}' is not a number")
+        value = float(text)
+        if not math.isfinite(value):
+            raise self.error(lineno, col, f"'{text}' is not a finite number")
+        return value
+
+    def numbers(self, args, lineno: int, col: int, end: int) -> tuple[float, float, float]:
+        values = self.separated(args, lineno, col, "MOVE", "number", self.number)
+        if len(values) < 3:
+            raise self.error(lineno, end, f"MOVE needs 3 numbers (x, y, z), got {len(values)}")
+        if len(values) > 3:
+            extra = [t for t in args if t[0] != ","][3]
+            raise self.error(lineno, extra[1], f"MOVE takes 3 numbers (x, y, z), extra token '{extra[0]}'")
+        return values[0], values[1], values[2]
+
+    def event_name(self, tok, lineno: int) -> str:
+        text, col = tok
+        if not _EVENT.fullmatch(text):
+            raise self.error(lineno, col, f"'{text}' is not an event name (letters, digits, _ : . -)")
+        return text
+
+    def annotation(self, comment: str, lineno: int, cut: int):
+        parts = comment[2:].split()
+        if not parts:
+            return None
+        key, vals = parts[0].lower(), parts[1:]
+        col = cut + 3
+        try:
+            if key == "chunk" and len(vals) == 1:
+                if vals[0] == "-":
+                    return "ann", "chunk", -1
+                if vals[0] not in self.chunks:
+                    self.chunks.append(vals[0])
+                return "ann", "chunk", self.chunks.index(vals[0])
+            if key == "layer" and vals == ["-"]:
+                return "ann", "layer", (-1, 0.0)
+            if key == "layer" and len(vals) == 2 and int(vals[0]) >= 0 and float(vals[1]) > 0:
+                return "ann", "layer", (int(vals[0]), float(vals[1]))
+            if key == "path" and len(vals) == 2 and vals[0] in _ROLE_OF_WORD and float(vals[1]) >= 0:
+                return "ann", "path", (_ROLE_OF_WORD[vals[0]], float(vals[1]))
+        except ValueError:
+            pass
+        if key in ("chunk", "layer", "path"):
+            form = {"chunk": "';@chunk ID' or ';@chunk -'", "layer": "';@layer INDEX HEIGHT' or ';@layer -'",
+                    "path": "';@path ROLE WIDTH' with ROLE one of " + ", ".join(_ROLE_OF_WORD)}[key]
+            raise self.error(lineno, col, f"malformed annotation '{comment.strip()}': expected {form}")
+        return None  # an annotation of a later version: a comment here
+
+
+def _move_lines_fast(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray | None:
+    """(k, 3) coordinates of the lines ``starts..ends`` (each beginning with 'MOVE' and a blank),
+    read in one pass, or ``None`` when some line is not in the plain form (numbers made of
+    digits, signs, points and exponents; single commas or blanks between them; no comment): the
+    line parser then reads them all."""
+    mark = np.zeros(len(buf) + 2, dtype=np.int32)
+    mark[starts + 5] += 1
+    mark[ends + 1] -= 1
+    inside = np.cumsum(mark[:len(buf)]) > 0
+    payload = buf[inside].tobytes()
+    if payload.translate(None, b"0123456789+-.eE, \t\r\n"):
+        return None
+    if re.search(rb"(?:^|\n)[ \t]*,|,[ \t]*(?:,|\r?\n|\r?$)", payload):
+        return None
+    try:
+        xyz = np.loadtxt(io.BytesIO(payload.replace(b",", b" ")), dtype=np.float64, ndmin=2)
+    except ValueError:
+        return None
+    if xyz.shape != (len(starts), 3) or not np.isfinite(xyz).all():
+        return None
+    return xyz
+
+
+def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Program:
+    """Read ``.coop`` text into a :class:`Program`.
+
+    Parameters
+    ----------
+    robot
+        The robot's name (names its bare NOTIFYs).
+    source
+        Named in error messages (a file path).
+
+    Raises
+    ------
+    ProgramError
+        ``source:line:column: what is wrong`` for the first malformed line.
+    """
+    data = text.encode() if isinstance(text, str) else bytes(text)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    nl = np.flatnonzero(buf == 10)
+    starts = np.r_[0, nl + 1]
+    ends = np.r_[nl, len(buf)]
+    head = np.zeros((len(starts), 5), dtype=np.uint8)
+    long = ends - starts >= 5
+    head[long] = buf[starts[long, None] + np.arange(5)]
+    is_move = long & (head[:, :4] == np.frombuffer(b"MOVE", np.uint8)).all(axis=1) & np.isin(head[:, 4], (32, 9))
+    move_idx = np.flatnonzero(is_move)
+    fast = _move_lines_fast(buf, starts[move_idx], ends[move_idx]) if len(move_idx) else np.zeros((0, 3))
+    lines = _Lines(source, robot)
+    others = np.flatnonzero(~is_move) if fast is not None else np.arange(len(starts))
+    # (line index, kind, payload) of every command the line parser reads; annotations apart
+    cmd_line, cmd_kind, cmd_xyz, events = [], [], [], []
+    ann_line: dict[str, list[int]] = {"chunk": [], "layer": [], "path": []}
+    ann_val: dict[str, list] = {"chunk": [], "layer": [], "path": []}
+    for i in others.tolist():
+        try:
+            line = data[starts[i]:ends[i]].decode("utf-8")
+        except UnicodeDecodeError:
+            raise lines.error(i + 1, 1, "not UTF-8 text") from None
+        got = lines.parse(line, i + 1)
+        if got is None:
+            continue
+        if got[0] == "ann":
+            ann_line[got[1]].append(i)
+            ann_val[got[1]].append(got[2])
+            continue
+        kind, payload = got
+        cmd_line.append(i)
+        cmd_kind.append(kind)
+        if kind == MOVE:
+            cmd_xyz.append(payload)
+        elif kind in (NOTIFY, WAIT):
+            events.append(payload)
+    line_of = np.array(cmd_line, dtype=np.int64)
+    kind_of = np.array(cmd_kind, dtype=np.uint8)
+    xyz_of = np.full((len(line_of), 3), np.nan)
+    if cmd_xyz:
+        xyz_of[kind_of == MOVE] = np.array(cmd_xyz, dtype=np.float64)
+    if fast is not None and len(move_idx):
+        line_of = np.concatenate([line_of, move_idx])
+        kind_of = np.concatenate([kind_of, np.zeros(len(move_idx), np.uint8)])
+        xyz_of = np.concatenate([xyz_of, fast])
+    order = np.argsort(line_of, kind="stable")
+    line_of, kind_of, xyz_of = line_of[order], kind_of[order], xyz_of[order]
+
+    def state(key: str, start):
+        """Each command's value of an annotation: the last one above its line."""
+        at = np.searchsorted(np.array(ann_line[key], dtype=np.int64), line_of) - 1
+        vals = [start] + ann_val[key]
+        return at + 1, vals
+
+    c_at, c_vals = state("chunk", -1)
+    l_at, l_vals = state("layer", (-1, 0.0))
+    p_at, p_vals = state("path", (TRAVEL, 0.0))
+    sync = (kind_of == NOTIFY) | (kind_of == WAIT)
+    event = np.full(len(kind_of), -1, np.int32)
+    event[sync] = np.arange(int(sync.sum()), dtype=np.int32)
+    return Program(
+        robot, kind_of, xyz_of,
+        np.array([v[0] for v in p_vals], dtype=np.uint8)[p_at], np.array([v[1] for v in p_vals])[p_at],
+        np.array([v[0] for v in l_vals], dtype=np.int32)[l_at], np.array([v[1] for v in l_vals])[l_at],
+        np.array(c_vals, dtype=np.int16)[c_at], event, tuple(lines.chunks), tuple(events))
+
+
+def read_coop(path: str | Path, robot: str | None = None) -> Program:
+    """Read a ``.coop`` file; the robot's name defaults to the file's stem."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except FileNotFoundError:
+        raise ProgramError(f"{p}: no such command file") from None
+    except OSError as exc:
+        raise ProgramError(f"{p}: cannot read ({exc})") from None
+    return parse_coop(data, robot or p.stem, str(p))
+
+
+__all__ = ["FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
+           "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "coop_text", "quantize",
+           "read_coop", "write_coop"]
