@@ -9,6 +9,7 @@ import pytest
 from cooprint.cli import main
 from cooprint.config import SlicingSettings
 from cooprint.io.mesh import solid_from_arrays
+from cooprint.program.build import layer_pieces
 from cooprint.program.gcode import gcode_text
 from cooprint.slicing import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, layer_tops, slice_solid
 from cooprint.slicing.infill import hatch
@@ -146,7 +147,7 @@ def read_gcode(text):
 
 
 def test_gcode_reads_back(cube):
-    text = gcode_text(cube.layers, cube.settings, "cube")
+    text = gcode_text(layer_pieces(cube.layers), cube.settings, name="cube")
     for must in ("G21", "G90", "M83", "M104 S210", "M140 S60", ";LAYER:0", ";LAYER:49"):
         assert must in text
     moves, e_total, layers = read_gcode(text)
@@ -171,7 +172,11 @@ def test_slice_cli(tmp_path, capsys):
     assert "use --force" in capsys.readouterr().err
     assert out.read_text() == before
     assert main(["slice", str(stl), "--out", str(out), "-q", "--force", "--layer-height", "0.25"]) == 0
-    assert out.read_text().count(";LAYER:") == 1 + math.ceil((10 - 0.2) / 0.25)
+    # 1 + ceil((10 - 0.2) / 0.25) = 41 layers cover the cube; the last one's middle (10.075 mm) is
+    # above it, so it prints nothing and the G-code has no layer for it
+    text = out.read_text()
+    assert text.count(";LAYER:") == math.ceil((10 - 0.2) / 0.25) == 40
+    assert ";Z:9.950" in text and ";Z:10.200" not in text
 
 
 def test_small_sparse_regions_are_filled_solid():
@@ -184,7 +189,7 @@ def test_small_sparse_regions_are_filled_solid():
 
 
 def test_long_travels_retract_and_unretract(cube):
-    text = gcode_text(cube.layers, cube.settings, "cube")
+    text = gcode_text(layer_pieces(cube.layers), cube.settings, name="cube")
     assert text.count("G1 E-0.80000 F2100") == text.count("G1 E0.80000 F2100") > 0
     assert "E0.00000" not in text  # no extruding move that does not move
 

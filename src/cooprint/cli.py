@@ -16,8 +16,8 @@ import click
 from cooprint import __version__
 from cooprint.errors import UserError
 
-STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing chunks",
-               "render": "drawing picture", "slice": "slicing layers"}
+STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing files",
+               "render": "drawing picture", "slice": "slicing layers", "program": "robot programs"}
 
 
 @contextmanager
@@ -62,7 +62,8 @@ def cli(ctx: click.Context, verbose: bool) -> None:
 
 config_option = click.option(
     "--robot", "--config", "config", multiple=True, type=click.Path(dir_okay=False),
-    help="TOML file with [robot], [chunking], [mesh] sections (repeatable; later files win).")
+    help="TOML file with [robot], [chunking], [mesh], [slicing], [program] sections (repeatable; later "
+         "files win).")
 
 
 @cli.command()
@@ -147,6 +148,43 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], layer_height: float 
         n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True)
     if not quiet:
         click.echo(f"{n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
+
+
+@cli.command(name="run")
+@click.argument("mesh", type=click.Path(dir_okay=False))
+@click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
+@click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
+              help="Number of robots (seed strategy).")
+@config_option
+@click.option("--theta", type=float, help="Slope of the chunk interfaces, degrees [default: theta_max].")
+@click.option("--shift", type=float, help="Distance between cutting planes, mm [default: bd - h/tan(theta)].")
+@click.option("--force", is_flag=True, help="Replace OUT if it exists.")
+@click.option("--no-picture", is_flag=True, help="Skip chunks.png.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary.")
+def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], theta: float | None,
+            shift: float | None, force: bool, no_picture: bool, quiet: bool) -> None:
+    """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
+
+    Chunks, assigns, slices every chunk and writes OUT/job.json, OUT/chunks/<id>.stl,
+    OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically.
+    """
+    from cooprint.io.bundle import check_destination
+    from cooprint.jobs import coop_job, write_coop_bundle
+
+    settings = _settings(config, {"chunking.theta_deg": theta, "chunking.shift": shift})
+    check_destination(Path(out), force)
+    with stage_progress(not quiet) as progress:
+        job = coop_job(mesh, settings, robots, progress)
+        record = write_coop_bundle(job, out, force, not no_picture, progress)
+    if quiet:
+        return
+    for r in record["robots"]:
+        st = r["stats"]
+        click.echo(f"  robot {r['name']} ({r['side']} side): {' -> '.join(r['chunks']) or '(idle)'}; "
+                   f"{st['commands']:,} commands, {st['print_mm'] / 1000:.1f} m printed, "
+                   f"{st['volume_mm3'] / 1000:.1f} cm3, {st['wait']} WAIT, {st['notify']} NOTIFY")
+    click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl, {out}/robots/*.coop, {out}/robots/*.gcode"
+               + ("" if no_picture else f", {out}/chunks.png"))
 
 
 def _lean_malloc() -> None:

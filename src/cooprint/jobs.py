@@ -153,7 +153,8 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     """Load, slice and write G-code to ``out`` atomically, layer block by layer block (the model
     is never held whole); return the number of layers and the filament used, mm."""
     from cooprint.io.bundle import atomic_file
-    from cooprint.program.gcode import write_program
+    from cooprint.program.build import layer_pieces
+    from cooprint.program.gcode import Feeds, write_gcode
     from cooprint.slicing import iter_layers
 
     settings = settings or load_settings()
@@ -162,8 +163,9 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     counted = _Counted(iter_layers(solid, settings.slicing, layer_progress))
     del solid  # iter_layers keeps only what slicing needs, not the whole Solid
+    s = settings.slicing
     with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
-        used = write_program(fh, counted, settings.slicing, Path(mesh).name)
+        used = write_gcode(fh, layer_pieces(counted), s, Feeds.of_slicer(s), Path(mesh).name)
     return counted.n, used
 
 
@@ -182,10 +184,12 @@ class _Counted:
 def write_gcode(sliced: "SlicedModel", out: str | Path, name: str, force: bool = False) -> float:
     """Write ``sliced`` as Marlin G-code to ``out`` atomically; return filament used, mm."""
     from cooprint.io.bundle import atomic_file
-    from cooprint.program.gcode import write_program
+    from cooprint.program.build import layer_pieces
+    from cooprint.program.gcode import Feeds, write_gcode
 
+    s = sliced.settings
     with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
-        return write_program(fh, sliced.layers, sliced.settings, name)
+        return write_gcode(fh, layer_pieces(sliced.layers), s, Feeds.of_slicer(s), name)
 
 
 def run_chunk(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
@@ -197,3 +201,155 @@ def run_chunk(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path]
     check_destination(Path(out), force)
     job = chunk_job(mesh, load_settings(*config, overrides=overrides), robots)
     return write_chunk_bundle(job, out, force, picture)
+
+
+@dataclass(frozen=True)
+class CoopJob:
+    """A cooperative job: chunks, their layers and every robot's command stream.
+
+    Attributes
+    ----------
+    chunked : ChunkJob
+        The chunker's and scheduler's output.
+    layers : dict
+        ``{chunk id: [(layer index, LayerPaths), ...]}``, indices in the object's layer grid.
+    programs : dict
+        ``{robot: Program}``.
+    placements : dict
+        ``{robot: RobotPlacement}``: side, facing, start position.
+    """
+
+    chunked: ChunkJob
+    layers: dict[str, list]
+    programs: dict[str, Any]
+    placements: dict[str, Any]
+
+
+def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robots: int = 2,
+             progress: Progress | None = None) -> CoopJob:
+    """Chunk, assign, slice every chunk in the object's layer grid, and make each robot's
+    command stream (transitions, NOTIFY / WAIT)."""
+    from cooprint.program.build import MaterialIndex, robot_programs
+    from cooprint.slicing import iter_layers
+    from cooprint.slicing.slicer import layer_range
+
+    settings = settings or load_settings()
+    chunked = chunk_job(mesh, settings, robots, progress)
+    s = settings.slicing
+    base = float(chunked.solid.bounds[0, 2])
+    layers: dict[str, list] = {}
+    solids = {c.id: c.as_solid() for c in chunked.chunks.chunks}
+    ranges = {cid: layer_range(sol, s, base) for cid, sol in solids.items()}
+    total = sum(end - first for first, end in ranges.values())
+    done = 0
+    for cid, solid in solids.items():
+        layers[cid] = list(enumerate(iter_layers(solid, s, base=base), start=ranges[cid][0]))
+        done += len(layers[cid])
+        done += len(layers[cid])
+        if progress:
+            progress("slice", done, total)
+    if progress:
+        progress("program", 0, 1)
+    material = MaterialIndex.of(chunked.chunks.chunks, margin=max(s.layer_height, s.first_layer_height))
+    programs, placements = robot_programs(
+        dict(chunked.assignment.sequences), layers, chunked.chunks.deps, material,
+        reach=settings.robot.nozzle_depth, clearance=settings.program.clearance,
+        axis=chunked.chunks.plan.axis, roles={c.id: c.role for c in chunked.chunks.chunks})
+    if progress:
+        progress("program", 1, 1)
+    return CoopJob(chunked, layers, programs, placements)
+
+
+def program_stats(program: Any, s: SlicingSettings) -> dict[str, Any]:
+    """Counts and lengths of a command stream, and the material it deposits."""
+    from cooprint.program.commands import MOVE, NOTIFY, WAIT
+    from cooprint.slicing.paths import extrusion_area
+
+    mv = np.flatnonzero(program.kind == MOVE)
+    xyz = program.xyz[mv]
+    seg = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
+    on = program.tool_on()[mv][1:]
+    area = extrusion_area(program.width[mv][1:], program.height[mv][1:])
+    volume = float((np.where(on, area, 0.0) * seg).sum())
+    return {"commands": int(len(program)), "moves": int(len(mv)), "print_mm": float(seg[on].sum()),
+            "travel_mm": float(seg[~on].sum()), "volume_mm3": volume,
+            "filament_mm": volume / (np.pi * (s.filament_diameter / 2) ** 2),
+            "notify": int((program.kind == NOTIFY).sum()), "wait": int((program.kind == WAIT).sum())}
+
+
+def coop_record(job: CoopJob) -> dict[str, Any]:
+    """``job.json`` of a cooperative run: the chunk record, robots with their placement and
+    program statistics, and the synchronisation events."""
+    from cooprint.program.commands import NOTIFY
+
+    record = job_record(job.chunked)
+    s = job.chunked.settings.slicing
+    for r in record["robots"]:
+        name = r["name"]
+        r.update(job.placements[name].to_dict())
+        r["program"] = f"robots/{name}.coop"
+        r["gcode"] = f"robots/{name}.gcode"
+        r["stats"] = program_stats(job.programs[name], s)
+    for row in record["chunks"]:
+        row["layers"] = len([1 for _, layer in job.layers[row["id"]] if len(layer)])
+    record["format"] = "cooprint-job/2"
+    record["schedule"]["events"] = [
+        {"robot": name, "kind": "notify" if p.kind[i] == NOTIFY else "wait", "events": list(p.events[p.event[i]])}
+        for name, p in job.programs.items() for i in np.flatnonzero(p.event >= 0).tolist()]
+    return record
+
+
+def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, picture: bool = True,
+                      progress: Progress | None = None) -> dict[str, Any]:
+    """Write the whole bundle (job.json, chunks/, robots/<name>.coop and .gcode, chunks.png)
+    atomically; returns the job record."""
+    from cooprint.program.commands import write_coop
+    from cooprint.program.gcode import Feeds, write_gcode
+
+    out = Path(out)
+    settings = job.chunked.settings
+    s = settings.slicing
+    with atomic_dir(out, force) as tmp:
+        (tmp / "chunks").mkdir()
+        (tmp / "robots").mkdir()
+        n = len(job.chunked.chunks.chunks)
+        for i, c in enumerate(job.chunked.chunks.chunks):
+            write_stl(tmp / "chunks" / f"{c.id}.stl", c.vertices, c.faces, name=c.id)
+            if progress:
+                progress("write", i + 1, n + 2 * len(job.programs))
+        name = Path(job.chunked.solid.report.path).name
+        for k, (robot, program) in enumerate(job.programs.items()):
+            place = job.placements[robot]
+            header = [f"job: {name}, robot '{settings.robot.name}' as {robot}",
+                      f"side {place.side}, facing {place.facing_deg:.1f} deg, "
+                      f"start {place.start[0]:.3f}, {place.start[1]:.3f}, {place.start[2]:.3f}",
+                      "annotations: ;@chunk ID, ;@layer INDEX HEIGHT, ;@path ROLE WIDTH (docs/program.md)"]
+            with open(tmp / "robots" / f"{robot}.coop", "w", encoding="utf-8") as fh:
+                write_coop(fh, program, header)
+            if progress:
+                progress("write", n + 2 * k + 1, n + 2 * len(job.programs))
+            with open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as fh:
+                write_gcode(fh, [program], s, Feeds.of_robot(settings.robot, s), f"{name}, robot {robot}",
+                            notes=header[:2], home=False)
+            if progress:
+                progress("write", n + 2 * k + 2, n + 2 * len(job.programs))
+        record = coop_record(job)
+        if picture:
+            from cooprint.render.chunks import render_chunks
+
+            render_chunks(job.chunked.chunks, tmp / "chunks.png")
+            record["picture"] = "chunks.png"
+        write_json(tmp / "job.json", record)
+    return record
+
+
+def run(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
+        overrides: dict[str, Any] | None = None, robots: int = 2, force: bool = False,
+        picture: bool = True, progress: Progress | None = None) -> dict[str, Any]:
+    """Python twin of ``cooprint run``: the whole cooperative pipeline; returns the job record
+    written to ``out/job.json``."""
+    from cooprint.io.bundle import check_destination
+
+    check_destination(Path(out), force)
+    job = coop_job(mesh, load_settings(*config, overrides=overrides), robots, progress)
+    return write_coop_bundle(job, out, force, picture, progress)

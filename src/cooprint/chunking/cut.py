@@ -19,7 +19,7 @@ import numpy as np
 from cooprint.chunking.planes import ChunkPlan, Plane
 from cooprint.chunking.split import CapError, Mesh, split_mesh
 from cooprint.geometry import compact, signed_volume
-from cooprint.io.mesh import Solid
+from cooprint.io.mesh import MeshReport, Solid
 
 #: A chunk whose volume is below this fraction of the solid's is numerical dust, not a chunk.
 DUST = 1e-12
@@ -67,6 +67,15 @@ class Chunk:
     @property
     def side(self) -> str:
         return {"centre": "C", "left": "L", "right": "R"}[self.role]
+
+    def as_solid(self) -> Solid:
+        """The chunk as a :class:`Solid` (what the slicer takes)."""
+        lo, hi = self.bounds
+        report = MeshReport(path=f"<chunk {self.id}>", format="chunk", triangles_read=len(self.faces),
+                            triangles=len(self.faces), vertices=len(self.vertices),
+                            bbox_min=tuple(float(x) for x in lo), bbox_max=tuple(float(x) for x in hi),  # type: ignore[arg-type]
+                            volume_mm3=self.volume, watertight_as_read=True, repairs=())
+        return Solid(self.vertices, self.faces, report)
 
 
 @dataclass(frozen=True)

@@ -4,10 +4,11 @@ from cooprint.config.settings import (
     ChunkingSettings,
     JobSettings,
     MeshSettings,
+    ProgramSettings,
     RobotProfile,
     SlicingSettings,
     load_settings,
 )
 
-__all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "RobotProfile", "SlicingSettings",
+__all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "ProgramSettings", "RobotProfile", "SlicingSettings",
            "load_settings"]

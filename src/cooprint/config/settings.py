@@ -110,6 +110,14 @@ class SlicingSettings:
 
 
 @dataclass(frozen=True)
+class ProgramSettings:
+    """How the robots' command streams are made (seed §4.2.2-4.3)."""
+
+    clearance: float = field(default=5.0, metadata=_num(0, 1e4, unit="mm", lo_open=True,
+                             doc="lift above the highest printed material nearby on a move between chunks"))
+
+
+@dataclass(frozen=True)
 class JobSettings:
     """Everything a job needs besides the mesh."""
 
@@ -117,6 +125,7 @@ class JobSettings:
     chunking: ChunkingSettings = field(default_factory=ChunkingSettings)
     mesh: MeshSettings = field(default_factory=MeshSettings)
     slicing: SlicingSettings = field(default_factory=SlicingSettings)
+    program: ProgramSettings = field(default_factory=ProgramSettings)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict for job.json (``None`` fields dropped, as TOML has no null)."""
@@ -124,7 +133,7 @@ class JobSettings:
 
 
 _SECTIONS: dict[str, type] = {"robot": RobotProfile, "chunking": ChunkingSettings, "mesh": MeshSettings,
-                              "slicing": SlicingSettings}
+                              "slicing": SlicingSettings, "program": ProgramSettings}
 
 
 def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> float | None:
@@ -207,7 +216,8 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
     Parameters
     ----------
     paths
-        TOML files with any of the sections ``[robot]``, ``[chunking]``, ``[mesh]``.
+        TOML files with any of the sections ``[robot]``, ``[chunking]``, ``[mesh]``, ``[slicing]``,
+        ``[program]``.
     overrides
         ``{"section.field": value}``, e.g. from command-line flags; ``None`` values are ignored.
 

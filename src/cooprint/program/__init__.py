@@ -1,2 +1,12 @@
-"""Program: what the robots execute. For now the G-code writer used by ``cooprint slice``; the
-cooperative command stream (MOVE / TOOL / NOTIFY / WAIT) joins it here."""
+"""Program (seed §4.2.2-4.3): what the robots execute.
+
+``commands`` is the command language (MOVE / TOOL / NOTIFY / WAIT, with annotations) as a record,
+a writer and a parser; ``build`` makes each robot's stream from the chunks' layers (transitions,
+synchronisation); ``gcode`` writes any stream as Marlin G-code.
+"""
+
+from cooprint.program.commands import (MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, ProgramError, coop_text,
+                                       parse_coop, read_coop, write_coop)
+
+__all__ = ["MOVE", "NOTIFY", "TOOL_OFF", "TOOL_ON", "WAIT", "Program", "ProgramError", "coop_text", "parse_coop",
+           "read_coop", "write_coop"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -55,14 +55,22 @@ def layer_program(layer: LayerPaths, here: np.ndarray, *, robot: str = "", index
     xyz = np.zeros((total, 3))
     xyz[moving, :2] = pts[keep_pt]
     xyz[:, 2] = z
-    path_of = np.repeat(np.arange(m), count)
+    # a travel takes the role and width of the path it leads to (of the one before, at the end):
+    # the tool is off on it anyway, and the annotations change only where the printing does
+    k = np.arange(m)
+    nxt = np.minimum.accumulate(np.where(extr, k, m)[::-1])[::-1]
+    before = np.maximum.accumulate(np.where(extr, k, -1))
+    owner = np.where(nxt < m, nxt, before)
+    owner = np.where(owner >= 0, owner, k)
+    path_of = np.repeat(owner, count)
     width = np.where(extr, layer.width, 0.0)[path_of]
     # the way in: up to the layer's height, then over to its first point (either is left out
     # below when the nozzle is there already)
-    kind = np.r_[np.full(2, MOVE, np.uint8), kind]
-    xyz = np.vstack([np.r_[here[:2], z], np.r_[pts[0], z], xyz])
-    path_of = np.r_[-1, -1, path_of]
-    width = np.r_[0.0, 0.0, width]
+    lead = [np.r_[here[:2], z], np.r_[pts[0], z]] if np.isfinite(here).all() else [np.r_[pts[0], z]]
+    kind = np.r_[np.full(len(lead), MOVE, np.uint8), kind]
+    xyz = np.vstack([*lead, xyz])
+    path_of = np.r_[np.full(len(lead), owner[0]), path_of]
+    width = np.r_[np.full(len(lead), width[0] if len(width) else 0.0), width]
     xyz = quantize(xyz)
     # drop moves to where the nozzle already is
     mv = np.flatnonzero(kind == MOVE)
@@ -70,12 +78,21 @@ def layer_program(layer: LayerPaths, here: np.ndarray, *, robot: str = "", index
     still = np.zeros(len(kind), dtype=bool)
     still[mv[(xyz[mv] == prev).all(axis=1)]] = True
     keep = ~still
-    roles = np.where(path_of >= 0, role[np.maximum(path_of, 0)], TRAVEL)
+    roles = role[path_of]
     prog = make_program(robot, kind[keep], xyz[keep], role=roles[keep], width=width[keep], layer=index,
                         height=layer.height, chunk=0 if chunk is not None else -1,
                         chunks=(chunk,) if chunk is not None else ())
     last = xyz[mv[-1]] if len(mv) else here
     return prog, last
+
+
+def layer_pieces(layers: Iterable[LayerPaths], robot: str = "") -> Iterator[Program]:
+    """The commands of consecutive layers of one model (``cooprint slice``), layer by layer as
+    they come: layer ``i`` of the iterable is layer ``i`` of the model."""
+    here = np.full(3, np.nan)
+    for i, layer in enumerate(layers):
+        piece, here = layer_program(layer, here, robot=robot, index=i)
+        yield piece
 
 
 @dataclass(frozen=True)
@@ -217,4 +234,4 @@ def _first_point(layers: dict, seq: Iterable[str]) -> np.ndarray | None:
     return None
 
 
-__all__ = ["MaterialIndex", "RobotPlacement", "layer_program", "robot_programs", "transition_height"]
+__all__ = ["MaterialIndex", "layer_pieces", "RobotPlacement", "layer_program", "robot_programs", "transition_height"]

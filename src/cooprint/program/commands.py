@@ -367,19 +367,22 @@ class _Lines:
         return None  # an annotation of a later version: a comment here
 
 
-def _move_lines_fast(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray | None:
+#: Lines read without the line parser (what the writer emits most after MOVE).
+_PLAIN = {b"TOOL ON": (TOOL_ON, None), b"TOOL OFF": (TOOL_OFF, None), b"TOOL ON\r": (TOOL_ON, None),
+          b"TOOL OFF\r": (TOOL_OFF, None)}
+
+
+def _move_lines_fast(data: bytes, starts: np.ndarray, ends: np.ndarray) -> np.ndarray | None:
     """(k, 3) coordinates of the lines ``starts..ends`` (each beginning with 'MOVE' and a blank),
     read in one pass, or ``None`` when some line is not in the plain form (numbers made of
     digits, signs, points and exponents; single commas or blanks between them; no comment): the
     line parser then reads them all."""
-    mark = np.zeros(len(buf) + 2, dtype=np.int32)
-    mark[starts + 5] += 1
-    mark[ends + 1] -= 1
-    inside = np.cumsum(mark[:len(buf)]) > 0
-    payload = buf[inside].tobytes()
+    payload = b"\n".join([data[a + 5:b] for a, b in zip(starts.tolist(), ends.tolist())])
     if payload.translate(None, b"0123456789+-.eE, \t\r\n"):
         return None
-    if re.search(rb"(?:^|\n)[ \t]*,|,[ \t]*(?:,|\r?\n|\r?$)", payload):
+    tight = payload.replace(b" ", b"").replace(b"\t", b"").replace(b"\r", b"")  # commas in their place?
+    if (b",," in tight or b"\n," in tight or b",\n" in tight or tight.startswith(b",")
+            or tight.endswith(b",")):
         return None
     try:
         xyz = np.loadtxt(io.BytesIO(payload.replace(b",", b" ")), dtype=np.float64, ndmin=2)
@@ -415,21 +418,25 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     head[long] = buf[starts[long, None] + np.arange(5)]
     is_move = long & (head[:, :4] == np.frombuffer(b"MOVE", np.uint8)).all(axis=1) & np.isin(head[:, 4], (32, 9))
     move_idx = np.flatnonzero(is_move)
-    fast = _move_lines_fast(buf, starts[move_idx], ends[move_idx]) if len(move_idx) else np.zeros((0, 3))
+    fast = _move_lines_fast(data, starts[move_idx], ends[move_idx]) if len(move_idx) else np.zeros((0, 3))
     lines = _Lines(source, robot)
     others = np.flatnonzero(~is_move) if fast is not None else np.arange(len(starts))
     # (line index, kind, payload) of every command the line parser reads; annotations apart
     cmd_line, cmd_kind, cmd_xyz, events = [], [], [], []
     ann_line: dict[str, list[int]] = {"chunk": [], "layer": [], "path": []}
     ann_val: dict[str, list] = {"chunk": [], "layer": [], "path": []}
+    begin, finish = starts.tolist(), ends.tolist()
     for i in others.tolist():
-        try:
-            line = data[starts[i]:ends[i]].decode("utf-8")
-        except UnicodeDecodeError:
-            raise lines.error(i + 1, 1, "not UTF-8 text") from None
-        got = lines.parse(line, i + 1)
+        raw = data[begin[i]:finish[i]]
+        got = _PLAIN.get(raw)
         if got is None:
-            continue
+            try:
+                line = raw.decode("utf-8")
+            except UnicodeDecodeError:
+                raise lines.error(i + 1, 1, "not UTF-8 text") from None
+            got = lines.parse(line, i + 1)
+            if got is None:
+                continue
         if got[0] == "ann":
             ann_line[got[1]].append(i)
             ann_val[got[1]].append(got[2])

@@ -108,27 +108,40 @@ def slice_solid(solid: Solid, settings: SlicingSettings,
     return SlicedModel(tuple(iter_layers(solid, settings, progress, workers)), settings)
 
 
+def layer_range(solid: Solid, settings: SlicingSettings, base: float | None = None) -> tuple[int, int]:
+    """Indices ``(first, end)`` of the layers that :func:`iter_layers` gives for ``solid``: all of
+    them from a base at its own bottom; from a lower ``base`` (a chunk in its object's layer
+    grid), those from the first layer whose top is above the solid's bottom."""
+    zmin, zmax = float(solid.bounds[0, 2]), float(solid.bounds[1, 2])
+    z0 = zmin if base is None else min(base, zmin)
+    tops = layer_tops(zmax - z0, settings)
+    return int(np.searchsorted(tops, zmin - z0, side="right")), len(tops)
+
+
 def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int, int], None] | None = None,
-                workers: int | None = None) -> Iterator[LayerPaths]:
+                workers: int | None = None, base: float | None = None) -> Iterator[LayerPaths]:
     """The layers of :func:`slice_solid`, bottom first, as they are ready: a consumer that writes
     them out (G-code) never holds the whole model.
 
     Parameters
     ----------
+    base
+        Bottom of the layer grid, mm (default: the solid's bottom). A chunk is sliced in its
+        object's grid, so that the layers of neighbouring chunks line up; the layers below the
+        chunk are left out (:func:`layer_range` gives the indices of those that are not).
     workers
         Processes to use (default: one per CPU, at most 4); blocks of ``BLOCK`` layers are sliced
         independently, so 1 and N workers give identical results.
     progress
         Called with (layers done, layers in all) after every block.
     """
-    zmin, zmax = float(solid.bounds[0, 2]), float(solid.bounds[1, 2])
-    n = len(layer_tops(zmax - zmin, settings))
-    blocks = [(lo, min(lo + BLOCK, n)) for lo in range(0, n, BLOCK)]
+    first, n = layer_range(solid, settings, base)
+    blocks = [(lo, min(lo + BLOCK, n)) for lo in range(first, n, BLOCK)]
     if workers is None:  # a pool costs ~0.3 s to start: worth it from a few hundred layers on
         workers = min(os.cpu_count() or 1, 4) if len(blocks) >= PARALLEL_BLOCKS else 1
     workers = min(workers, len(blocks))
     global _WORKER
-    _WORKER = _Job(solid, settings)  # forked workers share it (and its arrays) copy-on-write
+    _WORKER = _Job(solid, settings, base)  # forked workers share it (and its arrays) copy-on-write
     del solid  # the job has what it needs: a caller that let go of the solid gets its memory back
     done = 0
     try:
@@ -137,7 +150,7 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
             for part in (pool.map if pool else map)(_work_block, blocks):
                 done += len(part)
                 if progress:
-                    progress(done, n)
+                    progress(done, n - first)
                 yield from part
     finally:
         _WORKER = None
@@ -146,13 +159,14 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
 class _Job:
     """Everything a block of layers needs: the mesh prepared for slicing, the layer planes."""
 
-    def __init__(self, solid: Solid, settings: SlicingSettings):
+    def __init__(self, solid: Solid, settings: SlicingSettings, base: float | None = None):
         self.s = settings
         self.slicer = LayerSlicer(solid.vertices, solid.faces)
         lo, hi = solid.bounds
-        self.zmin = float(lo[2])
-        self.tops = layer_tops(float(hi[2] - lo[2]), settings)
-        self.heights = np.diff(np.concatenate([[0.0], self.tops]))
+        self.zmin = float(lo[2]) if base is None else min(base, float(lo[2]))
+        self.tops = layer_tops(float(hi[2]) - self.zmin, settings)
+        self.heights = np.where(np.arange(len(self.tops)) == 0, settings.first_layer_height,
+                                settings.layer_height)
         self.start = np.array([lo[0], lo[1]])
         self.rear = np.array([hi[0], hi[1]])
 

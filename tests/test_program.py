@@ -1,0 +1,159 @@
+"""The command language: records, writer, parser (fast pass and line parser), G-code from it."""
+
+import re
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from cooprint.config import SlicingSettings
+from cooprint.program import commands
+from cooprint.program.commands import (MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, ProgramError, coop_text,
+                                       make_program, parse_coop, read_coop)
+from cooprint.program.gcode import Feeds, gcode_text
+from cooprint.slicing.paths import INFILL, PERIMETER_OUTER, TRAVEL, extrusion_area
+
+SEED_SAMPLE = "MOVE 0, 0, 0  \nTOOL ON  \nMOVE 1, 0, 0  \nMOVE 1, 1, 0  \nMOVE 0, 1, 0  \nTOOL OFF\n"
+
+
+def test_the_seed_sample_parses_as_written():
+    p = parse_coop(SEED_SAMPLE, "A")
+    assert p.kind.tolist() == [MOVE, TOOL_ON, MOVE, MOVE, MOVE, TOOL_OFF]
+    np.testing.assert_array_equal(p.xyz[p.moves], [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    assert p.tool_on().tolist() == [False, True, True, True, True, False]
+    assert parse_coop(coop_text(p), "A") == p
+
+
+def _sample_program() -> Program:
+    kind = [MOVE, WAIT, MOVE, TOOL_ON, MOVE, MOVE, TOOL_OFF, MOVE, TOOL_ON, MOVE, TOOL_OFF, NOTIFY, MOVE]
+    xyz = np.zeros((len(kind), 3))
+    xyz[[0, 2, 4, 5, 7, 9, 12]] = [[0, 0, 9], [0, 0, 0.2], [10.0004, 0, 0.2], [10, 10, 0.2], [3, -2.5, 0.4],
+                                   [1e3, 1 / 3, 0.4], [1e3, 1 / 3, 5]]
+    role = [TRAVEL, TRAVEL, TRAVEL, PERIMETER_OUTER, PERIMETER_OUTER, PERIMETER_OUTER, PERIMETER_OUTER, TRAVEL,
+            INFILL, INFILL, INFILL, TRAVEL, TRAVEL]
+    width = [0.45 if r != TRAVEL else 0.0 for r in role]
+    layer = [-1, -1, 0, 0, 0, 0, 0, 1, 1, 1, 1, -1, -1]
+    height = [0.2 if la >= 0 else 0.0 for la in layer]
+    chunk = [-1, -1, 0, 0, 0, 0, 0, 0, 0, 0, 0, -1, -1]
+    return make_program("B", np.array(kind), xyz, role=role, width=width, layer=layer, height=height,
+                        chunk=chunk, chunks=("R1",), events=(("C", "L1"), ("R1",)))
+
+
+def test_write_then_parse_is_exact():
+    p = _sample_program()
+    text = coop_text(p, header=["a test"])
+    assert "WAIT C, L1\n" in text and "NOTIFY R1\n" in text and ";@chunk R1\n" in text
+    assert "MOVE 10.000, 0.000, 0.200\n" in text  # the 1 µm grid
+    back = parse_coop(text, "B")
+    assert back == p
+    assert coop_text(back, header=["a test"]) == text
+
+
+def test_bare_notify_counts_the_robots_notifies():
+    p = parse_coop("NOTIFY\nnotify done\n# comment\nNOTIFY ; after\n", "A")
+    assert p.events == (("A:1",), ("done",), ("A:3",))
+    assert p.kind.tolist() == [NOTIFY] * 3
+
+
+def test_commas_case_blanks_and_comments_are_free():
+    text = "move 1 2 3\n  MOVE\t4,5 ,6 # c\nMOVE 7 ,8, 9;x\n\n; only a comment\r\nWAIT a b,c\r\nTool  off\n"
+    p = parse_coop(text, "A")
+    np.testing.assert_array_equal(p.xyz[p.moves], [[1, 2, 3], [4, 5, 6], [7, 8, 9]])
+    assert p.events == (("a", "b", "c"),) and p.kind.tolist() == [MOVE, MOVE, MOVE, WAIT, TOOL_OFF]
+
+
+@pytest.mark.parametrize("line, col, needle", [
+    ("JUMP 1 2 3", 1, "unknown word 'JUMP' (expected MOVE, TOOL, NOTIFY or WAIT)"),
+    ("MOVE 1 2", 9, "MOVE needs 3 numbers (x, y, z), got 2"),
+    ("MOVE 1 2 3 4", 12, "MOVE takes 3 numbers (x, y, z), extra token '4'"),
+    ("MOVE 1 nan 3", 8, "'nan' is not a finite number"),
+    ("MOVE 1 2 1e999", 10, "'1e999' is not a finite number"),
+    ("MOVE 1 x 3", 8, "'x' is not a number"),
+    ("MOVE 1,,2,3", 8, "MOVE: a comma where a number was expected"),
+    ("MOVE 1, 2, 3,", 13, "MOVE: a comma with no number after it"),
+    ("TOOL", 6, "TOOL needs ON or OFF, got nothing"),
+    ("TOOL ON OFF", 6, "TOOL needs ON or OFF, got 'ON OFF'"),
+    ("NOTIFY a b", 10, "NOTIFY takes at most one event name, extra token 'b'"),
+    ("WAIT", 6, "WAIT needs at least one event name"),
+    ("WAIT a$b", 6, "'a$b' is not an event name"),
+    (";@layer x 0.2", 3, "malformed annotation ';@layer x 0.2'"),
+    (";@path wobble 0.4", 3, "malformed annotation ';@path wobble 0.4'"),
+])
+@pytest.mark.parametrize("among_moves", [False, True])
+def test_every_malformed_line_names_file_line_and_column(line, col, needle, among_moves):
+    good = "MOVE 1.000, 2.000, 3.000\n" * 50 if among_moves else "TOOL OFF\n"
+    with pytest.raises(ProgramError) as err:
+        parse_coop(good + line + "\n" + good, "A", "robots/A.coop")
+    n = good.count("\n") + 1
+    assert str(err.value).startswith(f"robots/A.coop:{n}:{col}: {needle}"), str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_missing_file_is_a_clear_error(tmp_path):
+    with pytest.raises(ProgramError, match="no such command file"):
+        read_coop(tmp_path / "X.coop")
+
+
+_num = st.floats(-1e4, 1e4, allow_nan=False).map(lambda v: float(np.round(v, 3)))
+_sep = st.sampled_from([" ", ", ", ",", " ,", "\t", " , "])
+
+
+@st.composite
+def _program_texts(draw):
+    lines = []
+    for _ in range(draw(st.integers(0, 40))):
+        what = draw(st.sampled_from(["move", "move", "move", "tool", "notify", "wait", "comment", "ann"]))
+        if what == "move":
+            x, y, z = (draw(_num) for _ in range(3))
+            a, b = draw(_sep), draw(_sep)
+            word = draw(st.sampled_from(["MOVE ", "MOVE\t", "move ", "  MOVE "]))
+            tail = draw(st.sampled_from(["", "  ", " ; c", "\r"]))
+            lines.append(f"{word}{x}{a}{y}{b}{z}{tail}")
+        elif what == "tool":
+            lines.append(draw(st.sampled_from(["TOOL ON", "TOOL OFF", "tool on"])))
+        elif what == "notify":
+            lines.append(draw(st.sampled_from(["NOTIFY", "NOTIFY C", "NOTIFY B:2"])))
+        elif what == "wait":
+            lines.append(draw(st.sampled_from(["WAIT C", "WAIT A:1, C", "WAIT x y"])))
+        elif what == "comment":
+            lines.append(draw(st.sampled_from(["", "; hello", "# MOVE 1 2 3"])))
+        else:
+            lines.append(draw(st.sampled_from([";@chunk L2", ";@chunk -", ";@layer 3 0.2", ";@layer -",
+                                               ";@path skin 0.5", ";@future thing"])))
+    return "\n".join(lines) + draw(st.sampled_from(["", "\n"]))
+
+
+@settings(max_examples=150, deadline=None)
+@given(_program_texts())
+def test_the_fast_pass_reads_exactly_what_the_line_parser_reads(text):
+    fast = parse_coop(text, "A")
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(commands, "_move_lines_fast", lambda *a: None)
+        slow = parse_coop(text, "A")
+    assert fast == slow
+    assert parse_coop(coop_text(fast), "A") == fast
+
+
+def test_gcode_from_a_program_extrudes_the_flow_and_speaks_to_the_host():
+    p = _sample_program()
+    s = SlicingSettings()
+    text = gcode_text([p], s, Feeds.of_slicer(s), name="t")
+    assert "; WAIT C, L1\nM400\nM0 WAIT C, L1\n" in text
+    assert "; NOTIFY R1\nM400\nM118 NOTIFY R1\n" in text
+    # independent reading: sum of E on G1 moves, positions tracked from G0/G1
+    e_total, pos = 0.0, {}
+    for line in text.splitlines():
+        code = line.split(";")[0].split()
+        if code and code[0] in ("G0", "G1"):
+            words = {w[0]: float(w[1:]) for w in code[1:]}
+            if "E" in words and ("X" in words or "Y" in words):
+                e_total += words["E"]
+            pos.update({k: v for k, v in words.items() if k in "XYZ"})
+    on = p.tool_on()
+    mv = np.flatnonzero(p.moves)
+    seg = np.linalg.norm(np.diff(p.xyz[mv], axis=0), axis=1)
+    vol = (extrusion_area(p.width[mv][1:], p.height[mv][1:]) * seg * on[mv][1:]).sum()
+    assert e_total == pytest.approx(vol / (np.pi * 0.875 ** 2), rel=1e-4)
+    assert pos == {"X": 1000.0, "Y": pytest.approx(1 / 3, abs=1e-3), "Z": 5.0}
+    assert re.search(r"G1 X10\.000 Y10\.000 E[0-9.]+\n", text)
