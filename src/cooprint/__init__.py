@@ -2,10 +2,11 @@
 
 Pipeline (one package per stage, data flowing one way)::
 
-    mesh --io.load_mesh--> Solid --chunking.cut_chunks--> ChunkSet --> (scheduler, slicer, program,
-    simulator: later stages)
+    mesh --io.load_mesh--> Solid --chunking.cut_chunks--> ChunkSet --scheduling.assign--> Assignment
+         --slicing.iter_layers (each chunk)--> layers --program.build--> Program per robot
+         --program.commands / program.gcode--> robots/<name>.coop, robots/<name>.gcode
 
-The public API is re-exported here.
+The public API is re-exported here; :func:`run` is the whole pipeline (``cooprint run``).
 """
 
 from __future__ import annotations
@@ -16,6 +17,29 @@ from cooprint.errors import ConfigError, InfeasibleError, MeshError, UserError
 from cooprint.io.mesh import Solid, load_mesh, solid_from_trimesh
 
 __version__ = "0.1.0"
+
+
+def run(mesh, out, *, config=(), overrides=None, robots: int = 2, force: bool = False, picture: bool = True):
+    """Plan a cooperative print of ``mesh`` and write the bundle to ``out`` (``cooprint run``):
+    ``job.json``, ``chunks/<id>.stl``, ``robots/<name>.coop`` and ``.gcode``, ``chunks.png``.
+
+    Parameters
+    ----------
+    config
+        TOML files (robot profile, slicing and program settings), later ones win.
+    overrides
+        ``{"section.field": value}`` over the files, e.g. ``{"slicing.layer_height": 0.3}``.
+    robots
+        1 or 2 (the seed's strategy).
+
+    Returns
+    -------
+    dict
+        The job record written to ``out/job.json``.
+    """
+    from cooprint.jobs import run as _run
+
+    return _run(mesh, out, config=config, overrides=overrides, robots=robots, force=force, picture=picture)
 
 __all__ = [
     "Chunk",
@@ -33,6 +57,7 @@ __all__ = [
     "load_mesh",
     "load_settings",
     "plan_chunks",
+    "run",
     "slope_limits",
     "solid_from_trimesh",
     "__version__",

@@ -1,4 +1,5 @@
-"""``make demo``: chunk a generated car for two robots and show where everything went.
+"""``make demo``: plan a cooperative print of a generated car for two robots and show where
+everything went.
 
 Run as ``python -m cooprint.demo OUTDIR``. The folder is the demo's own and is replaced on each run.
 """
@@ -11,7 +12,7 @@ from pathlib import Path
 from cooprint.cli import stage_progress
 from cooprint.config import load_settings
 from cooprint.io.bundle import write_stl
-from cooprint.jobs import chunk_job, write_chunk_bundle
+from cooprint.jobs import coop_job, write_coop_bundle
 from cooprint.models import car
 
 
@@ -25,16 +26,20 @@ def main(argv: list[str] | None = None) -> int:
           f"{solid.volume / 1000:.0f} cm3; robot '{settings.robot.name}' (build depth "
           f"{settings.robot.build_depth:g} mm)", file=sys.stderr)
     with stage_progress(True) as progress:
-        job = chunk_job(solid, settings, robots=2, progress=progress)
-        record = write_chunk_bundle(job, out, force=True, progress=progress)
+        job = coop_job(solid, settings, robots=2, progress=progress)
+        record = write_coop_bundle(job, out, force=True, progress=progress)
     write_stl(out / "model.stl", solid.vertices, solid.faces, name="demo car")
     plan = record["plan"]
     print(f"{len(record['chunks'])} chunks at theta {plan['theta_deg']:.2f} deg, shift {plan['shift_mm']:.1f} mm, "
           f"volume error {record['stats']['volume_rel_error']:.1e}")
     for r in record["robots"]:
-        print(f"  robot {r['name']}: {' -> '.join(r['chunks'])}")
+        st = r["stats"]
+        print(f"  robot {r['name']} ({r['side']} side): {' -> '.join(r['chunks'])}; {st['commands']:,} commands, "
+              f"{st['print_mm'] / 1000:.0f} m of paths, {st['volume_mm3'] / 1000:.0f} cm3, "
+              f"{st['wait']} WAIT, {st['notify']} NOTIFY")
     print(f"outputs in {out}/:")
-    for name in ("model.stl", "job.json", "chunks/", "chunks.png"):
+    for name in ("model.stl", "job.json", "chunks/", "chunks.png", "robots/A.coop", "robots/A.gcode",
+                 "robots/B.coop", "robots/B.gcode"):
         print(f"  {out / name}")
     return 0
 

@@ -472,11 +472,17 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     sync = (kind_of == NOTIFY) | (kind_of == WAIT)
     event = np.full(len(kind_of), -1, np.int32)
     event[sync] = np.arange(int(sync.sum()), dtype=np.int32)
+    chunk = np.array(c_vals, dtype=np.int16)[c_at]
+    # the chunk table: the chunks that commands belong to, in the order they first appear
+    used, first = np.unique(chunk[chunk >= 0], return_index=True)
+    used = used[np.argsort(first)]
+    remap = np.full(len(lines.chunks) + 1, -1, dtype=np.int16)
+    remap[used] = np.arange(len(used))
     return Program(
         robot, kind_of, xyz_of,
         np.array([v[0] for v in p_vals], dtype=np.uint8)[p_at], np.array([v[1] for v in p_vals])[p_at],
         np.array([v[0] for v in l_vals], dtype=np.int32)[l_at], np.array([v[1] for v in l_vals])[l_at],
-        np.array(c_vals, dtype=np.int16)[c_at], event, tuple(lines.chunks), tuple(events))
+        remap[chunk], event, tuple(lines.chunks[c] for c in used.tolist()), tuple(events))
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:
