@@ -83,19 +83,53 @@ def info(mesh: str, config: tuple[str, ...]) -> None:
                f"theta_max {lim.theta_max_deg:.2f} deg" + ("" if lim.feasible else "  (infeasible)"))
 
 
+def plan_options(command: Any) -> Any:
+    """The options of the commands that plan a job (``chunk``, ``run``): output folder, chunking
+    overrides, robots, settings files, --force, --no-picture, --quiet."""
+    options = [
+        click.argument("mesh", type=click.Path(dir_okay=False)),
+        click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder."),
+        click.option("--theta", type=float, help="Slope of the chunk interfaces, degrees [default: theta_max]."),
+        click.option("--shift", type=float, help="Distance between cutting planes, mm [default: bd - h/tan(theta)]."),
+        click.option("--top-width", type=float, help="Width of the centre chunk at the top, mm [default: 0]."),
+        click.option("--centre-angle", type=float,
+                     help="Direction of the centre line, degrees from +X [default: 0]."),
+        click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
+                     help="Number of robots (seed strategy)."),
+        config_option,
+        click.option("--force", is_flag=True, help="Replace OUT if it exists."),
+        click.option("--no-picture", is_flag=True, help="Skip chunks.png."),
+        click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary."),
+    ]
+    for option in reversed(options):
+        command = option(command)
+    return command
+
+
+def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], theta: float | None,
+          shift: float | None, top_width: float | None, centre_angle: float | None, robots: int, force: bool,
+          no_picture: bool, quiet: bool) -> dict[str, Any] | None:
+    """Make a job (``make(mesh, settings, robots, progress)``) and write its bundle
+    (``write(job, out, force, picture, progress)``) with progress bars; print the plan unless
+    ``quiet`` (then return ``None``), else return the record."""
+    from cooprint.io.bundle import check_destination
+
+    settings = _settings(config, {"chunking.theta_deg": theta, "chunking.shift": shift,
+                                  "chunking.top_width": top_width, "chunking.centre_angle_deg": centre_angle})
+    check_destination(Path(out), force)  # before the work, not after
+    with stage_progress(not quiet) as progress:
+        record = write(make(mesh, settings, robots, progress), out, force, not no_picture, progress)
+    if quiet:
+        return None
+    st, plan = record["stats"], record["plan"]
+    click.echo(f"{len(record['chunks'])} chunks, theta {plan['theta_deg']:.2f} deg "
+               f"(limits {plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), shift {plan['shift_mm']:.1f} mm, "
+               f"volume error {st['volume_rel_error']:.1e}")
+    return record
+
+
 @cli.command()
-@click.argument("mesh", type=click.Path(dir_okay=False))
-@click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
-@click.option("--theta", type=float, help="Slope of the chunk interfaces, degrees [default: theta_max].")
-@click.option("--shift", type=float, help="Distance between cutting planes, mm [default: bd - h/tan(theta)].")
-@click.option("--top-width", type=float, help="Width of the centre chunk at the top, mm [default: 0].")
-@click.option("--centre-angle", type=float, help="Direction of the centre line, degrees from +X [default: 0].")
-@click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
-              help="Number of robots (seed strategy).")
-@config_option
-@click.option("--force", is_flag=True, help="Replace OUT if it exists.")
-@click.option("--no-picture", is_flag=True, help="Skip chunks.png.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary.")
+@plan_options
 def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_width: float | None,
           centre_angle: float | None, robots: int, config: tuple[str, ...], force: bool,
           no_picture: bool, quiet: bool) -> None:
@@ -104,22 +138,12 @@ def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_wid
     Writes OUT/job.json (chunk table, planes, dependencies, robots), OUT/chunks/<id>.stl and
     OUT/chunks.png.
     """
-    from cooprint.io.bundle import check_destination
     from cooprint.jobs import chunk_job, write_chunk_bundle
 
-    settings = _settings(config, {"chunking.theta_deg": theta, "chunking.shift": shift,
-                                  "chunking.top_width": top_width,
-                                  "chunking.centre_angle_deg": centre_angle})
-    check_destination(Path(out), force)
-    with stage_progress(not quiet) as progress:
-        job = chunk_job(mesh, settings, robots, progress)
-        record = write_chunk_bundle(job, out, force, not no_picture, progress)
-    if quiet:
+    record = _plan(chunk_job, write_chunk_bundle, mesh, out, config, theta, shift, top_width, centre_angle,
+                   robots, force, no_picture, quiet)
+    if record is None:
         return
-    st, plan = record["stats"], record["plan"]
-    click.echo(f"{len(job.chunks.chunks)} chunks, theta {plan['theta_deg']:.2f} deg "
-               f"(limits {plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), shift {plan['shift_mm']:.1f} mm, "
-               f"volume error {st['volume_rel_error']:.1e}")
     for r in record["robots"]:
         click.echo(f"  robot {r['name']}: {' -> '.join(r['chunks']) or '(idle)'}")
     click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl" + ("" if no_picture else f", {out}/chunks.png"))
@@ -151,32 +175,20 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], layer_height: float 
 
 
 @cli.command(name="run")
-@click.argument("mesh", type=click.Path(dir_okay=False))
-@click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
-@click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
-              help="Number of robots (seed strategy).")
-@config_option
-@click.option("--theta", type=float, help="Slope of the chunk interfaces, degrees [default: theta_max].")
-@click.option("--shift", type=float, help="Distance between cutting planes, mm [default: bd - h/tan(theta)].")
-@click.option("--force", is_flag=True, help="Replace OUT if it exists.")
-@click.option("--no-picture", is_flag=True, help="Skip chunks.png.")
-@click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary.")
-def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], theta: float | None,
-            shift: float | None, force: bool, no_picture: bool, quiet: bool) -> None:
+@plan_options
+def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_width: float | None,
+            centre_angle: float | None, robots: int, config: tuple[str, ...], force: bool,
+            no_picture: bool, quiet: bool) -> None:
     """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
 
     Chunks, assigns, slices every chunk and writes OUT/job.json, OUT/chunks/<id>.stl,
     OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically.
     """
-    from cooprint.io.bundle import check_destination
     from cooprint.jobs import coop_job, write_coop_bundle
 
-    settings = _settings(config, {"chunking.theta_deg": theta, "chunking.shift": shift})
-    check_destination(Path(out), force)
-    with stage_progress(not quiet) as progress:
-        job = coop_job(mesh, settings, robots, progress)
-        record = write_coop_bundle(job, out, force, not no_picture, progress)
-    if quiet:
+    record = _plan(coop_job, write_coop_bundle, mesh, out, config, theta, shift, top_width, centre_angle,
+                   robots, force, no_picture, quiet)
+    if record is None:
         return
     for r in record["robots"]:
         st = r["stats"]
