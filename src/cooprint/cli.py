@@ -17,7 +17,8 @@ from cooprint import __version__
 from cooprint.errors import UserError
 
 STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing files",
-               "render": "drawing picture", "slice": "slicing layers", "program": "robot programs"}
+               "render": "drawing picture", "slice": "slicing layers", "program": "robot programs",
+               "simulate": "simulating"}
 
 
 @contextmanager
@@ -199,6 +200,99 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
                + ("" if no_picture else f", {out}/chunks.png"))
 
 
+def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
+    if not inputs and not manifest:
+        from cooprint.errors import UserError
+
+        raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, or --manifest FILE.toml")
+
+
+def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
+    """Where simulation output goes: ``DIR/sim`` of a bundle, or ``OUT/sim`` for files."""
+    if out:
+        return Path(out) / "sim"
+    if len(inputs) == 1 and Path(inputs[0]).is_dir():
+        return Path(inputs[0]) / "sim"
+    from cooprint.errors import UserError
+
+    raise UserError("simulating files: give --out DIR for the results (DIR/sim/summary.json)")
+
+
+@cli.command()
+@click.argument("inputs", nargs=-1, type=click.Path())
+@click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
+@click.option("--out", "-o", type=click.Path(file_okay=False), help="Folder for sim/ (default: the bundle).")
+@click.option("--strict", is_flag=True, help="Exit with code 1 if any check finds a problem.")
+@click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json.")
+@click.option("--quiet", "-q", is_flag=True, help="No summary on stdout.")
+def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, force: bool,
+             quiet: bool) -> None:
+    """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
+    robot each), or .coop files with --manifest. Writes sim/summary.json."""
+    from cooprint.io.bundle import atomic_file, write_json
+    from cooprint.simulation import load_inputs, simulate as run_sim, summary
+
+    _need_inputs(inputs, manifest)
+    folder = _sim_folder(inputs, out)
+    target = folder / "summary.json"
+    if target.exists() and not force:
+        from cooprint.errors import UserError
+
+        raise UserError(f"{target}: exists; use --force to replace it")
+    result = run_sim(load_inputs(list(inputs), manifest))
+    record = summary(result)
+    folder.mkdir(parents=True, exist_ok=True)
+    with atomic_file(target, force=True) as tmp:
+        write_json(tmp, record)
+    if not quiet:
+        click.echo(f"makespan {record['makespan_s'] / 3600:.2f} h ({record['makespan_s']:.0f} s)")
+        for r in record["robots"]:
+            click.echo(f"  robot {r['name']}: printing {r['printing_s']:.0f} s, travelling {r['travelling_s']:.0f} s, "
+                       f"waiting {r['waiting_s']:.0f} s, idle {r['idle_s']:.0f} s, {r['material_mm3'] / 1000:.1f} cm3")
+        found = {k: v for k, v in record["finding_counts"].items() if v}
+        click.echo("findings: " + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none"))
+        for f in result.findings[:10]:
+            click.echo(f"  {f.kind}: robot {f.robot} at {f.time:.1f} s, "
+                       f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
+                       f"{f.detail}" + (f" ({f.count} samples)" if f.count > 1 else ""))
+        click.echo(f"wrote {target}")
+    if strict and result.findings:
+        raise click.exceptions.Exit(1)
+
+
+@cli.command()
+@click.argument("inputs", nargs=-1, type=click.Path())
+@click.option("--format", "fmt", type=click.Choice(["png", "gantt"]), default="png", show_default=True,
+              help="A snapshot at --at, or the Gantt chart.")
+@click.option("--at", "at", type=float, help="Time of the snapshot, s [default: the end].")
+@click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
+@click.option("--out", "-o", type=click.Path(dir_okay=False), help="Picture to write [default: DIR/sim/...].")
+@click.option("--force", is_flag=True, help="Replace the picture if it exists.")
+def render(inputs: tuple[str, ...], fmt: str, at: float | None, manifest: str | None, out: str | None,
+           force: bool) -> None:
+    """Draw a simulated plan: the fleet at a time (png) or who works when (gantt)."""
+    from cooprint.io.bundle import atomic_file
+    from cooprint.render.sim import render_gantt, render_snapshot
+    from cooprint.simulation import load_inputs, simulate as run_sim
+
+    _need_inputs(inputs, manifest)
+    result = run_sim(load_inputs(list(inputs), manifest), checks=False)
+    t = result.makespan if at is None else at
+    if not 0 <= t <= result.makespan + 1e-9:
+        from cooprint.errors import UserError
+
+        raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
+    name = "gantt.png" if fmt == "gantt" else f"snapshot_{t:.0f}s.png"
+    target = Path(out) if out else _sim_folder(inputs, None) / name
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_file(target, force) as tmp:
+        if fmt == "gantt":
+            render_gantt(result, tmp)
+        else:
+            render_snapshot(result, t, tmp)
+    click.echo(f"wrote {target}")
+
+
 def _lean_malloc() -> None:
     """Large arrays straight from the OS and back (glibc's malloc otherwise raises its mmap
     threshold after the first large free and keeps later freed arrays in its heap: 30 MB more
@@ -219,7 +313,9 @@ def main(argv: list[str] | None = None) -> int:
     if verbose:  # accepted anywhere on the line, not only before the subcommand
         args = ["--verbose"] + [a for a in args if a not in ("-v", "--verbose")]
     try:
-        cli.main(args=args, prog_name="cooprint", standalone_mode=False)
+        code = cli.main(args=args, prog_name="cooprint", standalone_mode=False)
+        if isinstance(code, int):  # click returns the code of an Exit (simulate --strict)
+            return code
     except UserError as exc:
         if verbose:
             raise

@@ -1,0 +1,213 @@
+"""Every robot's program in time (seed §5.2): when each move starts and ends, where, and whether
+it deposits; when each NOTIFY is announced and how long each WAIT blocks.
+
+Times come from the command stream, not from stepping a clock: a move's duration is its length
+over its speed (the robot's ``print_speed`` with the tool on, ``travel_speed`` with it off, or a
+G-code file's own feed rate), so the state at any instant is exact and does not drift. WAITs are
+resolved by walking all robots forward together: a robot runs until a WAIT whose events are not
+all announced yet; a WAIT ends at the latest announcement of its events (or at once). Robots that
+can never go on are a deadlock, found from the commands alone, before any geometry is looked at.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program
+
+
+@dataclass(frozen=True)
+class SimRobot:
+    """A robot to simulate: its program and where it stands.
+
+    Attributes
+    ----------
+    name : str
+    program : Program
+    start : (3,) float
+        Nozzle position before the first command, mm (``None``: at the first MOVE's target).
+    facing : (2,) float
+        Unit XY vector from the body to the nozzle (the body stands ``build_depth`` behind).
+    speed : (n,) float or None
+        Per-command speed of MOVEs, mm/s (a G-code file's feed rates); ``None``: the profile's.
+    extra : (n,) float or None
+        Seconds a command takes besides its motion (a G-code retraction), or ``None``.
+    """
+
+    name: str
+    program: Program
+    start: np.ndarray | None
+    facing: np.ndarray
+    speed: np.ndarray | None = None
+    extra: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """One robot's moves in time (only MOVE commands; ``index`` maps them back).
+
+    Attributes
+    ----------
+    t0, t1 : (k,) float64
+        Start and end of each move, s.
+    p0, p1 : (k, 3) float64
+        Nozzle position at its start and end, mm.
+    on : (k,) bool
+        The move deposits material (tool on and it goes somewhere).
+    index : (k,) int64
+        The move's command index in the program.
+    waits : list of (start, end, events)
+        Each WAIT: when the robot got there, when it went on, what it waited for.
+    notifies : list of (time, event)
+    """
+
+    robot: str
+    t0: np.ndarray
+    t1: np.ndarray
+    p0: np.ndarray
+    p1: np.ndarray
+    on: np.ndarray
+    index: np.ndarray
+    waits: list = field(default_factory=list)
+    notifies: list = field(default_factory=list)
+
+    @property
+    def end(self) -> float:
+        ends = [float(self.t1[-1])] if len(self.t1) else [0.0]
+        ends += [w[1] for w in self.waits] + [n[0] for n in self.notifies]
+        return max(ends)
+
+    def position(self, t: np.ndarray | float) -> np.ndarray:
+        """(..., 3) nozzle position at time(s) ``t``: the move under way, interpolated."""
+        t = np.asarray(t, dtype=np.float64)
+        if len(self.t1) == 0:
+            return np.zeros(t.shape + (3,))
+        k = np.clip(np.searchsorted(self.t1, t, side="left"), 0, len(self.t1) - 1)
+        span = self.t1[k] - self.t0[k]
+        f = np.clip(np.where(span > 0, (t - self.t0[k]) / np.where(span > 0, span, 1.0), 1.0), 0.0, 1.0)
+        return self.p0[k] + f[..., None] * (self.p1[k] - self.p0[k])
+
+    def deposited(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Segments (m, 2, 3) of material laid down by time ``t`` (the last one cut at ``t``) and
+        the move index of each."""
+        k = int(np.searchsorted(self.t0, t, side="left"))
+        idx = np.flatnonzero(self.on[:k])
+        seg = np.stack([self.p0[idx], self.p1[idx]], axis=1)
+        if len(idx) and self.t1[idx[-1]] > t:
+            seg[-1, 1] = self.position(t)
+        return seg, idx
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A physical problem of a plan: what, which robot, when, where, in which chunk."""
+
+    kind: str  # body-on-material, robots-collide, printhead-hits-material, deadlock, overhang
+    robot: str
+    time: float
+    position: tuple[float, float, float]
+    chunk: str | None
+    detail: str
+    count: int = 1  # how many instants or places of the same kind it stands for
+
+    def to_dict(self) -> dict[str, object]:
+        return {"kind": self.kind, "robot": self.robot, "time_s": self.time, "position": list(self.position),
+                "chunk": self.chunk, "detail": self.detail, "count": self.count}
+
+
+def move_durations(program: Program, start: np.ndarray | None, print_speed: float, travel_speed: float,
+                   speed: np.ndarray | None = None, extra: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per MOVE: start and end positions, whether it deposits, and its duration (length / speed).
+
+    Returns ``(p0 (k, 3), p1 (k, 3), on (k,), duration (k,))``.
+    """
+    mv = np.flatnonzero(program.kind == MOVE)
+    p1 = program.xyz[mv]
+    p0 = np.empty_like(p1)
+    if len(mv):
+        p0[0] = p1[0] if start is None else start
+        p0[1:] = p1[:-1]
+    length = np.linalg.norm(p1 - p0, axis=1)
+    on = program.tool_on()[mv] & (length > 0)
+    v = np.where(on, print_speed, travel_speed) if speed is None else speed[mv]
+    return p0, p1, on, length / v + (0.0 if extra is None else extra[mv])
+
+
+def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float
+             ) -> tuple[dict[str, Timeline], list[Finding]]:
+    """Every robot's :class:`Timeline`, WAITs resolved against the NOTIFYs of all robots.
+
+    A robot stuck at a WAIT that can never end (its events are never announced, or only by
+    robots stuck themselves) is a ``deadlock`` finding; its timeline stops there.
+    """
+    prep = {}
+    for r in robots:
+        p0, p1, on, dur = move_durations(r.program, r.start, print_speed, travel_speed, r.speed, r.extra)
+        kind = r.program.kind
+        cmd_dur = np.zeros(len(kind))
+        mv = np.flatnonzero(kind == MOVE)
+        cmd_dur[mv] = dur
+        before = np.concatenate([[0.0], np.cumsum(cmd_dur)])  # time at each command, no waits
+        sync = np.flatnonzero((kind == NOTIFY) | (kind == WAIT)).tolist()
+        prep[r.name] = (r, p0, p1, on, dur, mv, before, sync)
+    announced: dict[str, float] = {}
+    pos = {name: 0 for name in prep}  # next sync command
+    waited = {name: 0.0 for name in prep}  # total time spent waiting so far
+    delay: dict[str, list] = {name: [] for name in prep}  # (command index, extra wait)
+    waits: dict[str, list] = {name: [] for name in prep}
+    notifies: dict[str, list] = {name: [] for name in prep}
+    progress = True
+    while progress:
+        progress = False
+        for name, (r, *_, before, sync) in prep.items():
+            while pos[name] < len(sync):
+                i = sync[pos[name]]
+                t = before[i] + waited[name]
+                events = r.program.events[r.program.event[i]]
+                if r.program.kind[i] == NOTIFY:
+                    for e in events:
+                        announced[e] = min(announced.get(e, np.inf), t)
+                    notifies[name].append((t, events[0]))
+                else:
+                    if not all(e in announced for e in events):
+                        break
+                    go = max([t] + [announced[e] for e in events])
+                    delay[name].append((i, go - t))
+                    waits[name].append((t, go, events))
+                    waited[name] += go - t
+                pos[name] += 1
+                progress = True
+    out, findings = {}, []
+    for name, (r, p0, p1, on, dur, mv, before, sync) in prep.items():
+        shift = np.zeros(len(r.program.kind) + 1)
+        for i, d in delay[name]:
+            shift[i + 1] += d
+        shift = np.cumsum(shift)
+        keep = len(mv)
+        if pos[name] < len(sync):  # stuck: nothing after the WAIT happens
+            i = sync[pos[name]]
+            keep = int(np.searchsorted(mv, i))
+            prog = r.program
+            missing = [e for e in prog.events[prog.event[i]] if e not in announced]
+            t = float(before[i] + waited[name])
+            at = p1[keep - 1] if keep else (r.start if r.start is not None else np.zeros(3))
+            chunk = _chunk_at(prog, i)
+            findings.append(Finding("deadlock", name, t, tuple(float(x) for x in at), chunk,
+                                    f"WAIT {', '.join(prog.events[prog.event[i]])} (command {i + 1}) never ends: "
+                                    f"{', '.join(missing)} is never announced by a robot that can still move"))
+        t0 = before[mv[:keep]] + shift[mv[:keep]]
+        out[name] = Timeline(name, t0, t0 + dur[:keep], p0[:keep], p1[:keep], on[:keep], mv[:keep], waits[name],
+                             notifies[name])
+    return out, findings
+
+
+def _chunk_at(program: Program, i: int) -> str | None:
+    """The chunk of command ``i``, or of the next command that has one (a WAIT leads into it)."""
+    after = np.flatnonzero(program.chunk[i:] >= 0)
+    return program.chunks[program.chunk[i + after[0]]] if len(after) else None
+
+
+__all__ = ["Finding", "SimRobot", "Timeline", "move_durations", "schedule"]

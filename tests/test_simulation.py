@@ -1,0 +1,170 @@
+"""The simulator: time model, NOTIFY/WAIT, deadlocks, physical checks, inputs, CLI, pictures."""
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from cooprint.cli import main
+from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.program.commands import parse_coop
+from cooprint.render.sim import render_gantt, render_snapshot
+from cooprint.simulation import SimInput, load_inputs, simulate, summary
+from cooprint.simulation.inputs import SimInputError, read_gcode
+from cooprint.simulation.timeline import SimRobot
+
+SEED_SAMPLE = "MOVE 0, 0, 0\nTOOL ON\nMOVE 1, 0, 0\nMOVE 1, 1, 0\nMOVE 0, 1, 0\nTOOL OFF\n"
+PROFILE = RobotProfile()  # print 40 mm/s, travel 120 mm/s, bd 300, body 300 x 350
+
+
+def _robot(name, text, start=None, facing_deg=90.0):
+    a = np.radians(facing_deg)
+    return SimRobot(name, parse_coop(text, name), None if start is None else np.asarray(start, float),
+                    np.array([np.cos(a), np.sin(a)]))
+
+
+def _sim(*robots):
+    return simulate(SimInput(list(robots), PROFILE, SlicingSettings(), "test"))
+
+
+def test_the_seed_sample_draws_the_unit_square_with_the_tool_on_only():
+    res = _sim(_robot("A", SEED_SAMPLE))
+    tl = res.timelines["A"]
+    seg, _ = tl.deposited(10.0)
+    np.testing.assert_allclose(seg, [[[0, 0, 0], [1, 0, 0]], [[1, 0, 0], [1, 1, 0]], [[1, 1, 0], [0, 1, 0]]])
+    assert res.makespan == pytest.approx(3 / 40)
+    np.testing.assert_allclose(tl.position(1.5 / 40), [1, 0.5, 0])
+    half, _ = tl.deposited(1.5 / 40)  # the move under way, cut where the nozzle is
+    np.testing.assert_allclose(half[-1], [[1, 0, 0], [1, 0.5, 0]])
+    assert summary(res)["robots"][0]["material_mm3"] == pytest.approx(3 * (0.45 - 0.2) * 0.2 + 3 * np.pi * 0.01,
+                                                                      rel=1e-9)
+
+
+def test_positions_are_exact_at_any_time_without_drift():
+    xs = np.cumsum(np.full(20000, 0.1))
+    text = "TOOL ON\n" + "".join(f"MOVE {x:.3f} 0 0\n" for x in xs)
+    tl = _sim(_robot("A", text, start=[0, 0, 0])).timelines["A"]
+    for t in (0.0, 1e-3, 12.3456, 49.99):
+        np.testing.assert_allclose(tl.position(t), [min(40 * t, 2000.0), 0, 0], atol=1e-9)
+
+
+def test_wait_blocks_until_the_notify():
+    a = _robot("A", "TOOL ON\nMOVE 40 0 0\nTOOL OFF\nNOTIFY C\nMOVE 40 -400 0\n", start=[0, 0, 0])
+    b = _robot("B", "WAIT C\nMOVE 0 800 0\n", start=[0, 1600, 0], facing_deg=-90)
+    res = _sim(a, b)
+    (wait,) = res.timelines["B"].waits
+    assert wait[0] == 0 and wait[1] == pytest.approx(1.0)  # 40 mm at 40 mm/s
+    assert res.timelines["B"].t0[0] == pytest.approx(1.0)
+    events = summary(res)["events"]
+    assert [(e["robot"], e["kind"]) for e in events] == [("B", "wait"), ("A", "notify")]
+    assert not res.findings
+
+
+@pytest.mark.parametrize("a_text, b_text", [
+    ("MOVE 0 0 0\n", "WAIT NEVER\nMOVE 0 900 0\n"),  # a WAIT nobody answers
+    ("WAIT Y\nNOTIFY X\n", "WAIT X\nNOTIFY Y\n"),  # each waits for the other
+])
+def test_waits_that_can_never_end_are_a_deadlock(a_text, b_text):
+    res = _sim(_robot("A", a_text, start=[0, 0, 0]), _robot("B", b_text, start=[0, 900, 0], facing_deg=-90))
+    dead = [f for f in res.findings if f.kind == "deadlock"]
+    assert dead and all("never ends" in f.detail for f in dead)
+    assert {f.robot for f in dead} >= {"B"}
+
+
+def test_robots_started_in_each_others_way_collide():
+    # both bodies stand on the same floor behind nozzles 100 mm apart, facing the same way
+    a = _robot("A", "MOVE 0 0 5\n", start=[0, 0, 5])
+    b = _robot("B", "MOVE 100 0 5\n", start=[100, 0, 5])
+    (f,) = [f for f in _sim(a, b).findings if f.kind == "robots-collide"]
+    assert f.robot == "A" and f.time == 0 and "B" in f.detail
+
+
+def test_a_body_driven_over_fresh_material_is_found():
+    # print a line across the floor, then drive forward: the body (300 mm behind) rolls over it
+    text = "MOVE -50 0 0.2\nTOOL ON\nMOVE 50 0 0.2\nTOOL OFF\nMOVE 50 0 5\nMOVE 0 400 5\n"
+    res = _sim(_robot("A", text, start=[-50, 0, 0.2]))
+    (f,) = [f for f in res.findings if f.kind == "body-on-material"]
+    assert f.robot == "A" and f.time > 100 / 40 and f.position[1] > 300 - 1
+
+
+def test_gcode_files_simulate_with_their_own_feed_rates(tmp_path):
+    g = tmp_path / "p.gcode"
+    g.write_text("G21\nG90\nM83\nG1 Z0.2 F600\nG1 X10 Y0 E0.5 F1200 ; 10 mm at 20 mm/s\n"
+                 "G1 E-0.8 F2400\nG0 X10 Y30 F6000\nG1 E0.8 F2400\nG1 X0 Y30 E0.5 F600\n")
+    r = read_gcode(g)
+    res = simulate(SimInput([r], PROFILE, SlicingSettings(), str(g)))
+    tl = res.timelines["p"]
+    expected = 0.2 / 10 + 10 / 20 + 0.8 / 40 + 30 / 100 + 0.8 / 40 + 10 / 10
+    assert res.makespan == pytest.approx(expected)
+    assert int(tl.on.sum()) == 2
+    vol = summary(res)["robots"][0]["material_mm3"]
+    assert vol == pytest.approx(1.0 * np.pi * 0.875 ** 2, rel=1e-6)  # the filament pushed
+
+
+def test_bad_gcode_and_manifests_are_clear_errors(tmp_path):
+    g = tmp_path / "bad.gcode"
+    g.write_text("G1 X1 Yabc\n")
+    with pytest.raises(SimInputError, match=r"bad.gcode:1: 'Yabc'"):
+        read_gcode(g)
+    m = tmp_path / "m.toml"
+    (tmp_path / "A.coop").write_text("MOVE 0 0 0\n")
+    m.write_text('[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0]\n')
+    with pytest.raises(SimInputError, match=r"robots\[1\].start = \[0, 0\]: expected \[x, y, z\]"):
+        load_inputs([], str(m))
+    with pytest.raises(SimInputError, match="need a manifest"):
+        load_inputs([str(tmp_path / "A.coop")])
+
+
+@pytest.fixture(scope="module")
+def car_bundle(tmp_path_factory):
+    from cooprint.jobs import run
+    from cooprint.models import car
+
+    out = tmp_path_factory.mktemp("sim") / "job"
+    run(car(420.0), out, overrides={"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0,
+                                    "slicing.extrusion_width": 1.6, "slicing.nozzle_diameter": 1.2},
+        picture=False)
+    return out
+
+
+def test_a_plan_from_cooprint_run_simulates_clean(car_bundle):
+    res = simulate(load_inputs([str(car_bundle)]))
+    assert res.findings == []
+    s = summary(res)
+    a, b = s["robots"]
+    assert b["waiting_s"] > 0 and a["waiting_s"] == 0
+    record = json.loads((car_bundle / "job.json").read_text())
+    for rob, rec in zip(s["robots"], record["robots"]):
+        assert rob["material_mm3"] == pytest.approx(rec["stats"]["volume_mm3"], rel=1e-9)
+        assert rob["printing_s"] == pytest.approx(rec["stats"]["print_mm"] / 40.0, rel=1e-6)
+
+
+def test_cli_simulate_writes_the_summary_and_strict_fails_on_findings(car_bundle, tmp_path, capsys):
+    assert main(["simulate", str(car_bundle), "-q"]) == 0
+    s = json.loads((car_bundle / "sim" / "summary.json").read_text())
+    assert s["finding_counts"]["deadlock"] == 0 and s["makespan_s"] > 0
+    assert main(["simulate", str(car_bundle), "-q"]) == 2  # no overwrite without --force
+    assert "use --force" in capsys.readouterr().err
+    # a manifest whose robot B waits for an event nobody announces
+    (tmp_path / "A.coop").write_text("MOVE 0 0 0\n")
+    (tmp_path / "B.coop").write_text("WAIT C\nMOVE 0 900 0\n")
+    m = tmp_path / "m.toml"
+    m.write_text('[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0, 0]\n'
+                 '[[robots]]\nname = "B"\nprogram = "B.coop"\nstart = [0, 900, 0]\nfacing_deg = -90\n')
+    assert main(["simulate", "--manifest", str(m), "--out", str(tmp_path / "o"), "-q"]) == 0
+    assert main(["simulate", "--manifest", str(m), "--out", str(tmp_path / "o"), "-q", "--strict",
+                 "--force"]) == 1
+    s = json.loads((tmp_path / "o" / "sim" / "summary.json").read_text())
+    assert s["findings"][0]["kind"] == "deadlock" and s["findings"][0]["robot"] == "B"
+
+
+def test_pictures_of_a_simulation(car_bundle, tmp_path):
+    res = simulate(load_inputs([str(car_bundle)]), checks=False)
+    snap = np.asarray(Image.open(render_snapshot(res, res.makespan / 2, tmp_path / "s.png")).convert("RGB"))
+    assert snap.shape == (720, 1280, 3)
+    # both robots' colours are on the picture (their material and footprints)
+    for colour in ((214, 96, 77), (67, 147, 195)):
+        assert (np.abs(snap.astype(int) - colour).sum(axis=2) < 60).sum() > 100
+    gantt = np.asarray(Image.open(render_gantt(res, tmp_path / "g.png")).convert("RGB"))
+    assert (np.abs(gantt.astype(int) - (235, 200, 60)).sum(axis=2) < 10).sum() > 500  # B's wait
