@@ -161,10 +161,55 @@ def test_cli_simulate_writes_the_summary_and_strict_fails_on_findings(car_bundle
 
 def test_pictures_of_a_simulation(car_bundle, tmp_path):
     res = simulate(load_inputs([str(car_bundle)]), checks=False)
-    snap = np.asarray(Image.open(render_snapshot(res, res.makespan / 2, tmp_path / "s.png")).convert("RGB"))
+    with Image.open(render_snapshot(res, res.makespan / 2, tmp_path / "s.png")) as im:
+        snap = np.asarray(im.convert("RGB"))
     assert snap.shape == (720, 1280, 3)
     # both robots' colours are on the picture (their material and footprints)
     for colour in ((214, 96, 77), (67, 147, 195)):
         assert (np.abs(snap.astype(int) - colour).sum(axis=2) < 60).sum() > 100
-    gantt = np.asarray(Image.open(render_gantt(res, tmp_path / "g.png")).convert("RGB"))
+    with Image.open(render_gantt(res, tmp_path / "g.png")) as im:
+        gantt = np.asarray(im.convert("RGB"))
     assert (np.abs(gantt.astype(int) - (235, 200, 60)).sum(axis=2) < 10).sum() > 500  # B's wait
+
+
+def test_animations_and_the_cli_render(car_bundle, tmp_path):
+    import imageio_ffmpeg
+
+    from cooprint.render.sim import frame_times
+
+    np.testing.assert_allclose(frame_times(100.0, 10, duration=2), np.linspace(0, 100, 20))
+    assert len(frame_times(100.0, 10, speedup=25)) == 40
+    mp4 = tmp_path / "a.mp4"
+    assert main(["render", str(car_bundle), "--format", "mp4", "--duration", "1", "--fps", "12",
+                 "--out", str(mp4)]) == 0
+    n_frames, secs = imageio_ffmpeg.count_frames_and_secs(str(mp4))
+    assert n_frames == 12 and secs == pytest.approx(1.0, abs=0.1)
+    gif = tmp_path / "a.gif"
+    assert main(["render", str(car_bundle), "--format", "gif", "--duration", "1", "--fps", "5",
+                 "--out", str(gif)]) == 0
+    with Image.open(gif) as im:
+        assert im.size == (640, 360) and im.n_frames == 5
+    assert main(["render", str(car_bundle), "--format", "gif", "--duration", "1", "--out", str(gif)]) == 2
+    assert main(["render", str(car_bundle), "--at", "-5"]) == 2
+
+
+def test_run_then_simulate(tmp_path):
+    from cooprint.io.bundle import write_stl
+    from cooprint.models import car
+
+    stl = tmp_path / "car.stl"
+    c = car(420.0)
+    write_stl(stl, c.vertices, c.faces)
+    out = tmp_path / "job"
+    assert main(["run", str(stl), "--out", str(out), "-q", "--no-picture", "--simulate", "--config",
+                 str(_coarse_toml(tmp_path))]) == 0
+    s = json.loads((out / "sim" / "summary.json").read_text())
+    assert s["findings"] == [] and {r["name"] for r in s["robots"]} == {"A", "B"}
+    assert (out / "sim" / "gantt.png").exists() and (out / "sim" / "snapshot.png").exists()
+
+
+def _coarse_toml(tmp_path):
+    p = tmp_path / "coarse.toml"
+    p.write_text("[slicing]\nlayer_height = 1.0\nfirst_layer_height = 1.0\nextrusion_width = 1.6\n"
+                 "nozzle_diameter = 1.2\n")
+    return p

@@ -177,9 +177,11 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], layer_height: float 
 
 @cli.command(name="run")
 @plan_options
+@click.option("--simulate", "then_simulate", is_flag=True,
+              help="Then simulate the plan: OUT/sim/summary.json and OUT/sim/gantt.png.")
 def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_width: float | None,
             centre_angle: float | None, robots: int, config: tuple[str, ...], force: bool,
-            no_picture: bool, quiet: bool) -> None:
+            no_picture: bool, quiet: bool, then_simulate: bool) -> None:
     """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
 
     Chunks, assigns, slices every chunk and writes OUT/job.json, OUT/chunks/<id>.stl,
@@ -189,6 +191,15 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
 
     record = _plan(coop_job, write_coop_bundle, mesh, out, config, theta, shift, top_width, centre_angle,
                    robots, force, no_picture, quiet)
+    if then_simulate:
+        from cooprint.jobs import simulate_bundle
+
+        sim = simulate_bundle(out)
+        if not quiet:
+            found = {k: v for k, v in sim["finding_counts"].items() if v}
+            click.echo(f"simulated: makespan {sim['makespan_s'] / 3600:.2f} h, findings: "
+                       + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none")
+                       + f"; wrote {out}/sim/summary.json, {out}/sim/gantt.png")
     if record is None:
         return
     for r in record["robots"]:
@@ -262,34 +273,47 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
 
 @cli.command()
 @click.argument("inputs", nargs=-1, type=click.Path())
-@click.option("--format", "fmt", type=click.Choice(["png", "gantt"]), default="png", show_default=True,
-              help="A snapshot at --at, or the Gantt chart.")
+@click.option("--format", "fmt", type=click.Choice(["png", "mp4", "gif", "gantt"]), default="png", show_default=True,
+              help="A snapshot at --at, an animation, or the Gantt chart.")
 @click.option("--at", "at", type=float, help="Time of the snapshot, s [default: the end].")
+@click.option("--fps", type=click.FloatRange(1, 120), default=24.0, show_default=True, help="Animation frames per second.")
+@click.option("--duration", type=click.FloatRange(0.5, 3600), help="Animation length, s [default: 20].")
+@click.option("--speedup", type=click.FloatRange(min=1e-3), help="Animation speed over real time (instead of --duration).")
 @click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
-@click.option("--out", "-o", type=click.Path(dir_okay=False), help="Picture to write [default: DIR/sim/...].")
-@click.option("--force", is_flag=True, help="Replace the picture if it exists.")
-def render(inputs: tuple[str, ...], fmt: str, at: float | None, manifest: str | None, out: str | None,
-           force: bool) -> None:
-    """Draw a simulated plan: the fleet at a time (png) or who works when (gantt)."""
-    from cooprint.io.bundle import atomic_file
-    from cooprint.render.sim import render_gantt, render_snapshot
+@click.option("--out", "-o", type=click.Path(dir_okay=False), help="File to write [default: DIR/sim/...].")
+@click.option("--force", is_flag=True, help="Replace the file if it exists.")
+def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, duration: float | None,
+           speedup: float | None, manifest: str | None, out: str | None, force: bool) -> None:
+    """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
+    from cooprint.io.bundle import atomic_file, check_file_destination
+    from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import load_inputs, simulate as run_sim
 
     _need_inputs(inputs, manifest)
+    if duration is not None and speedup is not None:
+        from cooprint.errors import UserError
+
+        raise UserError("give --duration or --speedup, not both")
     result = run_sim(load_inputs(list(inputs), manifest), checks=False)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         from cooprint.errors import UserError
 
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
-    name = "gantt.png" if fmt == "gantt" else f"snapshot_{t:.0f}s.png"
+    name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
     target = Path(out) if out else _sim_folder(inputs, None) / name
+    check_file_destination(target, force)
     target.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_file(target, force) as tmp:
-        if fmt == "gantt":
-            render_gantt(result, tmp)
-        else:
-            render_snapshot(result, t, tmp)
+    if fmt in ("mp4", "gif"):  # the encoder names its format from the suffix: write beside, then rename
+        tmp = target.with_name(f".{target.stem}.tmp{target.suffix}")
+        try:
+            render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup)
+            tmp.replace(target)
+        finally:
+            tmp.unlink(missing_ok=True)
+    else:
+        with atomic_file(target, force) as tmp:
+            (render_gantt(result, tmp) if fmt == "gantt" else render_snapshot(result, t, tmp))
     click.echo(f"wrote {target}")
 
 

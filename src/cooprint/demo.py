@@ -1,5 +1,5 @@
-"""``make demo``: plan a cooperative print of a generated car for two robots and show where
-everything went.
+"""``make demo``: plan a cooperative print of a generated car for two robots, simulate it, and
+show where everything went (programs, G-code, summary, Gantt chart, animation).
 
 Run as ``python -m cooprint.demo OUTDIR``. The folder is the demo's own and is replaced on each run.
 """
@@ -12,7 +12,7 @@ from pathlib import Path
 from cooprint.cli import stage_progress
 from cooprint.config import load_settings
 from cooprint.io.bundle import write_stl
-from cooprint.jobs import coop_job, write_coop_bundle
+from cooprint.jobs import coop_job, simulate_bundle, write_coop_bundle
 from cooprint.models import car
 
 
@@ -29,6 +29,13 @@ def main(argv: list[str] | None = None) -> int:
         job = coop_job(solid, settings, robots=2, progress=progress)
         record = write_coop_bundle(job, out, force=True, progress=progress)
     write_stl(out / "model.stl", solid.vertices, solid.faces, name="demo car")
+    print("simulating the plan and drawing it ...", file=sys.stderr)
+    sim = simulate_bundle(out)
+    from cooprint.render.sim import render_animation
+    from cooprint.simulation import load_inputs, simulate
+
+    render_animation(simulate(load_inputs([str(out)]), checks=False), out / "sim" / "animation.mp4",
+                     fps=24, duration=20)
     plan = record["plan"]
     print(f"{len(record['chunks'])} chunks at theta {plan['theta_deg']:.2f} deg, shift {plan['shift_mm']:.1f} mm, "
           f"volume error {record['stats']['volume_rel_error']:.1e}")
@@ -37,9 +44,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  robot {r['name']} ({r['side']} side): {' -> '.join(r['chunks'])}; {st['commands']:,} commands, "
               f"{st['print_mm'] / 1000:.0f} m of paths, {st['volume_mm3'] / 1000:.0f} cm3, "
               f"{st['wait']} WAIT, {st['notify']} NOTIFY")
+    found = {k: v for k, v in sim["finding_counts"].items() if v}
+    print(f"simulated: makespan {sim['makespan_s'] / 3600:.1f} h; robot B waits "
+          f"{sim['robots'][1]['waiting_s'] / 3600:.1f} h for C; findings: "
+          + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none"))
     print(f"outputs in {out}/:")
     for name in ("model.stl", "job.json", "chunks/", "chunks.png", "robots/A.coop", "robots/A.gcode",
-                 "robots/B.coop", "robots/B.gcode"):
+                 "robots/B.coop", "robots/B.gcode", "sim/summary.json", "sim/gantt.png", "sim/snapshot.png",
+                 "sim/animation.mp4"):
         print(f"  {out / name}")
     return 0
 

@@ -353,3 +353,20 @@ def run(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
     check_destination(Path(out), force)
     job = coop_job(mesh, load_settings(*config, overrides=overrides), robots, progress)
     return write_coop_bundle(job, out, force, picture, progress)
+
+
+def simulate_bundle(out: str | Path, snapshot_at: float | None = None) -> dict[str, Any]:
+    """Simulate the bundle in ``out`` (written by :func:`run`) and write ``out/sim/``:
+    ``summary.json``, ``gantt.png`` and ``snapshot.png`` (at ``snapshot_at`` s, default half the
+    makespan); returns the summary. The folder is replaced whole."""
+    from cooprint.render.sim import render_gantt, render_snapshot
+    from cooprint.simulation import load_inputs, simulate, summary
+
+    out = Path(out)
+    result = simulate(load_inputs([str(out)]))
+    record = summary(result)
+    with atomic_dir(out / "sim", force=True) as tmp:
+        write_json(tmp / "summary.json", record)
+        render_gantt(result, tmp / "gantt.png")
+        render_snapshot(result, result.makespan / 2 if snapshot_at is None else snapshot_at, tmp / "snapshot.png")
+    return record

@@ -28,54 +28,146 @@ def _hms(t: float) -> str:
     return f"{t // 3600}:{t % 3600 // 60:02d}:{t % 60:02d}"
 
 
-def render_snapshot(result: SimResult, t: float, path: str | Path, size: tuple[int, int] = (1280, 720),
-                    azimuth_deg: float = -35.0, elevation_deg: float = 30.0, max_segments: int = 300_000) -> Path:
-    """The fleet at time ``t``: material laid down so far (per robot colour, far to near), each
-    robot's footprint on the floor and its nozzle, a clock and each robot's progress."""
-    basis = _view_basis(azimuth_deg, elevation_deg)
+class _Scene:
+    """The projection of a simulated plan, fitted once so that every frame lines up."""
+
+    def __init__(self, result: SimResult, size: tuple[int, int], azimuth_deg: float, elevation_deg: float):
+        self.result, self.size = result, size
+        self.basis = _view_basis(azimuth_deg, elevation_deg)
+        extent = [np.vstack([tl.p0, tl.p1]) for tl in result.timelines.values() if len(tl.p0)]
+        feet = [_footprint(result, r, p) for r in result.robots for tl in [result.timelines[r.name]]
+                for p in ([tl.p0[0], tl.p1[-1]] if len(tl.p0) else [])]
+        every = np.vstack(extent + feet) if extent else np.zeros((1, 3))
+        self.lo, self.scale, self.off = _fit((every @ self.basis.T)[:, :2], size, 40, 90)
+        self.palette = np.array([_colour(i) for i in range(len(result.robots))])
+
+    def px(self, p: np.ndarray) -> np.ndarray:
+        return ((p @ self.basis.T)[..., :2] - self.lo) * self.scale * np.array([1, -1]) + self.off
+
+    def material(self, draw: ImageDraw.ImageDraw, seg: np.ndarray, col: np.ndarray, sort: bool) -> None:
+        """Segments (k, 2, 3) in their robots' colours, shaded by depth (far to near if ``sort``)."""
+        if not len(seg):
+            return
+        depth = (seg @ self.basis.T)[:, :, 2].mean(axis=1)
+        order = np.argsort(depth, kind="stable") if sort else np.arange(len(seg))
+        shade = 0.65 + 0.35 * np.clip((depth[order] - self.d_lo) / self.d_span, 0, 1)
+        colours = (self.palette[col[order]] * shade[:, None]).astype(int).tolist()
+        for ((x0, y0), (x1, y1)), c in zip(self.px(seg[order]).round(1).tolist(), colours):
+            draw.line([(x0, y0), (x1, y1)], fill=tuple(c), width=1)
+
+    @property
+    def d_lo(self) -> float:
+        pts = np.vstack([tl.p1 for tl in self.result.timelines.values() if len(tl.p1)] or [np.zeros((1, 3))])
+        d = pts @ self.basis.T[:, 2]
+        self.__dict__["d_lo"], self.__dict__["d_span"] = float(d.min()), max(float(np.ptp(d)), 1e-9)
+        return self.__dict__["d_lo"]
+
+    @property
+    def d_span(self) -> float:
+        _ = self.d_lo
+        return self.__dict__["d_span"]
+
+    def robots(self, draw: ImageDraw.ImageDraw, t: float, filled: bool) -> None:
+        """Footprints on the floor and nozzles (a mast from the floor and a dot)."""
+        for i, r in enumerate(self.result.robots):
+            n = self.result.timelines[r.name].position(t)
+            foot = [tuple(q) for q in self.px(_footprint(self.result, r, n)).round(1).tolist()]
+            light = tuple(int(0.5 * x + 0.5 * 255) for x in _colour(i))
+            draw.polygon(foot, fill=light if filled else None, outline=_colour(i))
+            a, b = self.px(np.array([n[0], n[1], 0.0])), self.px(n)
+            draw.line([tuple(a), tuple(b)], fill=(60, 60, 60), width=2)
+            draw.ellipse([b[0] - 5, b[1] - 5, b[0] + 5, b[1] + 5], fill=_colour(i), outline=(30, 30, 30))
+
+
+def _deposited(result: SimResult, t: float) -> tuple[np.ndarray, np.ndarray]:
     segs, cols = [], []
     for i, r in enumerate(result.robots):
         seg, _ = result.timelines[r.name].deposited(t)
         segs.append(seg)
         cols.append(np.full(len(seg), i))
-    seg = np.concatenate(segs) if segs else np.zeros((0, 2, 3))
-    col = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+    return (np.concatenate(segs) if segs else np.zeros((0, 2, 3)),
+            np.concatenate(cols) if cols else np.zeros(0, np.int64))
+
+
+def render_snapshot(result: SimResult, t: float, path: str | Path, size: tuple[int, int] = (1280, 720),
+                    azimuth_deg: float = -35.0, elevation_deg: float = 30.0, max_segments: int = 300_000) -> Path:
+    """The fleet at time ``t``: material laid down so far (per robot colour, far to near), each
+    robot's footprint on the floor and its nozzle, a clock and each robot's progress."""
+    scene = _Scene(result, size, azimuth_deg, elevation_deg)
+    seg, col = _deposited(result, t)
     if len(seg) > max_segments:
         pick = np.linspace(0, len(seg) - 1, max_segments).astype(np.int64)
         seg, col = seg[pick], col[pick]
-    # the frame fits everything the plan ever covers, so that frames of an animation line up
-    extent = [np.vstack([tl.p0, tl.p1]) for tl in result.timelines.values() if len(tl.p0)]
-    feet = [_footprint(result, r, result.timelines[r.name].position(t)) for r in result.robots]
-    every = np.vstack(extent + [f for f in feet]) if extent else np.zeros((1, 3))
-    proj_all = every @ basis.T
     img = Image.new("RGB", size, BACKGROUND)
     draw = ImageDraw.Draw(img)
-    lo, scale, off = _fit(proj_all[:, :2], size, 40, 90)
-
-    def px(p: np.ndarray) -> np.ndarray:
-        return ((p @ basis.T)[..., :2] - lo) * scale * np.array([1, -1]) + off
-
-    for i, foot in enumerate(feet):  # footprints on the floor, under the material
-        c = tuple(int(0.5 * x + 0.5 * 255) for x in _colour(i))
-        draw.polygon([tuple(q) for q in px(foot).round(1).tolist()], fill=c, outline=_colour(i))
-    if len(seg):
-        proj = seg @ basis.T
-        order = np.argsort(proj[:, :, 2].mean(axis=1), kind="stable")
-        depth = proj[order, :, 2].mean(axis=1)
-        shade = 0.6 + 0.4 * (depth - depth.min()) / max(float(np.ptp(depth)), 1e-9)
-        palette = np.array([_colour(i) for i in range(len(result.robots))])
-        colours = (palette[col[order]] * shade[:, None]).astype(int).tolist()
-        lines = px(seg[order]).round(1).tolist()
-        for ((x0, y0), (x1, y1)), c in zip(lines, colours):
-            draw.line([(x0, y0), (x1, y1)], fill=tuple(c), width=1)
-    for i, r in enumerate(result.robots):  # nozzles: a mast from the floor and a dot
-        n = result.timelines[r.name].position(t)
-        a, b = px(np.array([n[0], n[1], 0.0])), px(n)
-        draw.line([tuple(a), tuple(b)], fill=(60, 60, 60), width=2)
-        draw.ellipse([b[0] - 5, b[1] - 5, b[0] + 5, b[1] + 5], fill=_colour(i), outline=(30, 30, 30))
+    scene.robots(draw, t, filled=True)
+    scene.material(draw, seg, col, sort=True)
+    scene.robots(draw, t, filled=False)
     _overlay(draw, result, t, size)
     path = Path(path)
     img.save(path, format="PNG")
+    return path
+
+
+def frame_times(makespan: float, fps: float, duration: float | None = None, speedup: float | None = None) -> np.ndarray:
+    """Times of the frames of an animation ``duration`` s long (or played ``speedup`` times
+    faster than real time), the last frame at the end of the plan."""
+    if speedup is not None:
+        duration = makespan / speedup
+    n = max(2, int(round((duration or 20.0) * fps)))
+    return np.linspace(0.0, makespan, n)
+
+
+def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, duration: float | None = None,
+                     speedup: float | None = None, size: tuple[int, int] = (1280, 720),
+                     azimuth_deg: float = -35.0, elevation_deg: float = 30.0) -> Path:
+    """MP4 (``.mp4``, through imageio-ffmpeg) or GIF (``.gif``, through Pillow) of the plan in
+    time: each frame draws only the material laid down since the one before onto a kept canvas,
+    then the robots, the clock and the progress bars on a copy (seed Fig. 15-16)."""
+    path = Path(path)
+    gif = path.suffix.lower() == ".gif"
+    if gif:
+        size = (min(size[0], 640), min(size[1], 360))
+    scene = _Scene(result, size, azimuth_deg, elevation_deg)
+    times = frame_times(result.makespan, fps, duration, speedup)
+    canvas = Image.new("RGB", size, BACKGROUND)
+    draw = ImageDraw.Draw(canvas)
+    done = {r.name: 0 for r in result.robots}  # moves drawn whole so far
+    frames: list[Image.Image] = []
+    writer = None
+    if not gif:
+        import imageio_ffmpeg
+
+        writer = imageio_ffmpeg.write_frames(str(path), size, fps=fps, codec="libx264", quality=7,
+                                             macro_block_size=8, output_params=["-f", "mp4"])
+        writer.send(None)
+    try:
+        for t in times.tolist():
+            partial = []
+            for i, r in enumerate(result.robots):
+                tl = result.timelines[r.name]
+                k = int(np.searchsorted(tl.t1, t, side="right"))  # moves finished by t
+                new = np.flatnonzero(tl.on[done[r.name]:k]) + done[r.name]
+                scene.material(draw, np.stack([tl.p0[new], tl.p1[new]], axis=1), np.full(len(new), i), sort=False)
+                done[r.name] = k
+                if k < len(tl.t0) and tl.on[k] and tl.t0[k] < t:  # the move under way, up to the nozzle
+                    partial.append((np.array([[tl.p0[k], tl.position(t)]]), np.array([i])))
+            frame = canvas.copy()
+            fd = ImageDraw.Draw(frame)
+            for seg, col in partial:
+                scene.material(fd, seg, col, sort=False)
+            scene.robots(fd, t, filled=False)
+            _overlay(fd, result, t, size)
+            if gif:
+                frames.append(frame.quantize(colors=128))
+            else:
+                writer.send(np.asarray(frame).tobytes())  # type: ignore[union-attr]
+    finally:
+        if writer is not None:
+            writer.close()
+    if gif:
+        frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps),
+                       loop=0)
     return path
 
 
@@ -173,4 +265,4 @@ def _nice_step(raw: float) -> float:
     return 86400.0 * np.ceil(raw / 86400.0)
 
 
-__all__ = ["render_gantt", "render_snapshot"]
+__all__ = ["frame_times", "render_animation", "render_gantt", "render_snapshot"]

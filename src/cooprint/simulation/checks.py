@@ -26,12 +26,19 @@ STEP = 2.0
 TOLERANCE = 1.0
 #: Nozzle samples per window.
 WINDOW = 512
+#: At most this many material samples (the spacing grows on very long prints), and nozzle moves
+#: sampled at once.
+MAX_SAMPLES = 8_000_000
+MOVES_AT_ONCE = 100_000
 
 
-def path_samples(tl: Timeline, step: float, deposits_only: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points (k, 3) along the moves every ``step`` mm (and their ends), their times (k,) and the
-    move each lies on (k,)."""
-    sel = np.flatnonzero(tl.on) if deposits_only else np.arange(len(tl.t0))
+def path_samples(tl: Timeline, step: float, deposits_only: bool, moves: slice = slice(None)
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points (k, 3) along the moves (of the range ``moves``) every ``step`` mm and at their ends,
+    their times (k,) and the move each lies on (k,)."""
+    sel = np.arange(len(tl.t0))[moves]
+    if deposits_only:
+        sel = sel[tl.on[sel]]
     if len(sel) == 0:
         return np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64)
     p0, p1, t0, t1 = tl.p0[sel], tl.p1[sel], tl.t0[sel], tl.t1[sel]
@@ -40,11 +47,18 @@ def path_samples(tl: Timeline, step: float, deposits_only: bool) -> tuple[np.nda
     frac = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 1) / np.repeat(n, n)
     pts = p0[move] + frac[:, None] * (p1[move] - p0[move])
     times = t0[move] + frac * (t1[move] - t0[move])
-    if not deposits_only:  # the very first position too
+    if not deposits_only and sel[0] == 0:  # the very first position too
         pts = np.vstack([p0[:1], pts])
         times = np.r_[t0[:1], times]
         move = np.r_[0, move]
     return pts, times, sel[move]
+
+
+def _step(timelines: dict[str, Timeline], step: float, deposits_only: bool) -> float:
+    """``step``, or longer on a print so long that it would make more than ``MAX_SAMPLES``."""
+    total = sum(float(np.linalg.norm(tl.p1 - tl.p0, axis=1)[tl.on if deposits_only else slice(None)].sum())
+                for tl in timelines.values())
+    return max(step, total / MAX_SAMPLES)
 
 
 def _frame(facing: np.ndarray) -> np.ndarray:
@@ -64,41 +78,42 @@ def body_on_material(robots: list[SimRobot], timelines: dict[str, Timeline], pro
                      step: float = STEP, tolerance: float = TOLERANCE) -> list[Finding]:
     """Every robot whose body stands on material laid down before (one finding per robot and
     chunk, with the first instant and how many samples)."""
-    material, mat_t = [], []
-    for tl in timelines.values():
-        pts, times, _ = path_samples(tl, step, deposits_only=True)
-        material.append(pts)
-        mat_t.append(times)
-    m_xyz = np.vstack(material) if material else np.zeros((0, 3))
-    m_t = np.concatenate(mat_t) if mat_t else np.zeros(0)
+    m_step = _step(timelines, step, deposits_only=True)
+    n_step = _step(timelines, step, deposits_only=False)
+    parts = [path_samples(tl, m_step, deposits_only=True) for tl in timelines.values()]
+    m_xy = np.vstack([p[0][:, :2] for p in parts]).astype(np.float32) if parts else np.zeros((0, 2), np.float32)
+    m_t = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0)
+    del parts
     findings = []
     u_lo, u_hi, v_lo, v_hi = body_box(profile, tolerance)
     for r in robots:
         tl = timelines[r.name]
-        frame = _frame(r.facing)
-        m_uv = m_xyz[:, :2] @ frame.T
+        frame = _frame(r.facing).astype(np.float32)
+        m_uv = m_xy @ frame.T
         order = np.argsort(m_uv[:, 0])
         mu, mv_, mt = m_uv[order, 0], m_uv[order, 1], m_t[order]
-        n_xyz, n_t, n_move = path_samples(tl, step, deposits_only=False)
-        n_uv = n_xyz[:, :2] @ frame.T
-        hits = []
-        for a in range(0, len(n_t), WINDOW):
-            w = slice(a, a + WINDOW)
-            u, v, t = n_uv[w, 0], n_uv[w, 1], n_t[w]
-            lo, hi = np.searchsorted(mu, [u.min() + u_lo, u.max() + u_hi])
-            near = np.flatnonzero((mv_[lo:hi] >= v.min() + v_lo) & (mv_[lo:hi] <= v.max() + v_hi)
-                                  & (mt[lo:hi] < t.max())) + lo
-            if len(near) == 0:
-                continue
-            rows_per_pass = max(1, (1 << 22) // len(near))  # bound the (samples x points) tests
-            for b in range(0, len(t), rows_per_pass):
-                du = mu[near][None, :] - u[b:b + rows_per_pass, None]
-                dv = mv_[near][None, :] - v[b:b + rows_per_pass, None]
-                inside = ((du >= u_lo) & (du <= u_hi) & (dv >= v_lo) & (dv <= v_hi)
-                          & (mt[near][None, :] < t[b:b + rows_per_pass, None]))
-                hits += (np.flatnonzero(inside.any(axis=1)) + a + b).tolist()
-        findings += _group(hits, "body-on-material", r, tl, n_xyz, n_t, n_move,
-                           "the body stands on material laid down before")
+        del m_uv, order
+        hits: list[tuple[float, tuple, int]] = []
+        for first in range(0, len(tl.t0), MOVES_AT_ONCE):
+            n_xyz, n_t, n_move = path_samples(tl, n_step, False, slice(first, first + MOVES_AT_ONCE))
+            n_uv = n_xyz[:, :2] @ frame.T.astype(np.float64)
+            for a in range(0, len(n_t), WINDOW):
+                u, v, t = n_uv[a:a + WINDOW, 0], n_uv[a:a + WINDOW, 1], n_t[a:a + WINDOW]
+                # (queries in the array's own float32: another type would convert the whole array)
+                lo, hi = np.searchsorted(mu, np.array([u.min() + u_lo, u.max() + u_hi], dtype=mu.dtype))
+                near = np.flatnonzero((mv_[lo:hi] >= v.min() + v_lo) & (mv_[lo:hi] <= v.max() + v_hi)
+                                      & (mt[lo:hi] < t.max())) + lo
+                if len(near) == 0:
+                    continue
+                rows_per_pass = max(1, (1 << 22) // len(near))  # bound the (samples x points) tests
+                for b in range(0, len(t), rows_per_pass):
+                    du = mu[near][None, :] - u[b:b + rows_per_pass, None]
+                    dv = mv_[near][None, :] - v[b:b + rows_per_pass, None]
+                    inside = ((du >= u_lo) & (du <= u_hi) & (dv >= v_lo) & (dv <= v_hi)
+                              & (mt[near][None, :] < t[b:b + rows_per_pass, None]))
+                    for k in np.flatnonzero(inside.any(axis=1)) + a + b:
+                        hits.append((float(n_t[k]), tuple(float(x) for x in n_xyz[k]), int(n_move[k])))
+        findings += _group(hits, "body-on-material", r, tl, "the body stands on material laid down before")
     return findings
 
 
@@ -148,17 +163,18 @@ def _chunk_of(r: SimRobot, tl: Timeline, t: float) -> str | None:
     return r.program.chunks[c] if c >= 0 else None
 
 
-def _group(hits: list[int], kind: str, r: SimRobot, tl: Timeline, xyz: np.ndarray, t: np.ndarray,
-           move: np.ndarray, detail: str) -> list[Finding]:
-    """One finding per chunk: the first instant, and how many samples."""
+def _group(hits: list[tuple[float, tuple, int]], kind: str, r: SimRobot, tl: Timeline,
+           detail: str) -> list[Finding]:
+    """One finding per chunk from ``(time, position, move)`` hits: the first instant, and how
+    many samples."""
     out: dict[str | None, Finding] = {}
     counts: dict[str | None, int] = {}
-    for h in hits:
-        c = int(r.program.chunk[tl.index[move[h]]])
+    for t, pos, move in sorted(hits):
+        c = int(r.program.chunk[tl.index[move]])
         chunk = r.program.chunks[c] if c >= 0 else None
         counts[chunk] = counts.get(chunk, 0) + 1
         if chunk not in out:
-            out[chunk] = Finding(kind, r.name, float(t[h]), tuple(float(x) for x in xyz[h]), chunk, detail)
+            out[chunk] = Finding(kind, r.name, t, pos, chunk, detail)
     return [Finding(f.kind, f.robot, f.time, f.position, f.chunk, f.detail, counts[c]) for c, f in out.items()]
 
 
