@@ -21,10 +21,11 @@ import sys
 from pathlib import Path
 
 import bench_chunking
+import bench_simulation
 import bench_slicing
 from harness import BenchContext, plural, resolve_meshes
 
-STAGES = [bench_chunking, bench_slicing]
+STAGES = [bench_chunking, bench_slicing, bench_simulation]
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 WORK = REPO / "benchmarks" / "_work"

@@ -234,10 +234,12 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
 @click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
 @click.option("--out", "-o", type=click.Path(file_okay=False), help="Folder for sim/ (default: the bundle).")
 @click.option("--strict", is_flag=True, help="Exit with code 1 if any check finds a problem.")
+@click.option("--accel", is_flag=True, help="Moves accelerate (robot profile's acceleration and jerk; "
+              "G-code: PrusaSlicer's machine limits) instead of keeping their speed.")
 @click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json.")
 @click.option("--quiet", "-q", is_flag=True, help="No summary on stdout.")
-def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, force: bool,
-             quiet: bool) -> None:
+def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, accel: bool,
+             force: bool, quiet: bool) -> None:
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
     robot each), or .coop files with --manifest. Writes sim/summary.json."""
     from cooprint.io.bundle import atomic_file, write_json
@@ -250,7 +252,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         from cooprint.errors import UserError
 
         raise UserError(f"{target}: exists; use --force to replace it")
-    result = run_sim(load_inputs(list(inputs), manifest))
+    result = run_sim(load_inputs(list(inputs), manifest), accel=accel)
     record = summary(result)
     folder.mkdir(parents=True, exist_ok=True)
     with atomic_file(target, force=True) as tmp:

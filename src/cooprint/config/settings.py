@@ -41,6 +41,10 @@ class RobotProfile:
     body_length: float = field(default=350.0, metadata=_num(0, 1e5, unit="mm", lo_open=True))
     print_speed: float = field(default=40.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     travel_speed: float = field(default=120.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    acceleration: float = field(default=500.0, metadata=_num(0, 1e6, unit="mm/s2", lo_open=True,
+                                doc="for the simulator's acceleration model (simulate --accel)"))
+    jerk: float = field(default=10.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True,
+                        doc="largest instant change of speed at a corner, per axis"))
 
 
 @dataclass(frozen=True)

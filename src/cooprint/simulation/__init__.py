@@ -15,6 +15,7 @@ import numpy as np
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation.checks import body_on_material, robots_collide
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
+from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule
 from cooprint.slicing.paths import extrusion_area
 
@@ -32,21 +33,28 @@ class SimResult:
     profile: RobotProfile
     slicing: SlicingSettings
     source: str
+    accel: bool = False
 
     @property
     def makespan(self) -> float:
         return max((tl.end for tl in self.timelines.values()), default=0.0)
 
 
-def simulate(inp: SimInput, checks: bool = True) -> SimResult:
-    """Put every robot's program in time and check the plan."""
+def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResult:
+    """Put every robot's program in time and check the plan.
+
+    ``accel``: moves accelerate and decelerate (trapezoids joined at jerk-limited corner speeds,
+    :mod:`.kinematics`) with the input's machine limits (G-code: PrusaSlicer's) or the robot
+    profile's ``acceleration`` and ``jerk``; otherwise each move takes length / speed.
+    """
     p = inp.profile
-    timelines, findings = schedule(inp.robots, p.print_speed, p.travel_speed)
+    limits = (inp.limits or MachineLimits.planar(p.acceleration, p.jerk)) if accel else None
+    timelines, findings = schedule(inp.robots, p.print_speed, p.travel_speed, limits)
     if checks:
         findings += body_on_material(inp.robots, timelines, p)
         findings += robots_collide(inp.robots, timelines, p)
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
-    return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source)
+    return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source, accel)
 
 
 def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
@@ -79,7 +87,8 @@ def summary(result: SimResult) -> dict[str, object]:
     events.sort(key=lambda e: (e["time_s"], e["robot"]))
     counts = {k: sum(f.count for f in result.findings if f.kind == k) for k in KINDS}
     return {"format": "cooprint-sim/1", "source": result.source, "makespan_s": span,
-            "time_model": "length / speed (print_speed with the tool on, travel_speed off, or the G-code's F)",
+            "time_model": ("trapezoidal acceleration, jerk-limited corners" if result.accel else
+                           "length / speed (print_speed with the tool on, travel_speed off, or the G-code's F)"),
             "robots": robots, "events": events, "finding_counts": counts,
             "findings": [f.to_dict() for f in result.findings]}
 

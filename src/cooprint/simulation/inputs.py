@@ -14,6 +14,7 @@ import numpy as np
 from cooprint.config import RobotProfile, SlicingSettings, load_settings
 from cooprint.errors import UserError
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
+from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
 from cooprint.slicing.paths import INFILL, TRAVEL
 
@@ -30,6 +31,7 @@ class SimInput:
     profile: RobotProfile
     slicing: SlicingSettings
     source: str  # what was read, for messages and the summary
+    limits: MachineLimits | None = None  # for the acceleration model; None: the robot profile's
 
 
 def _facing(deg: float) -> np.ndarray:
@@ -120,14 +122,15 @@ def load_gcode_files(paths: list[str | Path], profile: RobotProfile | None = Non
     names = [r.name for r in robots]
     if len(set(names)) != len(names):
         raise SimInputError(f"two G-code files with the same name: {', '.join(names)}")
-    return SimInput(robots, profile or RobotProfile(), slicing or SlicingSettings(), ", ".join(map(str, paths)))
+    return SimInput(robots, profile or RobotProfile(), slicing or SlicingSettings(), ", ".join(map(str, paths)),
+                    MachineLimits())  # a printer's G-code: PrusaSlicer's machine limits
 
 
 def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     """A Marlin-flavour G-code file as a program: ``G0``/``G1`` moves (``G90``/``G91``,
     ``M82``/``M83``, ``G92``), moves that push filament become moves with the tool on (width
-    from the filament pushed, height from the layer), ``F`` gives each move's speed; a move that
-    only moves the filament (retraction) takes ``|E| / F``."""
+    from the filament pushed, height from the layer), ``F`` gives each move's speed, and each
+    move keeps its E (a move that only moves the filament, a retraction, takes ``|E| / F``)."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8", errors="replace")
@@ -137,7 +140,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     pos = np.zeros(3)
     rel_xyz, rel_e, e = False, False, 0.0  # Marlin's defaults: absolute XYZ and E
     feed = 1500.0 / 60.0
-    kinds, xyz, speeds, widths, heights, extra = [], [], [], [], [], []
+    kinds, xyz, speeds, widths, heights, pushed = [], [], [], [], [], []
     tool = False
     layer_z, last_z, layer_h = 0.0, 0.0, 0.2
     for lineno, raw in enumerate(text.splitlines(), start=1):
@@ -175,7 +178,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
                 speeds.append(0.0)
                 widths.append(0.0)
                 heights.append(0.0)
-                extra.append(0.0)
+                pushed.append(0.0)
                 tool = deposit
             if deposit and target[2] != layer_z:
                 layer_h = max(target[2] - last_z, 1e-3) if target[2] > layer_z else layer_h
@@ -187,7 +190,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
             area = de * fil_area / length if deposit else 0.0
             widths.append((area - math.pi * layer_h ** 2 / 4) / layer_h + layer_h if deposit else 0.0)
             heights.append(layer_h if deposit else 0.0)
-            extra.append(abs(de) / feed if length == 0 and de else 0.0)
+            pushed.append(de)
             pos = target
         elif code in ("G90", "G91"):
             rel_xyz = code == "G91"
@@ -202,7 +205,8 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
                         role=np.where(kind == MOVE, INFILL, TRAVEL), width=np.array(widths),
                         height=np.array(heights))
     speed = np.array(speeds)
-    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), speed, np.array(extra))  # homed: at 0, 0, 0
+    # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
+    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), speed, np.array(pushed))
 
 
 def load_inputs(paths: list[str], manifest: str | None = None) -> SimInput:

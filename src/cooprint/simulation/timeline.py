@@ -15,7 +15,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from typing import TYPE_CHECKING
+
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program
+
+if TYPE_CHECKING:
+    from cooprint.simulation.kinematics import MachineLimits
 
 
 @dataclass(frozen=True)
@@ -32,8 +37,9 @@ class SimRobot:
         Unit XY vector from the body to the nozzle (the body stands ``build_depth`` behind).
     speed : (n,) float or None
         Per-command speed of MOVEs, mm/s (a G-code file's feed rates); ``None``: the profile's.
-    extra : (n,) float or None
-        Seconds a command takes besides its motion (a G-code retraction), or ``None``.
+    de : (n,) float or None
+        Filament pushed by each command, mm (a G-code file's E): a move of filament alone takes
+        ``|E| / speed``, and the acceleration model limits the E axis too.
     """
 
     name: str
@@ -41,7 +47,7 @@ class SimRobot:
     start: np.ndarray | None
     facing: np.ndarray
     speed: np.ndarray | None = None
-    extra: np.ndarray | None = None
+    de: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -117,26 +123,34 @@ class Finding:
                 "chunk": self.chunk, "detail": self.detail, "count": self.count}
 
 
-def move_durations(program: Program, start: np.ndarray | None, print_speed: float, travel_speed: float,
-                   speed: np.ndarray | None = None, extra: np.ndarray | None = None
+def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per MOVE: start and end positions, whether it deposits, and its duration (length / speed).
+    """Per MOVE of robot ``r``: start and end positions, whether it deposits, and its duration:
+    length / speed, or with ``limits`` the trapezoidal profile of :mod:`.kinematics`.
 
     Returns ``(p0 (k, 3), p1 (k, 3), on (k,), duration (k,))``.
     """
+    program = r.program
     mv = np.flatnonzero(program.kind == MOVE)
     p1 = program.xyz[mv]
     p0 = np.empty_like(p1)
     if len(mv):
-        p0[0] = p1[0] if start is None else start
+        p0[0] = p1[0] if r.start is None else r.start
         p0[1:] = p1[:-1]
     length = np.linalg.norm(p1 - p0, axis=1)
     on = program.tool_on()[mv] & (length > 0)
-    v = np.where(on, print_speed, travel_speed) if speed is None else speed[mv]
-    return p0, p1, on, length / v + (0.0 if extra is None else extra[mv])
+    v = np.where(on, print_speed, travel_speed) if r.speed is None else r.speed[mv]
+    de = np.zeros(len(mv)) if r.de is None else r.de[mv]
+    if limits is None:
+        dur = np.where(length > 0, length, np.abs(de)) / v
+    else:
+        from cooprint.simulation.kinematics import trapezoid_durations
+
+        dur = trapezoid_durations(np.column_stack([p1 - p0, de]), v, limits)
+    return p0, p1, on, dur
 
 
-def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float
+def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
              ) -> tuple[dict[str, Timeline], list[Finding]]:
     """Every robot's :class:`Timeline`, WAITs resolved against the NOTIFYs of all robots.
 
@@ -145,7 +159,7 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float
     """
     prep = {}
     for r in robots:
-        p0, p1, on, dur = move_durations(r.program, r.start, print_speed, travel_speed, r.speed, r.extra)
+        p0, p1, on, dur = move_durations(r, print_speed, travel_speed, limits)
         kind = r.program.kind
         cmd_dur = np.zeros(len(kind))
         mv = np.flatnonzero(kind == MOVE)
