@@ -34,6 +34,7 @@ class SimResult:
     slicing: SlicingSettings
     source: str
     accel: bool = False
+    checked: tuple[str, ...] = ()  # the finding kinds that were looked for
 
     @property
     def makespan(self) -> float:
@@ -50,11 +51,12 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
     p = inp.profile
     limits = (inp.limits or MachineLimits.planar(p.acceleration, p.jerk)) if accel else None
     timelines, findings = schedule(inp.robots, p.print_speed, p.travel_speed, limits)
-    if checks:
+    if checks and inp.placed:
         findings += body_on_material(inp.robots, timelines, p)
         findings += robots_collide(inp.robots, timelines, p)
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
-    return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source, accel)
+    return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source, accel,
+                     ("deadlock",) + (("body-on-material", "robots-collide") if checks and inp.placed else ()))
 
 
 def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
@@ -89,7 +91,7 @@ def summary(result: SimResult) -> dict[str, object]:
     return {"format": "cooprint-sim/1", "source": result.source, "makespan_s": span,
             "time_model": ("trapezoidal acceleration, jerk-limited corners" if result.accel else
                            "length / speed (print_speed with the tool on, travel_speed off, or the G-code's F)"),
-            "robots": robots, "events": events, "finding_counts": counts,
+            "checked": list(result.checked), "robots": robots, "events": events, "finding_counts": counts,
             "findings": [f.to_dict() for f in result.findings]}
 
 

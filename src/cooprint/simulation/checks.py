@@ -30,6 +30,9 @@ WINDOW = 512
 #: sampled at once.
 MAX_SAMPLES = 8_000_000
 MOVES_AT_ONCE = 100_000
+#: A robot whose body is found on material this many times is not looked at any further (the
+#: finding's count then says "at least").
+MAX_HITS = 20_000
 
 
 def path_samples(tl: Timeline, step: float, deposits_only: bool, moves: slice = slice(None)
@@ -95,9 +98,13 @@ def body_on_material(robots: list[SimRobot], timelines: dict[str, Timeline], pro
         del m_uv, order
         hits: list[tuple[float, tuple, int]] = []
         for first in range(0, len(tl.t0), MOVES_AT_ONCE):
+            if len(hits) >= MAX_HITS:
+                break
             n_xyz, n_t, n_move = path_samples(tl, n_step, False, slice(first, first + MOVES_AT_ONCE))
             n_uv = n_xyz[:, :2] @ frame.T.astype(np.float64)
             for a in range(0, len(n_t), WINDOW):
+                if len(hits) >= MAX_HITS:
+                    break
                 u, v, t = n_uv[a:a + WINDOW, 0], n_uv[a:a + WINDOW, 1], n_t[a:a + WINDOW]
                 # (queries in the array's own float32: another type would convert the whole array)
                 lo, hi = np.searchsorted(mu, np.array([u.min() + u_lo, u.max() + u_hi], dtype=mu.dtype))
@@ -132,7 +139,11 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
         corners[r.name] = nozzle[:, None, :] + (box @ frame)[None]  # (T, 4, 2) world corners
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
-            hit = _rects_overlap(corners[a.name], corners[b.name])
+            p, q = corners[a.name], corners[b.name]
+            near = np.flatnonzero((p[:, :, 0].min(1) <= q[:, :, 0].max(1)) & (q[:, :, 0].min(1) <= p[:, :, 0].max(1))
+                                  & (p[:, :, 1].min(1) <= q[:, :, 1].max(1)) & (q[:, :, 1].min(1) <= p[:, :, 1].max(1)))
+            hit = np.zeros(len(times), dtype=bool)  # boxes apart: no overlap; else separating axes
+            hit[near] = _rects_overlap(p[near], q[near])
             if hit.any():
                 k = np.flatnonzero(hit)
                 t = float(times[k[0]])

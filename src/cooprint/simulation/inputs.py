@@ -32,6 +32,7 @@ class SimInput:
     slicing: SlicingSettings
     source: str  # what was read, for messages and the summary
     limits: MachineLimits | None = None  # for the acceleration model; None: the robot profile's
+    placed: bool = True  # the robots' starts and facings are known: the body checks apply
 
 
 def _facing(deg: float) -> np.ndarray:
@@ -117,13 +118,16 @@ def load_manifest(path: str | Path) -> SimInput:
 
 def load_gcode_files(paths: list[str | Path], profile: RobotProfile | None = None,
                      slicing: SlicingSettings | None = None) -> SimInput:
-    """Plain G-code files, one robot each (named by the file's stem), facing +Y."""
+    """Plain G-code files, one robot each (named by the file's stem). Nothing says where a
+    robot's body stands, so the body checks are left out (``placed`` is false): the result is
+    the timing, the material and the deadlock check."""
     robots = [read_gcode(p) for p in paths]
     names = [r.name for r in robots]
     if len(set(names)) != len(names):
         raise SimInputError(f"two G-code files with the same name: {', '.join(names)}")
+    # a printer's G-code: PrusaSlicer's machine limits; no robot body stands anywhere known
     return SimInput(robots, profile or RobotProfile(), slicing or SlicingSettings(), ", ".join(map(str, paths)),
-                    MachineLimits())  # a printer's G-code: PrusaSlicer's machine limits
+                    MachineLimits(), placed=False)
 
 
 def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
