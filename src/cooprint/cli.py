@@ -315,7 +315,10 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
             tmp.unlink(missing_ok=True)
     else:
         with atomic_file(target, force) as tmp:
-            (render_gantt(result, tmp) if fmt == "gantt" else render_snapshot(result, t, tmp))
+            if fmt == "gantt":
+                render_gantt(result, tmp)
+            else:
+                render_snapshot(result, t, tmp)
     click.echo(f"wrote {target}")
 
 

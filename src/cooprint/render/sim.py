@@ -40,6 +40,8 @@ class _Scene:
         every = np.vstack(extent + feet) if extent else np.zeros((1, 3))
         self.lo, self.scale, self.off = _fit((every @ self.basis.T)[:, :2], size, 40, 90)
         self.palette = np.array([_colour(i) for i in range(len(result.robots))])
+        depth = (np.vstack(extent) if extent else np.zeros((1, 3))) @ self.basis.T[:, 2]  # for shading
+        self.d_lo, self.d_span = float(depth.min()), max(float(np.ptp(depth)), 1e-9)
 
     def px(self, p: np.ndarray) -> np.ndarray:
         return ((p @ self.basis.T)[..., :2] - self.lo) * self.scale * np.array([1, -1]) + self.off
@@ -54,18 +56,6 @@ class _Scene:
         colours = (self.palette[col[order]] * shade[:, None]).astype(int).tolist()
         for ((x0, y0), (x1, y1)), c in zip(self.px(seg[order]).round(1).tolist(), colours):
             draw.line([(x0, y0), (x1, y1)], fill=tuple(c), width=1)
-
-    @property
-    def d_lo(self) -> float:
-        pts = np.vstack([tl.p1 for tl in self.result.timelines.values() if len(tl.p1)] or [np.zeros((1, 3))])
-        d = pts @ self.basis.T[:, 2]
-        self.__dict__["d_lo"], self.__dict__["d_span"] = float(d.min()), max(float(np.ptp(d)), 1e-9)
-        return self.__dict__["d_lo"]
-
-    @property
-    def d_span(self) -> float:
-        _ = self.d_lo
-        return self.__dict__["d_span"]
 
     def robots(self, draw: ImageDraw.ImageDraw, t: float, filled: bool) -> None:
         """Footprints on the floor and nozzles (a mast from the floor and a dot)."""
