@@ -39,9 +39,11 @@ def bundle(job, tmp_path_factory):
     return out, record
 
 
-def _deposits(program):
-    """(k, 2, 3) segments a program deposits along (tool on, moving)."""
-    mv = np.flatnonzero(program.kind == MOVE)
+def _deposits(program, upto=None):
+    """(k, 2, 3) segments a program deposits along (tool on, moving), their chunks and widths;
+    with ``upto``, only those of the commands up to that index."""
+    kinds = program.kind if upto is None else program.kind[:upto + 1]
+    mv = np.flatnonzero(kinds == MOVE)
     on = program.tool_on()[mv][1:]
     seg = np.stack([program.xyz[mv][:-1], program.xyz[mv][1:]], axis=1)
     moving = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) > 0
@@ -149,7 +151,7 @@ def test_no_transition_passes_through_printed_material(job):
             if p.chunk[j] >= 0 and p.chunk[i] >= 0 or tool[j]:
                 continue  # inside a chunk
             waited = {e for w in np.flatnonzero((p.kind == WAIT)[:j]) for e in p.events[p.event[w]]}
-            sure = [_prefix_deposits(p, i)] + [
+            sure = [_deposits(p, upto=i)[0].reshape(-1, 3)] + [
                 seg[np.isin(chunk, [q.chunks.index(c) for c in waited if c in q.chunks])].reshape(-1, 3)
                 for n, q in job.programs.items() if n != name for seg, chunk, _ in [deposits[n]]]
             a, b = p.xyz[i], p.xyz[j]
@@ -158,13 +160,6 @@ def test_no_transition_passes_through_printed_material(job):
                 assert _clear(np.vstack([sure[0], others_all]), a, b, robot), (name, i, a, b)
             checked += 1
     assert checked >= 6
-
-
-def _prefix_deposits(p, i):
-    mv = np.flatnonzero(p.kind[:i + 1] == MOVE)
-    on = p.tool_on()[mv][1:]
-    seg = np.stack([p.xyz[mv][:-1], p.xyz[mv][1:]], axis=1)
-    return seg[on].reshape(-1, 3)
 
 
 def test_the_bundle_reads_back(job, bundle):

@@ -17,8 +17,7 @@ from cooprint import __version__
 from cooprint.errors import UserError
 
 STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing files",
-               "render": "drawing picture", "slice": "slicing layers", "program": "robot programs",
-               "simulate": "simulating"}
+               "render": "drawing picture", "slice": "slicing layers", "program": "robot programs"}
 
 
 @contextmanager
@@ -178,7 +177,7 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], layer_height: float 
 @cli.command(name="run")
 @plan_options
 @click.option("--simulate", "then_simulate", is_flag=True,
-              help="Then simulate the plan: OUT/sim/summary.json and OUT/sim/gantt.png.")
+              help="Then simulate the plan: OUT/sim/summary.json, gantt.png and snapshot.png.")
 def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_width: float | None,
             centre_angle: float | None, robots: int, config: tuple[str, ...], force: bool,
             no_picture: bool, quiet: bool, then_simulate: bool) -> None:
@@ -199,7 +198,7 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
             found = {k: v for k, v in sim["finding_counts"].items() if v}
             click.echo(f"simulated: makespan {sim['makespan_s'] / 3600:.2f} h, findings: "
                        + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none")
-                       + f"; wrote {out}/sim/summary.json, {out}/sim/gantt.png")
+                       + f"; wrote {out}/sim/summary.json, gantt.png, snapshot.png")
     if record is None:
         return
     for r in record["robots"]:
@@ -213,8 +212,6 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
 
 def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
     if not inputs and not manifest:
-        from cooprint.errors import UserError
-
         raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, or --manifest FILE.toml")
 
 
@@ -224,8 +221,6 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
         return Path(out) / "sim"
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         return Path(inputs[0]) / "sim"
-    from cooprint.errors import UserError
-
     raise UserError("simulating files: give --out DIR for the results (DIR/sim/summary.json)")
 
 
@@ -249,8 +244,6 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     folder = _sim_folder(inputs, out)
     target = folder / "summary.json"
     if target.exists() and not force:
-        from cooprint.errors import UserError
-
         raise UserError(f"{target}: exists; use --force to replace it")
     result = run_sim(load_inputs(list(inputs), manifest), accel=accel)
     record = summary(result)
@@ -293,14 +286,10 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
 
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
-        from cooprint.errors import UserError
-
         raise UserError("give --duration or --speedup, not both")
     result = run_sim(load_inputs(list(inputs), manifest), checks=False)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
-        from cooprint.errors import UserError
-
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
     target = Path(out) if out else _sim_folder(inputs, None) / name

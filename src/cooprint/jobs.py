@@ -245,7 +245,6 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     for cid, solid in solids.items():
         layers[cid] = list(enumerate(iter_layers(solid, s, base=base), start=ranges[cid][0]))
         done += len(layers[cid])
-        done += len(layers[cid])
         if progress:
             progress("slice", done, total)
     if progress:
@@ -291,7 +290,7 @@ def coop_record(job: CoopJob) -> dict[str, Any]:
         r["gcode"] = f"robots/{name}.gcode"
         r["stats"] = program_stats(job.programs[name], s)
     for row in record["chunks"]:
-        row["layers"] = len([1 for _, layer in job.layers[row["id"]] if len(layer)])
+        row["layers"] = sum(1 for _, layer in job.layers[row["id"]] if len(layer))
     record["format"] = "cooprint-job/2"
     record["schedule"]["events"] = [
         {"robot": name, "kind": "notify" if p.kind[i] == NOTIFY else "wait", "events": list(p.events[p.event[i]])}

@@ -53,6 +53,8 @@ _ROLE_OF_WORD = {w: r for r, w in ROLE_WORDS.items()}
 #: Coordinates of a program lie on this grid, mm (what the writer's three decimals hold).
 RESOLUTION = 1e-3
 FORMAT = "cooprint-coop/1"
+#: The per-command arrays of a :class:`Program`, in field order.
+COLUMNS = ("kind", "xyz", "role", "width", "layer", "height", "chunk", "event")
 
 
 class ProgramError(UserError):
@@ -114,8 +116,8 @@ class Program:
         if not isinstance(other, Program):
             return NotImplemented
         return (self.robot == other.robot and self.chunks == other.chunks and self.events == other.events
-                and all(np.array_equal(getattr(self, f), getattr(other, f), equal_nan=f in ("xyz",))
-                        for f in ("kind", "xyz", "role", "width", "layer", "height", "chunk", "event")))
+                and all(np.array_equal(getattr(self, f), getattr(other, f), equal_nan=f == "xyz")
+                        for f in COLUMNS))
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -145,12 +147,11 @@ class Program:
         chunks: list[str] = []
         for p in pieces:
             chunks += [c for c in p.chunks if c not in chunks]
-        cols: dict[str, list[np.ndarray]] = {f: [] for f in ("kind", "xyz", "role", "width", "layer", "height",
-                                                             "chunk", "event")}
+        cols: dict[str, list[np.ndarray]] = {f: [] for f in COLUMNS}
         events: list[tuple[str, ...]] = []
         for p in pieces:
             remap = np.array([chunks.index(c) for c in p.chunks] + [-1], dtype=np.int16)
-            for f in ("kind", "xyz", "role", "width", "layer", "height"):
+            for f in COLUMNS[:6]:  # as they are; chunk and event renumbered
                 cols[f].append(getattr(p, f))
             cols["chunk"].append(remap[p.chunk])  # -1 indexes the appended -1
             cols["event"].append(np.where(p.event >= 0, p.event + len(events), -1).astype(np.int32))

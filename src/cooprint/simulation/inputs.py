@@ -16,7 +16,7 @@ from cooprint.errors import UserError
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
-from cooprint.slicing.paths import INFILL, TRAVEL
+from cooprint.slicing.paths import INFILL, TRAVEL, extrusion_width
 
 
 class SimInputError(UserError):
@@ -153,15 +153,18 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
             continue
         words = line.split()
         code = words[0].upper()
-        if code in ("G0", "G1"):
+        if code in ("G0", "G1", "G92"):
             vals = {}
             for w in words[1:]:
                 try:
-                    vals[w[0].upper()] = float(w[1:])
+                    vals[w[0].upper()] = float(w[1:] or (0 if code == "G92" else "x"))  # G92 E: E0
                 except (ValueError, IndexError):
                     raise SimInputError(f"{p}:{lineno}: '{w}' is not a G-code word with a number") from None
             if not all(math.isfinite(v) for v in vals.values()):
                 raise SimInputError(f"{p}:{lineno}: a coordinate that is not a finite number")
+        if code == "G92":
+            e = vals.get("E", e)
+        elif code in ("G0", "G1"):
             if "F" in vals:
                 if vals["F"] <= 0:
                     raise SimInputError(f"{p}:{lineno}: feed rate F{vals['F']:g} is not positive")
@@ -190,9 +193,8 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
             kinds.append(MOVE)
             xyz.append(tuple(target))
             speeds.append(feed)
-            # the width whose flow cross-section (extrusion_area) carries the filament pushed
-            area = de * fil_area / length if deposit else 0.0
-            widths.append((area - math.pi * layer_h ** 2 / 4) / layer_h + layer_h if deposit else 0.0)
+            # the width whose flow cross-section carries the filament pushed
+            widths.append(float(extrusion_width(de * fil_area / length, layer_h)) if deposit else 0.0)
             heights.append(layer_h if deposit else 0.0)
             pushed.append(de)
             pos = target
@@ -200,10 +202,6 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
             rel_xyz = code == "G91"
         elif code in ("M82", "M83"):
             rel_e = code == "M83"
-        elif code == "G92":
-            for w in words[1:]:
-                if w[:1].upper() == "E":
-                    e = float(w[1:] or 0)
     kind = np.array(kinds, dtype=np.uint8)
     prog = make_program(p.stem, kind, np.array(xyz).reshape(-1, 3) if xyz else None,
                         role=np.where(kind == MOVE, INFILL, TRAVEL), width=np.array(widths),

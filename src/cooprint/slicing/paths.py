@@ -74,6 +74,12 @@ def extrusion_area(width: np.ndarray | float, height: float) -> np.ndarray | flo
     return (np.asarray(width) - height) * height + np.pi * (height / 2) ** 2
 
 
+def extrusion_width(area: np.ndarray | float, height: np.ndarray | float) -> np.ndarray | float:
+    """The width whose :func:`extrusion_area` at ``height`` is ``area``, mm (its inverse)."""
+    h = np.asarray(height)
+    return (np.asarray(area) - np.pi * (h / 2) ** 2) / h + h
+
+
 def extrusion_spacing(width: float, height: float) -> float:
     """Centre distance of two touching lines of that flow, mm: ``w - h (1 - pi / 4)``.
 
