@@ -1,5 +1,6 @@
 """The simulator: time model, NOTIFY/WAIT, deadlocks, physical checks, inputs, CLI, pictures."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -10,7 +11,7 @@ from cooprint.cli import main
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.program.commands import parse_coop
 from cooprint.render.sim import render_gantt, render_snapshot
-from cooprint.simulation import SimInput, load_inputs, simulate, summary
+from cooprint.simulation import KINDS, SimInput, load_inputs, simulate, summary
 from cooprint.simulation.inputs import SimInputError, read_gcode
 from cooprint.simulation.timeline import SimRobot
 
@@ -116,6 +117,42 @@ def test_bad_gcode_and_manifests_are_clear_errors(tmp_path):
         load_inputs([str(tmp_path / "A.coop")])
 
 
+def test_a_slope_steeper_than_theta_max_hits_the_printhead(car_bundle):
+    # planned for the default printhead (theta_max = atan(100 / 25) = 76 deg); a printhead only
+    # 30 mm tall (theta_max 50 deg) meets the centre chunk's slope when the side chunks are printed
+    inp = load_inputs([str(car_bundle)])
+    short = simulate(dataclasses.replace(inp, profile=dataclasses.replace(inp.profile, nozzle_height=30.0)))
+    hits = [f for f in short.findings if f.kind == "printhead-hits-material"]
+    assert {f.chunk for f in hits} == {"L1", "R1"} and all(f.count > 10 for f in hits)
+    for f in hits:  # printing low, next to the centre chunk printed up to the roof before
+        assert f.position[2] < 130 - 30 and abs(f.position[1]) < 80
+    assert not [f for f in simulate(inp).findings if f.kind == "printhead-hits-material"]
+
+
+def test_material_laid_over_air_is_an_overhang():
+    floor = "MOVE 0 0 0.2\nTOOL ON\nMOVE 100 0 0.2\nTOOL OFF\n"
+    on_top = "MOVE 0 0 0.4\nTOOL ON\nMOVE 100 0 0.4\nTOOL OFF\n"  # right above: supported
+    beside = "MOVE 0 50 0.6\nTOOL ON\nMOVE 100 50 0.6\nTOOL OFF\n"  # 50 mm aside, 2 layers up
+    res = _sim(_robot("A", floor + on_top + beside, start=[0, 0, 0.2]))
+    (f,) = res.findings
+    assert f.kind == "overhang" and f.position[1] == 50 and f.position[2] == pytest.approx(0.6)
+    assert f.count == 50  # every 2 mm sample of the 100 mm line
+    # one layer of air is not an overhang
+    assert not _sim(_robot("A", floor + on_top.replace("0.4", "0.6"), start=[0, 0, 0.2])).findings
+
+
+def test_a_solid_plan_has_no_finding_at_all(tmp_path):
+    from cooprint.jobs import run
+    from cooprint.models import cylinder
+
+    out = tmp_path / "job"
+    run(cylinder(60.0, 80.0), out, overrides={"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0,
+                                              "slicing.extrusion_width": 1.6, "slicing.nozzle_diameter": 1.2},
+        picture=False)
+    res = simulate(load_inputs([str(out)]))
+    assert res.findings == [] and res.checked == KINDS
+
+
 @pytest.fixture(scope="module")
 def car_bundle(tmp_path_factory):
     from cooprint.jobs import run
@@ -130,7 +167,12 @@ def car_bundle(tmp_path_factory):
 
 def test_a_plan_from_cooprint_run_simulates_clean(car_bundle):
     res = simulate(load_inputs([str(car_bundle)]))
-    assert res.findings == []
+    assert res.checked == KINDS
+    # the car's belly (z 25 mm) spans between its wheels, which other chunks print later: the
+    # first layer of the belly in each chunk is laid down over air, and nothing else is
+    assert {f.kind for f in res.findings} == {"overhang"}
+    assert sorted(f.chunk for f in res.findings) == ["C", "L1", "R1"]
+    assert all(f.position[2] == pytest.approx(26.0) for f in res.findings)
     s = summary(res)
     a, b = s["robots"]
     assert b["waiting_s"] > 0 and a["waiting_s"] == 0
@@ -204,7 +246,8 @@ def test_run_then_simulate(tmp_path):
     assert main(["run", str(stl), "--out", str(out), "-q", "--no-picture", "--simulate", "--config",
                  str(_coarse_toml(tmp_path))]) == 0
     s = json.loads((out / "sim" / "summary.json").read_text())
-    assert s["findings"] == [] and {r["name"] for r in s["robots"]} == {"A", "B"}
+    assert {f["kind"] for f in s["findings"]} == {"overhang"}  # the belly: see above
+    assert {r["name"] for r in s["robots"]} == {"A", "B"}
     assert (out / "sim" / "gantt.png").exists() and (out / "sim" / "snapshot.png").exists()
 
 

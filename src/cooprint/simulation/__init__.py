@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import body_on_material, robots_collide
+from cooprint.simulation.checks import (STEP, Material, body_on_material, overhangs, printhead_hits_material,
+                                        robots_collide)
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule
@@ -51,12 +52,19 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
     p = inp.profile
     limits = (inp.limits or MachineLimits.planar(p.acceleration, p.jerk)) if accel else None
     timelines, findings = schedule(inp.robots, p.print_speed, p.travel_speed, limits)
-    if checks and inp.placed:
-        findings += body_on_material(inp.robots, timelines, p)
-        findings += robots_collide(inp.robots, timelines, p)
+    checked = ["deadlock"]
+    if checks:
+        material = Material.sample(inp.robots, timelines, STEP, inp.slicing.layer_height)
+        if inp.placed:  # where a printer's body stands is not known
+            findings += body_on_material(inp.robots, timelines, p, material)
+            findings += robots_collide(inp.robots, timelines, p)
+            checked += ["body-on-material", "robots-collide"]
+        findings += printhead_hits_material(inp.robots, timelines, p, material)
+        findings += overhangs(inp.robots, timelines, material, inp.slicing)
+        checked += ["printhead-hits-material", "overhang"]
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source, accel,
-                     ("deadlock",) + (("body-on-material", "robots-collide") if checks and inp.placed else ()))
+                     tuple(k for k in KINDS if k in checked))
 
 
 def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
