@@ -368,28 +368,39 @@ class _Lines:
         return None  # an annotation of a later version: a comment here
 
 
-#: Lines read without the line parser (what the writer emits most after MOVE).
-_PLAIN = {b"TOOL ON": (TOOL_ON, None), b"TOOL OFF": (TOOL_OFF, None), b"TOOL ON\r": (TOOL_ON, None),
-          b"TOOL OFF\r": (TOOL_OFF, None)}
+def _line_heads(probe: np.ndarray, starts: np.ndarray, ends: np.ndarray, text: bytes) -> np.ndarray:
+    """Whether each line (``starts..ends`` of ``probe``, the text's bytes followed by 8 zeros; a
+    trailing carriage return ignored) is exactly ``text``."""
+    n = len(text)
+    length = ends - starts
+    hit = (length == n) | ((length == n + 1) & (probe[ends - 1] == 13))
+    for k, ch in enumerate(text):
+        hit &= probe[starts + k] == ch
+    return hit
 
 
-def _move_lines_fast(data: bytes, starts: np.ndarray, ends: np.ndarray) -> np.ndarray | None:
-    """(k, 3) coordinates of the lines ``starts..ends`` (each beginning with 'MOVE' and a blank),
+def _move_lines_fast(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, is_move: np.ndarray
+                     ) -> np.ndarray | None:
+    """(k, 3) coordinates of the lines where ``is_move`` (each beginning with 'MOVE' and a blank),
     read in one pass, or ``None`` when some line is not in the plain form (numbers made of
     digits, signs, points and exponents; single commas or blanks between them; no comment): the
     line parser then reads them all."""
-    payload = b"\n".join([data[a + 5:b] for a, b in zip(starts.tolist(), ends.tolist())])
+    length = np.append(ends - starts + 1, 0)[:len(starts)]  # each line with its newline
+    keep = np.repeat(is_move, length)[:len(buf)]
+    keep[(starts[is_move, None] + np.arange(5)).ravel()] = False  # 'MOVE '
+    payload = buf[keep].tobytes()
     if payload.translate(None, b"0123456789+-.eE, \t\r\n"):
         return None
     tight = payload.replace(b" ", b"").replace(b"\t", b"").replace(b"\r", b"")  # commas in their place?
     if (b",," in tight or b"\n," in tight or b",\n" in tight or tight.startswith(b",")
             or tight.endswith(b",")):
         return None
+    del tight
     try:
         xyz = np.loadtxt(io.BytesIO(payload.replace(b",", b" ")), dtype=np.float64, ndmin=2)
     except ValueError:
         return None
-    if xyz.shape != (len(starts), 3) or not np.isfinite(xyz).all():
+    if xyz.shape != (int(is_move.sum()), 3) or not np.isfinite(xyz).all():
         return None
     return xyz
 
@@ -414,30 +425,32 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     nl = np.flatnonzero(buf == 10)
     starts = np.r_[0, nl + 1]
     ends = np.r_[nl, len(buf)]
-    head = np.zeros((len(starts), 5), dtype=np.uint8)
-    long = ends - starts >= 5
-    head[long] = buf[starts[long, None] + np.arange(5)]
-    is_move = long & (head[:, :4] == np.frombuffer(b"MOVE", np.uint8)).all(axis=1) & np.isin(head[:, 4], (32, 9))
-    move_idx = np.flatnonzero(is_move)
-    fast = _move_lines_fast(data, starts[move_idx], ends[move_idx]) if len(move_idx) else np.zeros((0, 3))
+    probe = np.concatenate([buf, np.zeros(8, np.uint8)])  # a line's first bytes, past the end too
+    is_move = (ends - starts >= 5) & np.isin(probe[starts + 4], (32, 9))
+    for k, ch in enumerate(b"MOVE"):
+        is_move &= probe[starts + k] == ch
+    fast = _move_lines_fast(buf, starts, ends, is_move) if is_move.any() else np.zeros((0, 3))
+    plain = np.zeros(len(starts), dtype=np.int8)  # lines read without the line parser: 1 TOOL ON, 2 TOOL OFF
+    plain[_line_heads(probe, starts, ends, b"TOOL ON")] = 1
+    plain[_line_heads(probe, starts, ends, b"TOOL OFF")] = 2
+    del probe
+    if fast is None:
+        is_move[:] = False
     lines = _Lines(source, robot)
-    others = np.flatnonzero(~is_move) if fast is not None else np.arange(len(starts))
+    others = np.flatnonzero(~is_move & (plain == 0))
     # (line index, kind, payload) of every command the line parser reads; annotations apart
     cmd_line, cmd_kind, cmd_xyz, events = [], [], [], []
     ann_line: dict[str, list[int]] = {"chunk": [], "layer": [], "path": []}
     ann_val: dict[str, list] = {"chunk": [], "layer": [], "path": []}
-    begin, finish = starts.tolist(), ends.tolist()
-    for i in others.tolist():
-        raw = data[begin[i]:finish[i]]
-        got = _PLAIN.get(raw)
+    begin, finish = starts[others].tolist(), ends[others].tolist()
+    for i, a, b in zip(others.tolist(), begin, finish):
+        try:
+            line = data[a:b].decode("utf-8")
+        except UnicodeDecodeError:
+            raise lines.error(i + 1, 1, "not UTF-8 text") from None
+        got = lines.parse(line, i + 1)
         if got is None:
-            try:
-                line = raw.decode("utf-8")
-            except UnicodeDecodeError:
-                raise lines.error(i + 1, 1, "not UTF-8 text") from None
-            got = lines.parse(line, i + 1)
-            if got is None:
-                continue
+            continue
         if got[0] == "ann":
             ann_line[got[1]].append(i)
             ann_val[got[1]].append(got[2])
@@ -454,10 +467,12 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     xyz_of = np.full((len(line_of), 3), np.nan)
     if cmd_xyz:
         xyz_of[kind_of == MOVE] = np.array(cmd_xyz, dtype=np.float64)
-    if fast is not None and len(move_idx):
-        line_of = np.concatenate([line_of, move_idx])
-        kind_of = np.concatenate([kind_of, np.zeros(len(move_idx), np.uint8)])
-        xyz_of = np.concatenate([xyz_of, fast])
+    tool = np.flatnonzero(plain)
+    move_idx = np.flatnonzero(is_move)
+    line_of = np.concatenate([line_of, move_idx, tool])
+    kind_of = np.concatenate([kind_of, np.full(len(move_idx), MOVE, np.uint8),
+                              np.where(plain[tool] == 1, TOOL_ON, TOOL_OFF).astype(np.uint8)])
+    xyz_of = np.concatenate([xyz_of, fast if len(move_idx) else np.zeros((0, 3)), np.full((len(tool), 3), np.nan)])
     order = np.argsort(line_of, kind="stable")
     line_of, kind_of, xyz_of = line_of[order], kind_of[order], xyz_of[order]
 
