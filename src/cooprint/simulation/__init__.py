@@ -13,8 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import (STEP, Material, body_on_material, overhangs, printhead_hits_material,
-                                        robots_collide)
+from cooprint.simulation.checks import STEP, Material, footprint_checks, overhangs, robots_collide
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule
@@ -55,11 +54,11 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
     checked = ["deadlock"]
     if checks:
         material = Material.sample(inp.robots, timelines, STEP, inp.slicing.layer_height)
-        if inp.placed:  # where a printer's body stands is not known
-            findings += body_on_material(inp.robots, timelines, p, material)
+        # where a printer's body stands is not known: its G-code gets the printhead check only
+        findings += footprint_checks(inp.robots, timelines, p, material, body=inp.placed)
+        if inp.placed:
             findings += robots_collide(inp.robots, timelines, p)
             checked += ["body-on-material", "robots-collide"]
-        findings += printhead_hits_material(inp.robots, timelines, p, material)
         findings += overhangs(inp.robots, timelines, material, inp.slicing)
         checked += ["printhead-hits-material", "overhang"]
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))

@@ -52,59 +52,65 @@ OVERHANG_RADIUS = 5.0
 
 def path_samples(tl: Timeline, step: float, deposits_only: bool, moves: slice = slice(None)
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points (k, 3) along the moves (of the range ``moves``) every ``step`` mm and at their ends,
-    their times (k,) and the move each lies on (k,)."""
+    """Points (k, 3) float32 along the moves (of the range ``moves``) every ``step`` mm and at
+    their ends, their times (k,) and the move each lies on (k,)."""
     sel = np.arange(len(tl.t0))[moves]
     if deposits_only:
         sel = sel[tl.on[sel]]
     if len(sel) == 0:
-        return np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64)
-    p0, p1, t0, t1 = tl.p0[sel], tl.p1[sel], tl.t0[sel], tl.t1[sel]
-    n = np.maximum(np.ceil(np.linalg.norm(p1 - p0, axis=1) / step).astype(np.int64), 1)
-    move = np.repeat(np.arange(len(sel)), n)
-    frac = (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + 1) / np.repeat(n, n)
-    pts = p0[move] + frac[:, None] * (p1[move] - p0[move])
-    times = t0[move] + frac * (t1[move] - t0[move])
+        return np.zeros((0, 3), np.float32), np.zeros(0), np.zeros(0, np.int64)
+    p0 = tl.p0[sel].astype(np.float32)
+    d = tl.p1[sel].astype(np.float32) - p0
+    n = np.maximum(np.ceil(tl.length[sel] / step).astype(np.int64), 1)
+    frac = np.arange(1, int(n.sum()) + 1, dtype=np.float64)  # the j-th of n points: j / n
+    frac -= np.repeat((np.cumsum(n) - n).astype(np.float64), n)
+    frac *= np.repeat(1.0 / n, n)
+    pts = np.repeat(p0, n, axis=0)
+    pts += frac.astype(np.float32)[:, None] * np.repeat(d, n, axis=0)
+    times = np.repeat(tl.t0[sel], n)
+    times += frac * np.repeat(tl.t1[sel] - tl.t0[sel], n)
+    move = np.repeat(sel, n)
     if not deposits_only and sel[0] == 0:  # the very first position too
         pts = np.vstack([p0[:1], pts])
-        times = np.r_[t0[:1], times]
+        times = np.r_[tl.t0[:1], times]
         move = np.r_[0, move]
-    return pts, times, sel[move]
+    return pts, times, move
 
 
 def _step(timelines: dict[str, Timeline], step: float, deposits_only: bool) -> float:
     """``step``, or longer on a print so long that it would make more than ``MAX_SAMPLES``."""
-    total = sum(float(np.linalg.norm(tl.p1 - tl.p0, axis=1)[tl.on if deposits_only else slice(None)].sum())
-                for tl in timelines.values())
+    total = sum(float(tl.length[tl.on].sum() if deposits_only else tl.length.sum()) for tl in timelines.values())
     return max(step, total / MAX_SAMPLES)
 
 
 @dataclass(frozen=True)
 class Material:
-    """Every robot's deposited paths as points every ``step`` mm, in the order they were laid
-    down: position (k, 3), time (k,), layer height (k,), robot (k,) (its index in the list) and
-    move (k,) (its index in that robot's timeline)."""
+    """Every robot's deposited paths as points every ``step`` mm: position (k, 3) float32, time
+    (k,), layer height (k,) and move (k,) (its index in its robot's timeline); robot ``i``'s
+    points are ``bounds[i]:bounds[i + 1]``, in the order it laid them down."""
 
     xyz: np.ndarray
     t: np.ndarray
     h: np.ndarray
-    robot: np.ndarray
     move: np.ndarray
+    bounds: np.ndarray
 
     @staticmethod
     def sample(robots: list[SimRobot], timelines: dict[str, Timeline], step: float,
                layer_height: float) -> "Material":
         step = _step(timelines, step, deposits_only=True)
         parts = [path_samples(timelines[r.name], step, deposits_only=True) for r in robots]
-        if not parts:
-            return Material(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros(0, np.int16), np.zeros(0, np.int64))
-        t = np.concatenate([p[1] for p in parts])
-        order = np.argsort(t, kind="stable")  # each robot's part is in time order already: a merge
-        move = np.concatenate([p[2] for p in parts])
-        robot = np.repeat(np.arange(len(parts), dtype=np.int16), [len(p[1]) for p in parts])
-        h = np.concatenate([r.program.height[timelines[r.name].index[p[2]]] for r, p in zip(robots, parts)])
-        h = np.where(h > 0, h, layer_height)
-        return Material(np.vstack([p[0] for p in parts])[order], t[order], h[order], robot[order], move[order])
+        h = []
+        for r, (_, _, move) in zip(robots, parts):
+            per_move = r.program.height[timelines[r.name].index]
+            h.append(np.where(per_move > 0, per_move, layer_height)[move])
+        return Material(np.vstack([p[0] for p in parts] + [np.zeros((0, 3), np.float32)]),
+                        np.concatenate([p[1] for p in parts] + [np.zeros(0)]), np.concatenate(h + [np.zeros(0)]),
+                        np.concatenate([p[2] for p in parts] + [np.zeros(0, np.int64)]),
+                        np.cumsum([0] + [len(p[1]) for p in parts]))
+
+    def robot(self, i: int) -> slice:
+        return slice(int(self.bounds[i]), int(self.bounds[i + 1]))
 
 
 def _frame(facing: np.ndarray) -> np.ndarray:
@@ -152,34 +158,28 @@ class _Raster:
     a window: a footprint (``box`` relative to the nozzle) covers ``window`` cells from the cell
     of its low corner, which always lies in the padded grid after clipping."""
 
-    origin: np.ndarray  # (2,) of cell (0, 0), padding included
+    lo: np.ndarray  # (2,) float32: corner of the first cell inside the padding
     cell: float
     shape: tuple[int, int]
     window: tuple[int, int]
     box: tuple[float, float, float, float]
 
     @staticmethod
-    def over(uv: np.ndarray, box: tuple[float, float, float, float], tolerance: float) -> "_Raster":
-        lo = uv.min(axis=0) if len(uv) else np.zeros(2)
-        hi = uv.max(axis=0) if len(uv) else np.zeros(2)
-        size = np.array([box[1] - box[0], box[3] - box[2]])
-        area = float(np.prod(hi - lo + 2 * size + 2 * tolerance))
-        cell = max(tolerance / 2, np.sqrt(area / MAX_CELLS))
+    def over(lo: np.ndarray, hi: np.ndarray, cell: float, box: tuple[float, float, float, float]) -> "_Raster":
+        size = (box[1] - box[0], box[3] - box[2])
         window = tuple(int(np.ceil(s / cell)) + 1 for s in size)
-        origin = lo - np.array(window) * cell
         shape = tuple(int(np.floor((h - l) / cell)) + 1 + 2 * w for l, h, w in zip(lo, hi, window))
-        return _Raster(origin, cell, shape, window, box)
+        return _Raster(lo, cell, shape, window, box)
 
-    def cells(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Cell indices (row, column) of points (material: always inside the grid)."""
-        c = np.floor((uv - self.origin) / self.cell).astype(np.int64)
-        return c[:, 0], c[:, 1]
+    def cells(self, base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cell indices (row, column) of material from its cells (k, 2) counted from ``lo``."""
+        return base[:, 0] + self.window[0], base[:, 1] + self.window[1]
 
     def windows(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Index, into the window-filtered grid, of each nozzle position's footprint."""
-        c = np.floor((uv + np.array([self.box[0], self.box[2]]) - self.origin) / self.cell).astype(np.int64)
-        return (np.clip(c[:, 0], 0, self.shape[0] - self.window[0]),
-                np.clip(c[:, 1], 0, self.shape[1] - self.window[1]))
+        c = np.floor((uv + np.array([self.box[0], self.box[2]], np.float32) - self.lo) / self.cell).astype(np.int64)
+        return (np.clip(c[:, 0] + self.window[0], 0, self.shape[0] - self.window[0]),
+                np.clip(c[:, 1] + self.window[1], 0, self.shape[1] - self.window[1]))
 
 
 def _nozzle_batches(tl: Timeline, step: float):
@@ -188,87 +188,126 @@ def _nozzle_batches(tl: Timeline, step: float):
         yield path_samples(tl, step, False, slice(first, first + MOVES_AT_ONCE))
 
 
-def body_on_material(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
-                     material: Material, step: float = STEP, tolerance: float = TOLERANCE) -> list[Finding]:
-    """Every robot whose body stands on material laid down before (one finding per robot and
-    chunk, with the first instant and how many nozzle samples)."""
+def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
+                     material: Material, body: bool = True, head: bool = True, step: float = STEP,
+                     tolerance: float = TOLERANCE) -> list[Finding]:
+    """``body-on-material`` (``body``): a robot's body over material laid down before; and
+    ``printhead-hits-material`` (``head``): material laid down before within the printhead's
+    reach and higher than ``nozzle_height`` over the nozzle tip. One finding per robot, kind and
+    chunk, with the first instant and how many nozzle samples."""
     n_step = _step(timelines, step, deposits_only=False)
-    box = body_box(profile, tolerance)
+    boxes = ([body_box(profile, tolerance)] if body else []) + ([head_box(profile, tolerance)] if head else [])
+    if not boxes:
+        return []
     findings = []
     for r in robots:
         tl = timelines[r.name]
-        frame = _frame(r.facing)
+        frame = _frame(r.facing).astype(np.float32)
         m_uv = material.xyz[:, :2] @ frame.T
-        grid = _Raster.over(m_uv, box, tolerance)
-        first = np.full(grid.shape, np.inf)  # earliest time material lay in each cell
-        row, col = grid.cells(m_uv)
-        np.minimum.at(first, (row, col), material.t)
-        del m_uv, row, col
-        first = _sliding(_sliding(first, grid.window[0], 0, np.minimum), grid.window[1], 1, np.minimum)
-        hits = []
+        lo = m_uv.min(axis=0) if len(m_uv) else np.zeros(2, np.float32)
+        hi = m_uv.max(axis=0) if len(m_uv) else np.zeros(2, np.float32)
+        size = max((b[1] - b[0]) + (b[3] - b[2]) for b in boxes)
+        cell = max(tolerance / 2, float(np.sqrt(np.prod(hi - lo + 2 * size) / MAX_CELLS)))
+        base = np.floor((m_uv - lo) / np.float32(cell)).astype(np.int32)  # cells of the material
+        checks = ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), base, material)] if body else []) + \
+                 ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), base, m_uv, material, profile, tolerance)]
+                  if head else [])
+        del base
         for xyz, t, move in _nozzle_batches(tl, n_step):
-            wr, wc = grid.windows(xyz[:, :2] @ frame.T)
-            k = np.flatnonzero(first[wr, wc] < t)
-            hits.append((t[k], xyz[k], move[k]))
-        findings += _group(hits, "body-on-material", r, tl, "the body stands on material laid down before")
+            uv = xyz[:, :2] @ frame.T
+            for c in checks:
+                k = c.hits(uv, xyz[:, 2], t)
+                c.found.append((t[k], xyz[k], move[k]))
+        for c in checks:
+            findings += _group(c.found, c.kind, r, tl, c.detail)
     return findings
 
 
-def printhead_hits_material(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
-                            material: Material, step: float = STEP, tolerance: float = TOLERANCE) -> list[Finding]:
-    """Every robot whose printhead meets material laid down before: within its reach around the
-    nozzle and higher than ``nozzle_height`` above the nozzle tip (one finding per robot and
-    chunk)."""
-    n_step = _step(timelines, step, deposits_only=False)
-    box = head_box(profile, tolerance)
-    lift = profile.nozzle_height + tolerance
-    m_z, m_t = material.xyz[:, 2], material.t
-    top = np.maximum.accumulate(m_z) if len(m_z) else m_z  # the highest material laid down so far
-    findings = []
-    for r in robots:
-        tl = timelines[r.name]
-        frame = _frame(r.facing)
-        m_uv = material.xyz[:, :2] @ frame.T
-        grid = _Raster.over(m_uv, box, tolerance)
-        high = np.full(grid.shape, -np.inf, dtype=np.float32)  # highest material in each cell so far
-        row, col = grid.cells(m_uv)
-        added = 0
-        hits = []
-        for xyz, t, move in _nozzle_batches(tl, n_step):
-            uv_all = xyz[:, :2] @ frame.T
-            for a in range(0, len(t), BATCH):
-                uv, bt, under = uv_all[a:a + BATCH], t[a:a + BATCH], xyz[a:a + BATCH, 2] + lift
-                ka, kb = np.searchsorted(m_t, [bt.min(), bt.max()])
-                if kb == 0 or top[kb - 1] <= under.min():
-                    continue  # nothing laid down yet reaches that high
-                if ka > added:
-                    np.maximum.at(high, (row[added:ka], col[added:ka]), m_z[added:ka].astype(np.float32))
-                    added = ka
-                hit = np.zeros(len(bt), dtype=bool)
-                if ka > 0:
-                    wr, wc = grid.windows(uv)
-                    r0, c0 = wr.min(), wc.min()
-                    part = high[r0:wr.max() + grid.window[0], c0:wc.max() + grid.window[1]]
-                    part = _sliding(_sliding(part, grid.window[0], 0, np.maximum), grid.window[1], 1, np.maximum)
-                    hit = part[wr - r0, wc - c0] > under
-                # material laid down during the batch: point by point
-                near = np.arange(ka, kb)
-                near = near[m_z[near] > under.min()]
-                if len(near):
-                    lo, hi = uv.min(axis=0), uv.max(axis=0)
-                    near = near[(m_uv[near, 0] >= lo[0] + box[0]) & (m_uv[near, 0] <= hi[0] + box[1])
-                                & (m_uv[near, 1] >= lo[1] + box[2]) & (m_uv[near, 1] <= hi[1] + box[3])]
-                if len(near):
-                    du = m_uv[near, 0][None, :] - uv[:, 0, None]
-                    dv = m_uv[near, 1][None, :] - uv[:, 1, None]
-                    hit |= ((du >= box[0]) & (du <= box[1]) & (dv >= box[2]) & (dv <= box[3])
-                            & (m_z[near][None, :] > under[:, None]) & (m_t[near][None, :] < bt[:, None])).any(axis=1)
-                k = np.flatnonzero(hit) + a
-                hits.append((t[k], xyz[k], move[k]))
-        findings += _group(hits, "printhead-hits-material", r, tl,
-                           f"material laid down before rises within the printhead's reach ({profile.nozzle_depth:g} mm) "
-                           f"above its underside ({profile.nozzle_height:g} mm over the nozzle tip)")
-    return findings
+class _BodyCheck:
+    """The earliest time material lay in each cell, its minimum over the body's footprint taken
+    once (a sliding window); then one look-up per nozzle sample."""
+
+    kind = "body-on-material"
+    detail = "the body stands on material laid down before"
+
+    def __init__(self, grid: _Raster, cells: np.ndarray, material: Material):
+        self.grid = grid
+        first = np.full(grid.shape, np.inf)
+        np.minimum.at(first, grid.cells(cells), material.t)
+        self.first = _sliding(_sliding(first, self.grid.window[0], 0, np.minimum), self.grid.window[1], 1,
+                              np.minimum)
+        self.found: list = []
+
+    def hits(self, uv: np.ndarray, z: np.ndarray, t: np.ndarray) -> np.ndarray:
+        return np.flatnonzero(self.first[self.grid.windows(uv)] < t)
+
+
+class _HeadCheck:
+    """The highest material laid down so far in each cell: the nozzle samples are swept in time
+    order in batches of ``BATCH``; before each batch the material laid down until its start is
+    added (each robot's points are in time order), and the maximum over the printhead's reach is
+    taken over the batch's region only; the material laid down during the batch is compared
+    point by point."""
+
+    kind = "printhead-hits-material"
+
+    def __init__(self, grid: _Raster, cells: np.ndarray, m_uv: np.ndarray, material: Material,
+                 profile: RobotProfile, tolerance: float):
+        self.grid, self.box = grid, grid.box
+        self.lift = profile.nozzle_height + tolerance
+        self.high = np.full(grid.shape, -np.inf, dtype=np.float32)
+        self.cells = grid.cells(cells)
+        self.m_uv, self.m_z, self.m_t = m_uv, material.xyz[:, 2], material.t
+        self.blocks = [material.robot(i) for i in range(len(material.bounds) - 1)]
+        self.top = np.concatenate([np.maximum.accumulate(self.m_z[b]) for b in self.blocks if b.stop > b.start]
+                                  + [np.zeros(0, np.float32)])  # each robot's highest so far
+        self.added = [b.start for b in self.blocks]
+        self.detail = (f"material laid down before rises within the printhead's reach ({profile.nozzle_depth:g} mm) "
+                       f"above its underside ({profile.nozzle_height:g} mm over the nozzle tip)")
+        self.found: list = []
+
+    def hits(self, uv: np.ndarray, z: np.ndarray, t: np.ndarray) -> np.ndarray:
+        out = []
+        for a in range(0, len(t), BATCH):
+            hit = self._batch(uv[a:a + BATCH], z[a:a + BATCH] + self.lift, t[a:a + BATCH])
+            if hit is not None:
+                out.append(np.flatnonzero(hit) + a)
+        return np.concatenate(out) if out else np.zeros(0, np.int64)
+
+    def _batch(self, uv: np.ndarray, under: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+        low = under.min()
+        spans = []  # per robot: its points laid down before the batch, and during it
+        for b in self.blocks:
+            ka, kb = np.searchsorted(self.m_t[b], [t[0], t[-1]]) + b.start
+            spans.append((b.start, ka, kb))
+        if not any(kb > s and self.top[kb - 1] > low for s, _, kb in spans):
+            return None  # nothing laid down yet reaches that high
+        for i, (s, ka, _) in enumerate(spans):
+            if ka > self.added[i]:
+                new = slice(self.added[i], ka)
+                np.maximum.at(self.high, (self.cells[0][new], self.cells[1][new]), self.m_z[new])
+                self.added[i] = ka
+        box, window = self.box, self.grid.window
+        hit = np.zeros(len(t), dtype=bool)
+        if any(ka > s for s, ka, _ in spans):
+            wr, wc = self.grid.windows(uv)
+            r0, c0 = wr.min(), wc.min()
+            part = self.high[r0:wr.max() + window[0], c0:wc.max() + window[1]]
+            part = _sliding(_sliding(part, window[0], 0, np.maximum), window[1], 1, np.maximum)
+            hit = part[wr - r0, wc - c0] > under
+        near = np.concatenate([np.arange(ka, kb) for _, ka, kb in spans])  # during the batch: point by point
+        near = near[self.m_z[near] > low]
+        if len(near):
+            lo, hi = uv.min(axis=0), uv.max(axis=0)
+            m = self.m_uv[near]
+            near = near[(m[:, 0] >= lo[0] + box[0]) & (m[:, 0] <= hi[0] + box[1])
+                        & (m[:, 1] >= lo[1] + box[2]) & (m[:, 1] <= hi[1] + box[3])]
+        if len(near):
+            du = self.m_uv[near, 0][None, :] - uv[:, 0, None]
+            dv = self.m_uv[near, 1][None, :] - uv[:, 1, None]
+            hit |= ((du >= box[0]) & (du <= box[1]) & (dv >= box[2]) & (dv <= box[3])
+                    & (self.m_z[near][None, :] > under[:, None]) & (self.m_t[near][None, :] < t[:, None])).any(axis=1)
+        return hit
 
 
 def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: Material,
@@ -291,47 +330,55 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
     cxy = np.floor(xyz[:, :2] / cell).astype(np.int64)
     cxy -= cxy.min(axis=0) - 2
     ny = int(cxy[:, 1].max()) + 3
-    zq = np.round((xyz[:, 2] - xyz[:, 2].min()) * 1000).astype(np.int64)  # micrometres
+    zmin = float(xyz[:, 2].min())
+    zq = np.round((xyz[:, 2] - zmin) * 1000).astype(np.int64)  # micrometres above the lowest point
     nz = int(zq.max()) + 1
-    # the earliest time of each (cell, height)
+    # everything in the order of (cell, height); the earliest time of each (cell, height)
     own = (cxy[:, 0] * ny + cxy[:, 1]) * nz
-    key, first = _min_by_key(own + zq, t)
-    band = (np.clip(np.round(zq - 2500 * h), 0, None).astype(np.int64),
-            np.clip(np.round(zq - 500 * h), -1, None).astype(np.int64))
-    # on the floor, or one layer of air above it; else look in the point's own cell (most points
-    # have material right below), then in the 24 cells around
-    todo = np.flatnonzero(xyz[:, 2] > 2.5 * h + 1e-6)
-    todo = todo[np.argsort(own[todo], kind="stable")]  # look-ups in key order
+    order = np.argsort(own + zq)
+    own, zq, t_s, h_s = own[order], zq[order], t[order], h[order]
+    del cxy
+    group = np.r_[True, (own[1:] + zq[1:]) != (own[:-1] + zq[:-1])]
+    key = own[group] + zq[group]
+    first = np.minimum.reduceat(t_s, np.flatnonzero(group))
+    gid = np.cumsum(group) - 1
+    del group
+    band = (np.clip(np.round(zq - 2500 * h_s), 0, None).astype(np.int64),
+            np.clip(np.round(zq - 500 * h_s), -1, None).astype(np.int64))
+    # on the floor, or one layer of air above it: supported; most other points have material
+    # right below in their own cell: one of the three (cell, height)s just before their own
+    ok = zq + round(zmin * 1000) <= np.round(2500 * h_s) + 1
+    for back in (1, 2, 3):
+        g = np.maximum(gid - back, 0)
+        below = key[g] - own
+        ok |= (gid >= back) & (below >= band[0]) & (below <= band[1]) & (first[g] < t_s)
+    todo = np.flatnonzero(~ok)
+    del ok, g, below, gid
+    # the rest: every height in the band, in the own cell and the 24 cells around
     for dx, dy in [(0, 0)] + [(dx, dy) for dx in range(-2, 3) for dy in range(-2, 3) if dx or dy]:
+        if len(todo) == 0:
+            break
         base = own[todo] + (dx * ny + dy) * nz
         lo = np.searchsorted(key, base + band[0][todo], side="left")
         hi = np.searchsorted(key, base + band[1][todo], side="right")
         found = np.zeros(len(todo), dtype=bool)
         live = np.flatnonzero(lo < hi)
         while len(live):  # each height in the band, lowest first
-            ok = first[lo[live]] < t[todo[live]]
+            ok = first[lo[live]] < t_s[todo[live]]
             found[live[ok]] = True
             lo[live] += 1
             live = live[~ok & (lo[live] < hi[live])]
         todo = todo[~found]
-        if len(todo) == 0:
-            break
+    todo = order[todo]  # back to the material's order
     findings = []
+    todo.sort()
     for i, r in enumerate(robots):
-        bad = todo[material.robot[todo] == i]
+        block = material.robot(i)
+        bad = todo[np.searchsorted(todo, block.start):np.searchsorted(todo, block.stop)]
         findings += _group([(t[bad], xyz[bad], material.move[bad])], "overhang", r, timelines[r.name],
                            f"material laid down with nothing below it within {radius:g} mm (more than one layer "
                            "of air)")
     return findings
-
-
-def _min_by_key(key: np.ndarray, value: np.ndarray, presorted: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct keys, sorted, and the smallest value of each."""
-    if not presorted:
-        order = np.argsort(key, kind="stable")
-        key, value = key[order], value[order]
-    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    return key[start], np.minimum.reduceat(value, start)
 
 
 def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
@@ -403,5 +450,4 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["Material", "body_box", "body_on_material", "head_box", "overhangs", "path_samples",
-           "printhead_hits_material", "robots_collide"]
+__all__ = ["Material", "body_box", "footprint_checks", "head_box", "overhangs", "path_samples", "robots_collide"]

@@ -12,6 +12,7 @@ can never go on are a deadlock, found from the commands alone, before any geomet
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -78,6 +79,12 @@ class Timeline:
     index: np.ndarray
     waits: list = field(default_factory=list)
     notifies: list = field(default_factory=list)
+
+    @cached_property
+    def length(self) -> np.ndarray:
+        """(k,) length of each move, mm."""
+        d = self.p1 - self.p0
+        return np.sqrt(np.einsum("ij,ij->i", d, d))
 
     @property
     def end(self) -> float:
