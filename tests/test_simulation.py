@@ -5,6 +5,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from PIL import Image
 
 from cooprint.cli import main
@@ -256,3 +258,42 @@ def _coarse_toml(tmp_path):
     p.write_text("[slicing]\nlayer_height = 1.0\nfirst_layer_height = 1.0\nextrusion_width = 1.6\n"
                  "nozzle_diameter = 1.2\n")
     return p
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), batch=st.integers(1, 40))
+def test_the_raster_checks_agree_with_looking_at_every_point(seed, batch):
+    """Body and printhead check on rasters against the definitions, point by point: material
+    deeper than the tolerance inside the footprint (and, for the printhead, higher than its
+    underside) laid down before is always found; what is found lies inside the footprint."""
+    from cooprint.simulation import checks
+
+    rng = np.random.default_rng(seed)
+    prof = RobotProfile(build_depth=10.0, body_length=20.0, body_width=16.0, nozzle_height=5.0, nozzle_depth=6.0)
+    m_xyz = np.column_stack([rng.uniform(-40, 40, (300, 2)), rng.uniform(0, 20, 300)]).astype(np.float32)
+    m_t = np.sort(rng.uniform(0, 100, 300))
+    n_xyz = np.column_stack([rng.uniform(-50, 50, (400, 2)), rng.uniform(0, 20, 400)]).astype(np.float32)
+    n_t = np.sort(rng.uniform(0, 100, 400))
+    n_t[::7] = m_t[rng.integers(0, 300, len(n_t[::7]))]  # some at the very instant material is laid
+    n_t.sort()
+    a = rng.uniform(0, 2 * np.pi)
+    frame = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]], dtype=np.float32)
+    material = checks.Material(m_xyz, m_t, np.full(300, 0.2), np.arange(300), np.array([0, 300]))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(checks, "BATCH", batch)
+        body, head = checks.robot_checks(material, frame, prof)
+        uv = n_xyz[:, :2] @ frame.T
+        found = [set(c.hits(uv, n_xyz[:, 2], n_t).tolist()) for c in (body, head)]
+    d = (m_xyz[None, :, :2] - n_xyz[:, None, :2]).astype(np.float64) @ frame.T.astype(np.float64)
+    before = m_t[None, :] < n_t[:, None]
+
+    def inside(box, margin):
+        return ((d[..., 0] >= box[0] - margin) & (d[..., 0] <= box[1] + margin)
+                & (d[..., 1] >= box[2] - margin) & (d[..., 1] <= box[3] + margin))
+
+    tol = checks.TOLERANCE
+    for k, box, above in ((0, checks.body_box(prof, tol), True),
+                          (1, checks.head_box(prof, tol), m_xyz[None, :, 2] > n_xyz[:, None, 2] + prof.nozzle_height + tol)):
+        must = set(np.flatnonzero((inside(box, -1e-3) & before & above).any(axis=1)).tolist())
+        may = set(np.flatnonzero((inside(box, tol + 1e-3) & before & above).any(axis=1)).tolist())
+        assert must <= found[k] <= may

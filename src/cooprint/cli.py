@@ -228,7 +228,7 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
 @click.argument("inputs", nargs=-1, type=click.Path())
 @click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
 @click.option("--out", "-o", type=click.Path(file_okay=False), help="Folder for sim/ (default: the bundle).")
-@click.option("--strict", is_flag=True, help="Exit with code 1 if any check finds a problem.")
+@click.option("--strict", is_flag=True, help="Exit with code 1 if any check finds a problem (overhang warnings too).")
 @click.option("--accel", is_flag=True, help="Moves accelerate (robot profile's acceleration and jerk; "
               "G-code: PrusaSlicer's machine limits) instead of keeping their speed.")
 @click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json.")
@@ -258,7 +258,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         found = {k: v for k, v in record["finding_counts"].items() if v}
         click.echo("findings: " + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none"))
         for f in result.findings[:10]:
-            click.echo(f"  {f.kind}: robot {f.robot} at {f.time:.1f} s, "
+            click.echo(f"  {f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
                        f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
                        f"{f.detail}" + (f" ({f.count} samples)" if f.count > 1 else ""))
         click.echo(f"wrote {target}")

@@ -196,23 +196,11 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
     reach and higher than ``nozzle_height`` over the nozzle tip. One finding per robot, kind and
     chunk, with the first instant and how many nozzle samples."""
     n_step = _step(timelines, step, deposits_only=False)
-    boxes = ([body_box(profile, tolerance)] if body else []) + ([head_box(profile, tolerance)] if head else [])
-    if not boxes:
-        return []
     findings = []
     for r in robots:
         tl = timelines[r.name]
         frame = _frame(r.facing).astype(np.float32)
-        m_uv = material.xyz[:, :2] @ frame.T
-        lo = m_uv.min(axis=0) if len(m_uv) else np.zeros(2, np.float32)
-        hi = m_uv.max(axis=0) if len(m_uv) else np.zeros(2, np.float32)
-        size = max((b[1] - b[0]) + (b[3] - b[2]) for b in boxes)
-        cell = max(tolerance / 2, float(np.sqrt(np.prod(hi - lo + 2 * size) / MAX_CELLS)))
-        base = np.floor((m_uv - lo) / np.float32(cell)).astype(np.int32)  # cells of the material
-        checks = ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), base, material)] if body else []) + \
-                 ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), base, m_uv, material, profile, tolerance)]
-                  if head else [])
-        del base
+        checks = robot_checks(material, frame, profile, body, head, tolerance)
         for xyz, t, move in _nozzle_batches(tl, n_step):
             uv = xyz[:, :2] @ frame.T
             for c in checks:
@@ -221,6 +209,26 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
         for c in checks:
             findings += _group(c.found, c.kind, r, tl, c.detail)
     return findings
+
+
+def robot_checks(material: Material, frame: np.ndarray, profile: RobotProfile, body: bool = True,
+                 head: bool = True, tolerance: float = TOLERANCE) -> list:
+    """The footprint checks of one robot (``frame``: its facing and its left, float32), on rasters
+    sharing one cell size (1 mm, or more on very large prints) over the material; each has
+    ``hits(uv, z, t)``: the indices of the nozzle samples (in the robot's frame, in time order)
+    that meet material."""
+    boxes = ([body_box(profile, tolerance)] if body else []) + ([head_box(profile, tolerance)] if head else [])
+    if not boxes:
+        return []
+    m_uv = material.xyz[:, :2] @ frame.T
+    lo = m_uv.min(axis=0) if len(m_uv) else np.zeros(2, np.float32)
+    hi = m_uv.max(axis=0) if len(m_uv) else np.zeros(2, np.float32)
+    size = max((b[1] - b[0]) + (b[3] - b[2]) for b in boxes)
+    cell = max(tolerance / 2, float(np.sqrt(np.prod(hi - lo + 2 * size) / MAX_CELLS)))
+    base = np.floor((m_uv - lo) / np.float32(cell)).astype(np.int32)  # cells of the material
+    return ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), base, material)] if body else []) + \
+        ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), base, m_uv, material, profile, tolerance)]
+         if head else [])
 
 
 class _BodyCheck:

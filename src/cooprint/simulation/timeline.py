@@ -125,9 +125,14 @@ class Finding:
     detail: str
     count: int = 1  # how many instants or places of the same kind it stands for
 
+    @property
+    def severity(self) -> str:
+        """``warning`` for an overhang (the plan can still be printed), else ``error``."""
+        return "warning" if self.kind == "overhang" else "error"
+
     def to_dict(self) -> dict[str, object]:
-        return {"kind": self.kind, "robot": self.robot, "time_s": self.time, "position": list(self.position),
-                "chunk": self.chunk, "detail": self.detail, "count": self.count}
+        return {"kind": self.kind, "severity": self.severity, "robot": self.robot, "time_s": self.time,
+                "position": list(self.position), "chunk": self.chunk, "detail": self.detail, "count": self.count}
 
 
 def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
