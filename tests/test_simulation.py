@@ -170,8 +170,8 @@ def car_bundle(tmp_path_factory):
 def test_a_plan_from_cooprint_run_simulates_clean(car_bundle):
     res = simulate(load_inputs([str(car_bundle)]))
     assert res.checked == KINDS
-    # the car's belly (z 25 mm) spans between its wheels, which other chunks print later: the
-    # first layer of the belly in each chunk is laid down over air, and nothing else is
+    # the car's belly (z 25 mm) hangs above the floor between its wheels: the first layer of the
+    # belly in each chunk is laid down over air, and nothing else is
     assert {f.kind for f in res.findings} == {"overhang"}
     assert sorted(f.chunk for f in res.findings) == ["C", "L1", "R1"]
     assert all(f.position[2] == pytest.approx(26.0) for f in res.findings)

@@ -48,6 +48,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"simulated: makespan {sim['makespan_s'] / 3600:.1f} h; robot B waits "
           f"{sim['robots'][1]['waiting_s'] / 3600:.1f} h for C; findings: "
           + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none"))
+    belly = sorted({round(f["position"][2], 1) for f in sim["findings"] if f["kind"] == "overhang"})
+    if belly:
+        print(f"  (overhang warnings, first at z {', '.join(f'{z:g}' for z in belly)} mm: the car's belly hangs "
+              "above the floor between its wheels, so its first layer is laid over air: a slicer would add supports)")
     print(f"outputs in {out}/:")
     for name in ("model.stl", "job.json", "chunks/", "chunks.png", "robots/A.coop", "robots/A.gcode",
                  "robots/B.coop", "robots/B.gcode", "sim/summary.json", "sim/gantt.png", "sim/snapshot.png",
