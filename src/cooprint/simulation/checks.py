@@ -11,9 +11,10 @@
   at most one layer of air lower (between 2.5 and 0.5 layer heights below) within ``radius``, and
   not on the floor.
 
-The nozzle is looked at every ``step`` mm of its path (and at every move's ends); material is its
-deposited paths sampled every cell. The body and printhead checks work on rasters in the robot's
-frame (u along its facing, v to its left) with cells of half the ``tolerance``: the body check
+The nozzle is looked at every ``step`` mm of its path (and at every move's ends); material is the
+deposited paths sampled every ``step`` mm (more on prints of more than ``MAX_SAMPLES`` points). The
+body and printhead checks work on rasters in the robot's frame (u along its facing, v to its
+left) with cells of half the ``tolerance`` (more on very large prints): the body check
 keeps, per cell, the earliest time material was laid down there, takes the minimum over the
 footprint with a sliding-window filter once, and then needs one look-up per nozzle sample; the
 printhead check keeps, per cell, the highest material laid down so far and sweeps the nozzle
@@ -310,11 +311,14 @@ class _HeadCheck:
             m = self.m_uv[near]
             near = near[(m[:, 0] >= lo[0] + box[0]) & (m[:, 0] <= hi[0] + box[1])
                         & (m[:, 1] >= lo[1] + box[2]) & (m[:, 1] <= hi[1] + box[3])]
-        if len(near):
-            du = self.m_uv[near, 0][None, :] - uv[:, 0, None]
-            dv = self.m_uv[near, 1][None, :] - uv[:, 1, None]
-            hit |= ((du >= box[0]) & (du <= box[1]) & (dv >= box[2]) & (dv <= box[3])
-                    & (self.m_z[near][None, :] > under[:, None]) & (self.m_t[near][None, :] < t[:, None])).any(axis=1)
+        rows = max(1, (1 << 22) // max(len(near), 1))  # bound the (samples x points) tests
+        for a in range(0, len(t) if len(near) else 0, rows):
+            b = slice(a, a + rows)
+            du = self.m_uv[near, 0][None, :] - uv[b, 0, None]
+            dv = self.m_uv[near, 1][None, :] - uv[b, 1, None]
+            hit[b] |= ((du >= box[0]) & (du <= box[1]) & (dv >= box[2]) & (dv <= box[3])
+                       & (self.m_z[near][None, :] > under[b, None])
+                       & (self.m_t[near][None, :] < t[b, None])).any(axis=1)
         return hit
 
 
