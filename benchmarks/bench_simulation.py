@@ -81,6 +81,11 @@ def versus_prusa(ctx: BenchContext, mesh: Path, out: Path) -> dict:
     return {"estimate_s": estimate, "ours_s": ours, "constant_speed_s": constant, "simulate": summarise(runs)}
 
 
+def _errors(counts: dict) -> int:
+    """Findings of the kinds that make a plan unprintable (all but the overhang warnings)."""
+    return sum(v for k, v in counts.items() if k != "overhang")
+
+
 def _seconds(text: str) -> float:
     units = {"d": 86400, "h": 3600, "m": 60, "s": 1}
     return float(sum(int(n) * units[u] for n, u in re.findall(r"(\d+)([dhms])", text)))
@@ -100,7 +105,7 @@ def render(result: dict) -> str:
         f"**Targets (issue):** at least {TARGET_CMDS:,} commands/s for simulate, at least {TARGET_FPS:g} "
         f"frames/s for the MP4, and a print time within ±{TARGET_TIME:.0%} of PrusaSlicer's estimate.",
         "",
-        "| mesh | commands | makespan h | findings | simulate s | commands/s | peak MB | MP4 s | frames/s | MP4 peak MB |",
+        "| mesh | commands | makespan h | findings: errors, overhang warnings | simulate s | commands/s | peak MB | MP4 s | frames/s | MP4 peak MB |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     prusa_rows = []
@@ -112,7 +117,8 @@ def render(result: dict) -> str:
         rate = row["commands"] / sim["wall_median_s"] if sim["wall_median_s"] else None
         fps = row["frames"] / mp4["wall_median_s"] if mp4["wall_median_s"] else None
         lines.append(f"| `{row['mesh']}` | {row['commands']:,} | {row['makespan_s'] / 3600:.1f} | "
-                     f"{sum(row['findings'].values())} | {fmt(sim['wall_median_s'], '.2f')} | {fmt(rate, ',.0f')} | "
+                     f"{_errors(row['findings'])}, {row['findings'].get('overhang', 0):,} | "
+                     f"{fmt(sim['wall_median_s'], '.2f')} | {fmt(rate, ',.0f')} | "
                      f"{fmt(sim['peak_median_mb'], '.0f')} | {fmt(mp4['wall_median_s'], '.2f')} | {fmt(fps, '.1f')} | "
                      f"{fmt(mp4['peak_median_mb'], '.0f')} |")
         p = row.get("prusa")
