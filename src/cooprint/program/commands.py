@@ -368,15 +368,21 @@ class _Lines:
         return None  # an annotation of a later version: a comment here
 
 
-def _line_heads(probe: np.ndarray, starts: np.ndarray, ends: np.ndarray, text: bytes) -> np.ndarray:
-    """Whether each line (``starts..ends`` of ``probe``, the text's bytes followed by 8 zeros; a
-    trailing carriage return ignored) is exactly ``text``."""
-    n = len(text)
-    length = ends - starts
-    hit = (length == n) | ((length == n + 1) & (probe[ends - 1] == 13))
+def _begins(probe: np.ndarray, starts: np.ndarray, text: bytes) -> np.ndarray:
+    """Whether each line (from ``starts`` in ``probe``, the text's bytes followed by 8 zeros)
+    begins with ``text`` (at most 8 bytes)."""
+    hit = np.ones(len(starts), dtype=bool)
     for k, ch in enumerate(text):
         hit &= probe[starts + k] == ch
     return hit
+
+
+def _line_heads(probe: np.ndarray, starts: np.ndarray, ends: np.ndarray, text: bytes) -> np.ndarray:
+    """Whether each line (``starts..ends`` of ``probe``; a trailing carriage return ignored) is
+    exactly ``text``."""
+    n = len(text)
+    length = ends - starts
+    return ((length == n) | ((length == n + 1) & (probe[ends - 1] == 13))) & _begins(probe, starts, text)
 
 
 def _move_lines_fast(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, is_move: np.ndarray
@@ -385,8 +391,7 @@ def _move_lines_fast(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, is_m
     read in one pass, or ``None`` when some line is not in the plain form (numbers made of
     digits, signs, points and exponents; single commas or blanks between them; no comment): the
     line parser then reads them all."""
-    length = np.append(ends - starts + 1, 0)[:len(starts)]  # each line with its newline
-    keep = np.repeat(is_move, length)[:len(buf)]
+    keep = np.repeat(is_move, ends - starts + 1)[:len(buf)]  # each line with its newline (the last has none)
     keep[(starts[is_move, None] + np.arange(5)).ravel()] = False  # 'MOVE '
     payload = buf[keep].tobytes()
     if payload.translate(None, b"0123456789+-.eE, \t\r\n"):
@@ -426,9 +431,7 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     starts = np.r_[0, nl + 1]
     ends = np.r_[nl, len(buf)]
     probe = np.concatenate([buf, np.zeros(8, np.uint8)])  # a line's first bytes, past the end too
-    is_move = (ends - starts >= 5) & np.isin(probe[starts + 4], (32, 9))
-    for k, ch in enumerate(b"MOVE"):
-        is_move &= probe[starts + k] == ch
+    is_move = (ends - starts >= 5) & np.isin(probe[starts + 4], (32, 9)) & _begins(probe, starts, b"MOVE")
     fast = _move_lines_fast(buf, starts, ends, is_move) if is_move.any() else np.zeros((0, 3))
     plain = np.zeros(len(starts), dtype=np.int8)  # lines read without the line parser: 1 TOOL ON, 2 TOOL OFF
     plain[_line_heads(probe, starts, ends, b"TOOL ON")] = 1
