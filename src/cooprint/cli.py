@@ -195,10 +195,10 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
 
         sim = simulate_bundle(out)
         if not quiet:
-            found = {k: v for k, v in sim["finding_counts"].items() if v}
+            from cooprint.simulation import findings_line
+
             click.echo(f"simulated: makespan {sim['makespan_s'] / 3600:.2f} h, findings: "
-                       + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none")
-                       + f"; wrote {out}/sim/summary.json, gantt.png, snapshot.png")
+                       f"{findings_line(sim['finding_counts'])}; wrote {out}/sim/summary.json, gantt.png, snapshot.png")
     if record is None:
         return
     for r in record["robots"]:
@@ -238,7 +238,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
     robot each), or .coop files with --manifest. Writes sim/summary.json."""
     from cooprint.io.bundle import atomic_file, write_json
-    from cooprint.simulation import load_inputs, simulate as run_sim, summary
+    from cooprint.simulation import findings_line, load_inputs, simulate as run_sim, summary
 
     _need_inputs(inputs, manifest)
     folder = _sim_folder(inputs, out)
@@ -255,8 +255,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         for r in record["robots"]:
             click.echo(f"  robot {r['name']}: printing {r['printing_s']:.0f} s, travelling {r['travelling_s']:.0f} s, "
                        f"waiting {r['waiting_s']:.0f} s, idle {r['idle_s']:.0f} s, {r['material_mm3'] / 1000:.1f} cm3")
-        found = {k: v for k, v in record["finding_counts"].items() if v}
-        click.echo("findings: " + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none"))
+        click.echo("findings: " + findings_line(record["finding_counts"]))
         for f in result.findings[:10]:
             click.echo(f"  {f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
                        f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "

@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     print("simulating the plan and drawing it ...", file=sys.stderr)
     sim = simulate_bundle(out)
     from cooprint.render.sim import render_animation
-    from cooprint.simulation import load_inputs, simulate
+    from cooprint.simulation import findings_line, load_inputs, simulate
 
     render_animation(simulate(load_inputs([str(out)]), checks=False), out / "sim" / "animation.mp4",
                      fps=24, duration=20)
@@ -44,10 +44,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  robot {r['name']} ({r['side']} side): {' -> '.join(r['chunks'])}; {st['commands']:,} commands, "
               f"{st['print_mm'] / 1000:.0f} m of paths, {st['volume_mm3'] / 1000:.0f} cm3, "
               f"{st['wait']} WAIT, {st['notify']} NOTIFY")
-    found = {k: v for k, v in sim["finding_counts"].items() if v}
     print(f"simulated: makespan {sim['makespan_s'] / 3600:.1f} h; robot B waits "
-          f"{sim['robots'][1]['waiting_s'] / 3600:.1f} h for C; findings: "
-          + (", ".join(f"{k} {v}" for k, v in found.items()) if found else "none"))
+          f"{sim['robots'][1]['waiting_s'] / 3600:.1f} h for C; findings: {findings_line(sim['finding_counts'])}")
     belly = sorted({round(f["position"][2], 1) for f in sim["findings"] if f["kind"] == "overhang"})
     if belly:
         print(f"  (overhang warnings, first at z {', '.join(f'{z:g}' for z in belly)} mm: the car's belly hangs "

@@ -69,11 +69,15 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
 def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
     """mm^3 a robot lays down: width x height x length of its moves with the tool on (a program
     without width and height annotations prints at the slicing settings' width and layer)."""
-    idx = tl.index[tl.on]
-    w = np.where(r.program.width[idx] > 0, r.program.width[idx], s.extrusion_width)
-    h = np.where(r.program.height[idx] > 0, r.program.height[idx], s.layer_height)
+    w, h = r.bead(tl.index[tl.on], s.extrusion_width, s.layer_height)
     length = np.linalg.norm(tl.p1[tl.on] - tl.p0[tl.on], axis=1)
     return float((extrusion_area(w, h) * length).sum())
+
+
+def findings_line(counts: dict[str, int]) -> str:
+    """``finding_counts`` of a summary in a few words: the kinds found and how many, or none."""
+    found = [f"{k} {v}" for k, v in counts.items() if v]
+    return ", ".join(found) if found else "none"
 
 
 def summary(result: SimResult) -> dict[str, object]:
@@ -102,5 +106,5 @@ def summary(result: SimResult) -> dict[str, object]:
             "findings": [f.to_dict() for f in result.findings]}
 
 
-__all__ = ["KINDS", "SimInput", "SimInputError", "SimResult", "deposited_volume", "load_inputs", "simulate",
-           "summary"]
+__all__ = ["KINDS", "SimInput", "SimInputError", "SimResult", "deposited_volume", "findings_line", "load_inputs",
+           "simulate", "summary"]

@@ -101,10 +101,7 @@ class Material:
                layer_height: float) -> "Material":
         step = _step(timelines, step, deposits_only=True)
         parts = [path_samples(timelines[r.name], step, deposits_only=True) for r in robots]
-        h = []
-        for r, (_, _, move) in zip(robots, parts):
-            per_move = r.program.height[timelines[r.name].index]
-            h.append(np.where(per_move > 0, per_move, layer_height)[move])
+        h = [r.bead(timelines[r.name].index, 0.0, layer_height)[1][move] for r, (_, _, move) in zip(robots, parts)]
         return Material(np.vstack([p[0] for p in parts] + [np.zeros((0, 3), np.float32)]),
                         np.concatenate([p[1] for p in parts] + [np.zeros(0)]), np.concatenate(h + [np.zeros(0)]),
                         np.concatenate([p[2] for p in parts] + [np.zeros(0, np.int64)]),

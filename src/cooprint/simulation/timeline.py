@@ -50,6 +50,12 @@ class SimRobot:
     speed: np.ndarray | None = None
     de: np.ndarray | None = None
 
+    def bead(self, index: np.ndarray, width: float, height: float) -> tuple[np.ndarray, np.ndarray]:
+        """Width and height of the material laid by commands ``index``: their annotations, or
+        ``width`` and ``height`` (the slicing settings') where a program has none."""
+        w, h = self.program.width[index], self.program.height[index]
+        return np.where(w > 0, w, width), np.where(h > 0, h, height)
+
 
 @dataclass(frozen=True)
 class Timeline:
