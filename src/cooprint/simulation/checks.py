@@ -344,11 +344,12 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
     nz = int(zq.max()) + 1
     # everything in the order of (cell, height); the earliest time of each (cell, height)
     own = (cxy[:, 0] * ny + cxy[:, 1]) * nz
-    order = np.argsort(own + zq)
-    own, zq, t_s, h_s = own[order], zq[order], t[order], h[order]
+    key = own + zq
+    order = np.argsort(key)
+    key, own, zq, t_s, h_s = key[order], own[order], zq[order], t[order], h[order]
     del cxy
-    group = np.r_[True, (own[1:] + zq[1:]) != (own[:-1] + zq[:-1])]
-    key = own[group] + zq[group]
+    group = np.r_[True, key[1:] != key[:-1]]
+    key = key[group]
     first = np.minimum.reduceat(t_s, np.flatnonzero(group))
     gid = np.cumsum(group) - 1
     del group
