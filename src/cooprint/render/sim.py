@@ -12,7 +12,7 @@ from PIL import Image, ImageDraw
 from cooprint.render.chunks import BACKGROUND, _font, _view_basis
 from cooprint.render.paths import _fit
 from cooprint.simulation import SimResult
-from cooprint.simulation.checks import _frame, body_box
+from cooprint.simulation.checks import body_corners
 
 ROBOT_COLOURS = [(214, 96, 77), (67, 147, 195), (90, 170, 90), (200, 150, 40), (150, 100, 190), (120, 120, 120)]
 WAIT_COLOUR = (235, 200, 60)
@@ -163,10 +163,7 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
 
 def _footprint(result: SimResult, r, nozzle: np.ndarray) -> np.ndarray:
     """(4, 3) corners of a robot's body on the floor with its nozzle at ``nozzle``."""
-    u_lo, u_hi, v_lo, v_hi = body_box(result.profile)
-    frame = _frame(r.facing)
-    box = np.array([[u_lo, v_lo], [u_hi, v_lo], [u_hi, v_hi], [u_lo, v_hi]]) @ frame
-    xy = nozzle[:2] + box
+    xy = nozzle[:2] + body_corners(result.profile, r.facing)
     return np.column_stack([xy, np.zeros(4)])
 
 

@@ -124,6 +124,13 @@ def body_box(profile: RobotProfile, tolerance: float = 0.0) -> tuple[float, floa
     return (-bd - length + tolerance, -bd - tolerance, -w / 2 + tolerance, w / 2 - tolerance)
 
 
+def body_corners(profile: RobotProfile, facing: np.ndarray, tolerance: float = 0.0) -> np.ndarray:
+    """(4, 2) corners of the body relative to the nozzle, in world XY, for a robot facing
+    ``facing``."""
+    u_lo, u_hi, v_lo, v_hi = body_box(profile, tolerance)
+    return np.array([[u_lo, v_lo], [u_hi, v_lo], [u_hi, v_hi], [u_lo, v_hi]]) @ _frame(facing)
+
+
 def head_box(profile: RobotProfile, tolerance: float = 0.0) -> tuple[float, float, float, float]:
     """(u_lo, u_hi, v_lo, v_hi) of the printhead's reach around the nozzle (a square of half-side
     ``nozzle_depth``), shrunk by ``tolerance``."""
@@ -398,12 +405,9 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     end = max((tl.end for tl in timelines.values()), default=0.0)
     times = np.arange(0.0, end + dt, dt)
     corners = {}
-    u_lo, u_hi, v_lo, v_hi = body_box(profile, tolerance)
-    box = np.array([[u_lo, v_lo], [u_hi, v_lo], [u_hi, v_hi], [u_lo, v_hi]])
     for r in robots:
-        frame = _frame(r.facing)
         nozzle = timelines[r.name].position(times)[:, :2]
-        corners[r.name] = nozzle[:, None, :] + (box @ frame)[None]  # (T, 4, 2) world corners
+        corners[r.name] = nozzle[:, None, :] + body_corners(profile, r.facing, tolerance)[None]  # (T, 4, 2)
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
             p, q = corners[a.name], corners[b.name]
@@ -460,4 +464,4 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["Material", "body_box", "footprint_checks", "head_box", "overhangs", "path_samples", "robots_collide"]
+__all__ = ["Material", "body_box", "body_corners", "footprint_checks", "head_box", "overhangs", "path_samples", "robots_collide"]
