@@ -14,6 +14,7 @@ from cooprint.config import load_settings
 from cooprint.io.bundle import write_stl
 from cooprint.jobs import coop_job, simulate_bundle, write_coop_bundle
 from cooprint.models import car
+from cooprint.simulation import findings_line
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,12 +31,7 @@ def main(argv: list[str] | None = None) -> int:
         record = write_coop_bundle(job, out, force=True, progress=progress)
     write_stl(out / "model.stl", solid.vertices, solid.faces, name="demo car")
     print("simulating the plan and drawing it ...", file=sys.stderr)
-    sim = simulate_bundle(out)
-    from cooprint.render.sim import render_animation
-    from cooprint.simulation import findings_line, load_inputs, simulate
-
-    render_animation(simulate(load_inputs([str(out)]), checks=False), out / "sim" / "animation.mp4",
-                     fps=24, duration=20)
+    sim = simulate_bundle(out, animation=True)
     plan = record["plan"]
     print(f"{len(record['chunks'])} chunks at theta {plan['theta_deg']:.2f} deg, shift {plan['shift_mm']:.1f} mm, "
           f"volume error {record['stats']['volume_rel_error']:.1e}")

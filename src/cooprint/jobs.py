@@ -354,11 +354,12 @@ def run(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
     return write_coop_bundle(job, out, force, picture, progress)
 
 
-def simulate_bundle(out: str | Path, snapshot_at: float | None = None) -> dict[str, Any]:
+def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False) -> dict[str, Any]:
     """Simulate the bundle in ``out`` (written by :func:`run`) and write ``out/sim/``:
-    ``summary.json``, ``gantt.png`` and ``snapshot.png`` (at ``snapshot_at`` s, default half the
-    makespan); returns the summary. The folder is replaced whole."""
-    from cooprint.render.sim import render_gantt, render_snapshot
+    ``summary.json``, ``gantt.png``, ``snapshot.png`` (at ``snapshot_at`` s, default half the
+    makespan) and, with ``animation``, ``animation.mp4`` (20 s at 24 frames/s); returns the
+    summary. The folder is replaced whole."""
+    from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import load_inputs, simulate, summary
 
     out = Path(out)
@@ -368,4 +369,6 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None) -> dict[s
         write_json(tmp / "summary.json", record)
         render_gantt(result, tmp / "gantt.png")
         render_snapshot(result, result.makespan / 2 if snapshot_at is None else snapshot_at, tmp / "snapshot.png")
+        if animation:
+            render_animation(result, tmp / "animation.mp4", fps=24, duration=20)
     return record
