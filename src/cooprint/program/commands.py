@@ -24,9 +24,9 @@ viewers need to know which chunk a move prints::
 
 The writer emits an annotation wherever its value changes, so ``parse(write(p)) == p`` exactly:
 coordinates are kept on a 1 µm grid (``quantize``) and written with three decimals. The parser
-reads the MOVE lines of a file (nearly all of them) in one vectorised pass and every other line
-with the line parser, which is the reference: whatever the fast pass cannot take as written,
-the line parser reads or refuses with ``file:line:column: message``.
+reads the plain MOVE and TOOL lines of a file (nearly all of them) in one compiled sweep
+(:mod:`.scan`) and every other line with the line parser, which is the reference: whatever the
+sweep cannot take as written, the line parser reads or refuses with ``file:line:column: message``.
 """
 
 from __future__ import annotations
@@ -368,48 +368,6 @@ class _Lines:
         return None  # an annotation of a later version: a comment here
 
 
-def _begins(probe: np.ndarray, starts: np.ndarray, text: bytes) -> np.ndarray:
-    """Whether each line (from ``starts`` in ``probe``, the text's bytes followed by 8 zeros)
-    begins with ``text`` (at most 8 bytes)."""
-    hit = np.ones(len(starts), dtype=bool)
-    for k, ch in enumerate(text):
-        hit &= probe[starts + k] == ch
-    return hit
-
-
-def _line_heads(probe: np.ndarray, starts: np.ndarray, ends: np.ndarray, text: bytes) -> np.ndarray:
-    """Whether each line (``starts..ends`` of ``probe``; a trailing carriage return ignored) is
-    exactly ``text``."""
-    n = len(text)
-    length = ends - starts
-    return ((length == n) | ((length == n + 1) & (probe[ends - 1] == 13))) & _begins(probe, starts, text)
-
-
-def _move_lines_fast(buf: np.ndarray, starts: np.ndarray, ends: np.ndarray, is_move: np.ndarray
-                     ) -> np.ndarray | None:
-    """(k, 3) coordinates of the lines where ``is_move`` (each beginning with 'MOVE' and a blank),
-    read in one pass, or ``None`` when some line is not in the plain form (numbers made of
-    digits, signs, points and exponents; single commas or blanks between them; no comment): the
-    line parser then reads them all."""
-    keep = np.repeat(is_move, ends - starts + 1)[:len(buf)]  # each line with its newline (the last has none)
-    keep[(starts[is_move, None] + np.arange(5)).ravel()] = False  # 'MOVE '
-    payload = buf[keep].tobytes()
-    if payload.translate(None, b"0123456789+-.eE, \t\r\n"):
-        return None
-    tight = payload.replace(b" ", b"").replace(b"\t", b"").replace(b"\r", b"")  # commas in their place?
-    if (b",," in tight or b"\n," in tight or b",\n" in tight or tight.startswith(b",")
-            or tight.endswith(b",")):
-        return None
-    del tight
-    try:
-        xyz = np.loadtxt(io.BytesIO(payload.replace(b",", b" ")), dtype=np.float64, ndmin=2)
-    except ValueError:
-        return None
-    if xyz.shape != (int(is_move.sum()), 3) or not np.isfinite(xyz).all():
-        return None
-    return xyz
-
-
 def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Program:
     """Read ``.coop`` text into a :class:`Program`.
 
@@ -425,28 +383,20 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     ProgramError
         ``source:line:column: what is wrong`` for the first malformed line.
     """
+    from cooprint.program.scan import MOVE_LINE, OTHER, TOOL_OFF_LINE, TOOL_ON_LINE, sweep  # numba: on first use
+
     data = text.encode() if isinstance(text, str) else bytes(text)
-    buf = np.frombuffer(data, dtype=np.uint8)
-    nl = np.flatnonzero(buf == 10)
-    starts = np.r_[0, nl + 1]
-    ends = np.r_[nl, len(buf)]
-    probe = np.concatenate([buf, np.zeros(8, np.uint8)])  # a line's first bytes, past the end too
-    is_move = (ends - starts >= 5) & np.isin(probe[starts + 4], (32, 9)) & _begins(probe, starts, b"MOVE")
-    fast = _move_lines_fast(buf, starts, ends, is_move) if is_move.any() else np.zeros((0, 3))
-    plain = np.zeros(len(starts), dtype=np.int8)  # lines read without the line parser: 1 TOOL ON, 2 TOOL OFF
-    plain[_line_heads(probe, starts, ends, b"TOOL ON")] = 1
-    plain[_line_heads(probe, starts, ends, b"TOOL OFF")] = 2
-    del probe
-    if fast is None:
-        is_move[:] = False
+    line_kind, starts, fast_xyz = sweep(data)
     lines = _Lines(source, robot)
-    others = np.flatnonzero(~is_move & (plain == 0))
-    # (line index, kind, payload) of every command the line parser reads; annotations apart
-    cmd_line, cmd_kind, cmd_xyz, events = [], [], [], []
+    others = np.flatnonzero(line_kind == OTHER)
+    # every line's command kind (-1: none) and MOVE target; the line parser fills in its lines
+    kind_at = np.full(len(line_kind), -1, np.int8)
+    for k, line in ((MOVE, MOVE_LINE), (TOOL_ON, TOOL_ON_LINE), (TOOL_OFF, TOOL_OFF_LINE)):
+        kind_at[line_kind == line] = k
+    events = []
     ann_line: dict[str, list[int]] = {"chunk": [], "layer": [], "path": []}
     ann_val: dict[str, list] = {"chunk": [], "layer": [], "path": []}
-    begin, finish = starts[others].tolist(), ends[others].tolist()
-    for i, a, b in zip(others.tolist(), begin, finish):
+    for i, a, b in zip(others.tolist(), starts[others].tolist(), (starts[others + 1] - 1).tolist()):
         try:
             line = data[a:b].decode("utf-8")
         except UnicodeDecodeError:
@@ -459,31 +409,21 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
             ann_val[got[1]].append(got[2])
             continue
         kind, payload = got
-        cmd_line.append(i)
-        cmd_kind.append(kind)
+        kind_at[i] = kind
         if kind == MOVE:
-            cmd_xyz.append(payload)
+            fast_xyz[i] = payload
         elif kind in (NOTIFY, WAIT):
             events.append(payload)
-    line_of = np.array(cmd_line, dtype=np.int64)
-    kind_of = np.array(cmd_kind, dtype=np.uint8)
-    xyz_of = np.full((len(line_of), 3), np.nan)
-    if cmd_xyz:
-        xyz_of[kind_of == MOVE] = np.array(cmd_xyz, dtype=np.float64)
-    tool = np.flatnonzero(plain)
-    move_idx = np.flatnonzero(is_move)
-    line_of = np.concatenate([line_of, move_idx, tool])
-    kind_of = np.concatenate([kind_of, np.full(len(move_idx), MOVE, np.uint8),
-                              np.where(plain[tool] == 1, TOOL_ON, TOOL_OFF).astype(np.uint8)])
-    xyz_of = np.concatenate([xyz_of, fast if len(move_idx) else np.zeros((0, 3)), np.full((len(tool), 3), np.nan)])
-    order = np.argsort(line_of, kind="stable")
-    line_of, kind_of, xyz_of = line_of[order], kind_of[order], xyz_of[order]
+    line_of = np.flatnonzero(kind_at >= 0)
+    kind_of = kind_at[line_of].astype(np.uint8)
+    xyz_of = fast_xyz[line_of]
+    xyz_of[kind_of != MOVE] = np.nan
 
     def state(key: str, start):
-        """Each command's value of an annotation: the last one above its line."""
-        at = np.searchsorted(np.array(ann_line[key], dtype=np.int64), line_of) - 1
-        vals = [start] + ann_val[key]
-        return at + 1, vals
+        """Each command's value of an annotation: the last one above its line (0: ``start``)."""
+        bounds = np.diff(np.r_[0, np.array(ann_line[key], dtype=np.int64) + 1, len(kind_at)])
+        at = np.repeat(np.arange(len(bounds), dtype=np.int32), bounds)  # per line
+        return at[line_of], [start] + ann_val[key]
 
     c_at, c_vals = state("chunk", -1)
     l_at, l_vals = state("layer", (-1, 0.0))

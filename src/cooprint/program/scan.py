@@ -1,0 +1,159 @@
+"""The ``.coop`` parser's fast pass: one compiled sweep over a file's bytes (numba).
+
+Nearly every line of a program is ``MOVE x, y, z`` or ``TOOL ON`` / ``TOOL OFF``; the sweep reads
+those, skips blank lines and plain comments, and hands every other line (annotations, NOTIFY,
+WAIT, anything odd or wrong) to the line parser of :mod:`.commands`, which is the reference. A
+MOVE line is taken only in the plain form: the word ``MOVE`` at the start of the line, then three
+decimal numbers (``-12.5``, ``+3``, ``.25``, ``7.``; at most 15 significant digits, no exponent)
+separated by blanks or by single commas, nothing after them. Such a number is its digits as an
+integer (exact in float64) divided by a power of ten (exact up to 10^22): one correctly rounded
+division, the same double that ``float()`` gives.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: Line kinds the sweep reports.
+OTHER, MOVE_LINE, TOOL_ON_LINE, TOOL_OFF_LINE, SKIP = range(5)
+
+_POW10 = np.array([10.0 ** k for k in range(23)])
+
+
+@numba.njit(cache=True, nogil=True)
+def _blank(c):
+    return c == 32 or c == 9
+
+
+@numba.njit(cache=True, nogil=True)
+def _number(buf, i, end, pow10):
+    """The plain decimal number at ``buf[i:]`` (before ``end``): ``(value, next index)``, or
+    ``(0.0, -1)`` when there is none in the plain form."""
+    sign = 1.0
+    c = buf[i] if i < end else 0
+    if c == 45 or c == 43:  # '-' '+'
+        if c == 45:
+            sign = -1.0
+        i += 1
+    mant = 0.0
+    digits = 0  # significant digits (leading zeros not counted)
+    seen = 0  # digits of any kind
+    frac = -1  # digits after the point; -1: no point yet
+    while i < end:
+        c = buf[i]
+        if 48 <= c <= 57:
+            seen += 1
+            if digits or c != 48:
+                digits += 1
+            mant = mant * 10.0 + (c - 48)
+            if frac >= 0:
+                frac += 1
+        elif c == 46 and frac < 0:  # '.'
+            frac = 0
+        else:
+            break
+        i += 1
+    if seen == 0 or digits > 15 or frac > 22:
+        return 0.0, -1
+    if i < end:
+        c = buf[i]
+        if not (c == 32 or c == 9 or c == 44 or c == 13):  # blank, comma or CR: anything else is odd
+            return 0.0, -1
+    if frac > 0:
+        mant = mant / pow10[frac]
+    return sign * mant, i
+
+
+@numba.njit(cache=True, nogil=True)
+def _is_text(buf, a, end, text):
+    """Whether ``buf[a:end]`` is ``text`` (a trailing carriage return ignored)."""
+    n = len(text)
+    if end > a and buf[end - 1] == 13:
+        end -= 1
+    if end - a != n:
+        return False
+    for k in range(n):
+        if buf[a + k] != text[k]:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _sweep(buf, pow10, tool_on, tool_off):
+    n = len(buf)
+    lines = 1
+    for i in range(n):
+        if buf[i] == 10:
+            lines += 1
+    kind = np.empty(lines, np.int8)
+    starts = np.empty(lines + 1, np.int64)
+    xyz = np.empty((lines, 3))
+    a = 0
+    for li in range(lines):
+        end = a
+        while end < n and buf[end] != 10:
+            end += 1
+        starts[li] = a
+        k = OTHER
+        if end - a >= 5 and buf[a] == 77 and buf[a + 1] == 79 and buf[a + 2] == 86 and buf[a + 3] == 69 \
+                and _blank(buf[a + 4]):  # 'MOVE '
+            i = a + 5
+            ok = True
+            for j in range(3):
+                while i < end and _blank(buf[i]):
+                    i += 1
+                if j > 0 and i < end and buf[i] == 44:  # one comma between numbers
+                    i += 1
+                    while i < end and _blank(buf[i]):
+                        i += 1
+                v, i = _number(buf, i, end, pow10)
+                if i < 0:
+                    ok = False
+                    break
+                xyz[li, j] = v
+            if ok:
+                while i < end and (_blank(buf[i]) or buf[i] == 13):
+                    i += 1
+                if i == end:
+                    k = MOVE_LINE
+        elif end - a >= 7 and buf[a] == 84 and _is_text(buf, a, end, tool_on):
+            k = TOOL_ON_LINE
+        elif end - a >= 8 and buf[a] == 84 and _is_text(buf, a, end, tool_off):
+            k = TOOL_OFF_LINE
+        else:
+            i = a
+            while i < end and (_blank(buf[i]) or buf[i] == 13):
+                i += 1
+            if i == end:
+                k = SKIP
+            elif buf[i] == 35 or (buf[i] == 59 and not (i + 1 < end and buf[i + 1] == 64)):  # '#', ';' not ';@'
+                k = SKIP
+                for j in range(i, end):  # non-ASCII text: the line parser checks it is UTF-8
+                    if buf[j] >= 128:
+                        k = OTHER
+                        break
+        kind[li] = k
+        a = end + 1
+    starts[lines] = n + 1
+    return kind, starts, xyz
+
+
+def sweep(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Classify every line of ``data`` and read its plain MOVEs.
+
+    Returns
+    -------
+    kind : (lines,) int8
+        ``OTHER`` (for the line parser), ``MOVE_LINE``, ``TOOL_ON_LINE``, ``TOOL_OFF_LINE`` or
+        ``SKIP`` (blank, or a comment that is not an annotation).
+    starts : (lines + 1,) int64
+        Where each line begins; line ``i`` is ``data[starts[i]:starts[i + 1] - 1]``.
+    xyz : (lines, 3) float64
+        The coordinates of the ``MOVE_LINE`` lines (other rows undefined).
+    """
+    buf = np.frombuffer(data, dtype=np.uint8)
+    return _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8), np.frombuffer(b"TOOL OFF", np.uint8))
+
+
+__all__ = ["MOVE_LINE", "OTHER", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "sweep"]
