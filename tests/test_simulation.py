@@ -261,8 +261,8 @@ def _coarse_toml(tmp_path):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), batch=st.integers(1, 40))
-def test_the_raster_checks_agree_with_looking_at_every_point(seed, batch):
+@given(seed=st.integers(0, 2**32 - 1), calls=st.integers(1, 40))
+def test_the_raster_checks_agree_with_looking_at_every_point(seed, calls):
     """Body and printhead check on rasters against the definitions, point by point: material
     deeper than the tolerance inside the footprint (and, for the printhead, higher than its
     underside) laid down before is always found; what is found lies inside the footprint."""
@@ -279,11 +279,13 @@ def test_the_raster_checks_agree_with_looking_at_every_point(seed, batch):
     a = rng.uniform(0, 2 * np.pi)
     frame = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]], dtype=np.float32)
     material = checks.Material(m_xyz, m_t, np.full(300, 0.2), np.arange(300), np.array([0, 300]))
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(checks, "BATCH", batch)
-        body, head = checks.robot_checks(material, frame, prof)
-        uv = n_xyz[:, :2] @ frame.T
-        found = [set(c.hits(uv, n_xyz[:, 2], n_t).tolist()) for c in (body, head)]
+    body, head = checks.robot_checks(material, frame, prof)
+    uv = n_xyz[:, :2] @ frame.T
+    found = [set(), set()]
+    for a in range(0, 400, calls):  # the samples in time order, a few at a time, as the simulator feeds them
+        b = slice(a, a + calls)
+        for k, c in enumerate((body, head)):
+            found[k] |= set((c.hits(uv[b], n_xyz[b, 2], n_t[b]) + a).tolist())
     d = (m_xyz[None, :, :2] - n_xyz[:, None, :2]).astype(np.float64) @ frame.T.astype(np.float64)
     before = m_t[None, :] < n_t[:, None]
 
@@ -297,3 +299,70 @@ def test_the_raster_checks_agree_with_looking_at_every_point(seed, batch):
         must = set(np.flatnonzero((inside(box, -1e-3) & before & above).any(axis=1)).tolist())
         may = set(np.flatnonzero((inside(box, tol + 1e-3) & before & above).any(axis=1)).tolist())
         assert must <= found[k] <= may
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), layers=st.integers(1, 6))
+def test_the_overhang_kernel_agrees_with_looking_at_every_pair(seed, layers):
+    """Every point against every other: a point is an overhang unless it is on the floor or some
+    point laid down before it lies in its own or the 24 cells around, between 2.5 and 0.5 of its
+    layer height below it."""
+    from cooprint.simulation.kernels import overhang_flags
+
+    rng = np.random.default_rng(seed)
+    n = 400
+    h = rng.choice([0.2, 0.2, 0.3], n)
+    z = 0.2 * rng.integers(0, layers + 1, n) + rng.choice([0.0, 0.0, 0.05, 0.1], n)
+    xyz = np.column_stack([rng.uniform(-12, 12, (n, 2)), z]).astype(np.float32)
+    t = rng.uniform(0, 50, n)
+    t[rng.integers(0, n, 20)] = t[rng.integers(0, n, 20)]  # some at the same instant
+    cell = 2.5
+    got = overhang_flags(xyz, h, t, cell)
+    zmin = float(xyz[:, 2].min())
+    zq = np.rint((xyz[:, 2].astype(np.float64) - zmin) * 1000)
+    c = np.floor(xyz[:, :2] / np.float32(cell)).astype(np.int64)
+    near = (np.abs(c[:, None, :] - c[None, :, :]) <= 2).all(axis=2)
+    lo = np.maximum(np.rint(zq - 2500 * h), 0)[:, None]
+    hi = np.maximum(np.rint(zq - 500 * h), -1)[:, None]
+    below = (zq[None, :] >= lo) & (zq[None, :] <= hi) & (t[None, :] < t[:, None])
+    floor = zq + np.rint(zmin * 1000) <= np.rint(2500 * h) + 1
+    want = ~floor & ~(near & below).any(axis=1)
+    assert np.array_equal(got, want)
+    assert not got[floor].any()
+
+
+def test_the_footprint_sweep_finds_what_the_sample_checks_find():
+    """The fused sweep along a robot's path (samples made on the fly) against the same samples
+    made first and given to each check: the same hits, chunk by chunk."""
+    from cooprint.simulation import checks
+    from cooprint.simulation.timeline import Timeline
+
+    rng = np.random.default_rng(7)
+    prof = RobotProfile(build_depth=10.0, body_length=20.0, body_width=16.0, nozzle_height=2.0, nozzle_depth=6.0)
+    k = 300
+    p1 = np.column_stack([rng.uniform(-40, 40, (k, 2)), rng.uniform(0, 10, k)])
+    p0 = np.vstack([p1[:1], p1[:-1]])
+    t1 = np.cumsum(rng.uniform(0.1, 3, k))
+    t0 = np.r_[0.0, t1[:-1]]
+    kinds = np.zeros(k, np.uint8)
+    prog = dataclasses.replace(parse_coop("".join(f"MOVE {x:.3f} {y:.3f} {z:.3f}\n" for x, y, z in p1), "A"),
+                               chunk=rng.integers(-1, 3, k).astype(np.int16), chunks=("C", "L1", "R1"))
+    assert np.array_equal(prog.kind, kinds)
+    robot = SimRobot("A", prog, p0[0], np.array([0.6, 0.8]))
+    tl = Timeline("A", t0, t1, p0, p1, np.ones(k, bool), np.arange(k))
+    m_xyz = np.column_stack([rng.uniform(-40, 40, (500, 2)), rng.uniform(0, 12, 500)]).astype(np.float32)
+    material = checks.Material(m_xyz, np.sort(rng.uniform(0, t1[-1], 500)), np.full(500, 0.2), np.zeros(500, np.int64),
+                               np.array([0, 500]))
+    got = checks.footprint_checks([robot], {"A": tl}, prof, material, step=1.5)
+    frame = checks._frame(robot.facing).astype(np.float32)
+    body, head = checks.robot_checks(material, frame, prof)
+    xyz, t, move = checks.path_samples(tl, 1.5, False)
+    uv = xyz[:, :2] @ frame.T
+    want = []
+    for c in (body, head):
+        hit = c.hits(uv, xyz[:, 2], t)
+        want += checks._group([(t[hit], xyz[hit], move[hit])], c.kind, robot, tl, c.detail)
+    assert {f.kind for f in want} == {"body-on-material", "printhead-hits-material"}  # both found something
+    key = lambda f: (f.kind, f.chunk or "", f.time, f.count)  # noqa: E731
+    assert sorted(map(key, got)) == sorted(map(key, want))
+    assert all(np.allclose(a.position, b.position) for a, b in zip(sorted(got, key=key), sorted(want, key=key)))

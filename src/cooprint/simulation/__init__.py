@@ -70,8 +70,7 @@ def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
     """mm^3 a robot lays down: width x height x length of its moves with the tool on (a program
     without width and height annotations prints at the slicing settings' width and layer)."""
     w, h = r.bead(tl.index[tl.on], s.extrusion_width, s.layer_height)
-    length = np.linalg.norm(tl.p1[tl.on] - tl.p0[tl.on], axis=1)
-    return float((extrusion_area(w, h) * length).sum())
+    return float((extrusion_area(w, h) * tl.length[tl.on]).sum())
 
 
 def findings_line(counts: dict[str, int]) -> str:

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.simulation import kernels
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline
 
 #: Spacing of nozzle and material samples, mm.
@@ -43,39 +44,34 @@ TOLERANCE = 2.0
 MAX_SAMPLES = 8_000_000
 MOVES_AT_ONCE = 100_000
 MAX_CELLS = 8_000_000
-#: Nozzle samples the printhead check looks at together.
-BATCH = 2048
+#: The printhead check keeps the highest material over blocks of this many cells square too.
+HEAD_BLOCK = 8
 #: The overhang check looks this far around a point for material below it (at least half the
 #: sparse infill's line spacing plus a sample step, so that skins over sparse infill are not
 #: overhangs), mm.
 OVERHANG_RADIUS = 5.0
 
 
+def _selection(tl: Timeline, step: float, deposits_only: bool, moves: slice = slice(None)
+               ) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The moves to sample (of the range ``moves``), how many points each gets, and whether the
+    very first position comes first (when the nozzle's whole path is asked for)."""
+    sel = np.arange(len(tl.t0))[moves]
+    if deposits_only:
+        sel = sel[tl.on[sel]]
+    return sel, kernels.sample_counts(tl.length[sel], step), bool(not deposits_only and len(sel) and sel[0] == 0)
+
+
 def path_samples(tl: Timeline, step: float, deposits_only: bool, moves: slice = slice(None)
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (k, 3) float32 along the moves (of the range ``moves``) every ``step`` mm and at
     their ends, their times (k,) and the move each lies on (k,)."""
-    sel = np.arange(len(tl.t0))[moves]
-    if deposits_only:
-        sel = sel[tl.on[sel]]
-    if len(sel) == 0:
-        return np.zeros((0, 3), np.float32), np.zeros(0), np.zeros(0, np.int64)
-    p0 = tl.p0[sel].astype(np.float32)
-    d = tl.p1[sel].astype(np.float32) - p0
-    n = np.maximum(np.ceil(tl.length[sel] / step).astype(np.int64), 1)
-    frac = np.arange(1, int(n.sum()) + 1, dtype=np.float64)  # the j-th of n points: j / n
-    frac -= np.repeat((np.cumsum(n) - n).astype(np.float64), n)
-    frac *= np.repeat(1.0 / n, n)
-    pts = np.repeat(p0, n, axis=0)
-    pts += frac.astype(np.float32)[:, None] * np.repeat(d, n, axis=0)
-    times = np.repeat(tl.t0[sel], n)
-    times += frac * np.repeat(tl.t1[sel] - tl.t0[sel], n)
-    move = np.repeat(sel, n)
-    if not deposits_only and sel[0] == 0:  # the very first position too
-        pts = np.vstack([p0[:1], pts])
-        times = np.r_[tl.t0[:1], times]
-        move = np.r_[0, move]
-    return pts, times, move
+    sel, n, first = _selection(tl, step, deposits_only, moves)
+    k = int(n.sum()) + first
+    out = np.empty((k, 3), np.float32), np.empty(k), np.empty(k, np.int64)
+    if len(sel):
+        kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, first, *out, 0)
+    return out
 
 
 def _step(timelines: dict[str, Timeline], step: float, deposits_only: bool) -> float:
@@ -100,12 +96,17 @@ class Material:
     def sample(robots: list[SimRobot], timelines: dict[str, Timeline], step: float,
                layer_height: float) -> "Material":
         step = _step(timelines, step, deposits_only=True)
-        parts = [path_samples(timelines[r.name], step, deposits_only=True) for r in robots]
-        h = [r.bead(timelines[r.name].index, 0.0, layer_height)[1][move] for r, (_, _, move) in zip(robots, parts)]
-        return Material(np.vstack([p[0] for p in parts] + [np.zeros((0, 3), np.float32)]),
-                        np.concatenate([p[1] for p in parts] + [np.zeros(0)]), np.concatenate(h + [np.zeros(0)]),
-                        np.concatenate([p[2] for p in parts] + [np.zeros(0, np.int64)]),
-                        np.cumsum([0] + [len(p[1]) for p in parts]))
+        parts = [_selection(timelines[r.name], step, deposits_only=True) for r in robots]
+        bounds = np.cumsum([0] + [int(n.sum()) for _, n, _ in parts])
+        xyz, t, move = np.empty((bounds[-1], 3), np.float32), np.empty(bounds[-1]), np.empty(bounds[-1], np.int64)
+        h = np.empty(bounds[-1])
+        for i, (r, (sel, n, _)) in enumerate(zip(robots, parts)):  # each robot's points in one pass, in place
+            tl = timelines[r.name]
+            if len(sel):
+                kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, False, xyz, t, move, bounds[i])
+            block = slice(bounds[i], bounds[i + 1])
+            h[block] = r.bead(tl.index, 0.0, layer_height)[1][move[block]]
+        return Material(xyz, t, h, move, bounds)
 
     def robot(self, i: int) -> slice:
         return slice(int(self.bounds[i]), int(self.bounds[i + 1]))
@@ -138,25 +139,6 @@ def head_box(profile: RobotProfile, tolerance: float = 0.0) -> tuple[float, floa
     return (-r, r, -r, r)
 
 
-def _sliding(a: np.ndarray, w: int, axis: int, op: np.ufunc) -> np.ndarray:
-    """``op`` (minimum or maximum) over every window of ``w`` entries along ``axis``: out[i] covers
-    a[i:i + w] (``n - w + 1`` entries); log2(w) passes of doubling windows."""
-    def part(x, start, length):
-        idx = [slice(None)] * x.ndim
-        idx[axis] = slice(start, start + length)
-        return x[tuple(idx)]
-
-    out, span = a, 1
-    while 2 * span <= w:
-        m = out.shape[axis] - span
-        out = op(part(out, 0, m), part(out, span, m))
-        span *= 2
-    if w > span:  # overlapping windows: fine for min and max
-        m = out.shape[axis] - (w - span)
-        out = op(part(out, 0, m), part(out, w - span, m))
-    return out
-
-
 @dataclass(frozen=True)
 class _Raster:
     """Square cells over the material's box in one robot's (u, v) frame, padded on each side by
@@ -176,21 +158,17 @@ class _Raster:
         shape = tuple(int(np.floor((h - l) / cell)) + 1 + 2 * w for l, h, w in zip(lo, hi, window))
         return _Raster(lo, cell, shape, window, box)
 
-    def cells(self, base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Cell indices (row, column) of material from its cells (k, 2) counted from ``lo``."""
-        return base[:, 0] + self.window[0], base[:, 1] + self.window[1]
+    def cells(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Cell indices (row, column) of points (k, 2) in the robot's frame."""
+        return kernels.cells_of(uv, self.lo, self.cell, *self.window)
 
-    def windows(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Index, into the window-filtered grid, of each nozzle position's footprint."""
-        c = np.floor((uv + np.array([self.box[0], self.box[2]], np.float32) - self.lo) / self.cell).astype(np.int64)
-        return (np.clip(c[:, 0] + self.window[0], 0, self.shape[0] - self.window[0]),
-                np.clip(c[:, 1] + self.window[1], 0, self.shape[1] - self.window[1]))
-
-
-def _nozzle_batches(tl: Timeline, step: float):
-    """The nozzle's samples in time order, ``MOVES_AT_ONCE`` moves at a time: (xyz, t, move)."""
-    for first in range(0, len(tl.t0), MOVES_AT_ONCE):
-        yield path_samples(tl, step, False, slice(first, first + MOVES_AT_ONCE))
+    @property
+    def params(self) -> tuple[np.ndarray, np.ndarray]:
+        """The raster as the kernels take it: ``(lo_u, lo_v, cell, box_u_lo, box_v_lo)`` and
+        ``(window_u, window_v, last row and column of a window's corner, window_u, window_v)``."""
+        return (np.array([self.lo[0], self.lo[1], self.cell, self.box[0], self.box[2]]),
+                np.array([*self.window, self.shape[0] - self.window[0], self.shape[1] - self.window[1], *self.window],
+                         dtype=np.int64))
 
 
 def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
@@ -206,14 +184,23 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
         tl = timelines[r.name]
         frame = _frame(r.facing).astype(np.float32)
         checks = robot_checks(material, frame, profile, body, head, tolerance)
-        for xyz, t, move in _nozzle_batches(tl, n_step):
-            uv = xyz[:, :2] @ frame.T
-            for c in checks:
-                k = c.hits(uv, xyz[:, 2], t)
-                c.found.append((t[k], xyz[k], move[k]))
-        for c in checks:
-            findings += _group(c.found, c.kind, r, tl, c.detail)
-    return findings
+        if not checks or len(tl.t0) == 0:
+            continue
+        b, h = (checks[0] if body else None), (checks[-1] if head else None)
+        chunk = r.program.chunk[tl.index].astype(np.int64)
+        chunk[chunk < 0] = len(r.program.chunks)  # between chunks: the last slot
+        slots = len(r.program.chunks) + 1
+        count, when, where = np.zeros((2, slots), np.int64), np.full((2, slots), np.inf), np.zeros((2, slots, 3))
+        idle = np.zeros((1, 1)), np.zeros(5), np.zeros(6, np.int64)  # a check not run
+        kernels.footprint_sweep(tl.p0, tl.p1, tl.t0, tl.t1, kernels.sample_counts(tl.length, n_step), True, chunk,
+                                frame, b is not None, *(b.state if b else idle),
+                                h is not None, *(h.state if h else _HeadCheck.idle()), count, when, where)
+        for k, c in enumerate((b, h)):
+            for slot in np.flatnonzero(count[k]):
+                findings.append(Finding(c.kind, r.name, float(when[k, slot]), tuple(float(x) for x in where[k, slot]),
+                                        r.program.chunks[slot] if slot < len(r.program.chunks) else None, c.detail,
+                                        int(count[k, slot])))
+    return sorted(findings, key=lambda f: (f.time, f.kind))
 
 
 def robot_checks(material: Material, frame: np.ndarray, profile: RobotProfile, body: bool = True,
@@ -225,15 +212,12 @@ def robot_checks(material: Material, frame: np.ndarray, profile: RobotProfile, b
     boxes = ([body_box(profile, tolerance)] if body else []) + ([head_box(profile, tolerance)] if head else [])
     if not boxes:
         return []
-    m_uv = material.xyz[:, :2] @ frame.T
-    lo = m_uv.min(axis=0) if len(m_uv) else np.zeros(2, np.float32)
-    hi = m_uv.max(axis=0) if len(m_uv) else np.zeros(2, np.float32)
+    m_uv = kernels.to_frame(material.xyz, frame)
+    lo, hi = kernels.bounds(m_uv)
     size = max((b[1] - b[0]) + (b[3] - b[2]) for b in boxes)
     cell = max(tolerance / 2, float(np.sqrt(np.prod(hi - lo + 2 * size) / MAX_CELLS)))
-    base = np.floor((m_uv - lo) / np.float32(cell)).astype(np.int32)  # cells of the material
-    return ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), base, material)] if body else []) + \
-        ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), base, m_uv, material, profile, tolerance)]
-         if head else [])
+    return ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), m_uv, material)] if body else []) + \
+        ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), m_uv, material, profile, tolerance)] if head else [])
 
 
 class _BodyCheck:
@@ -243,87 +227,50 @@ class _BodyCheck:
     kind = "body-on-material"
     detail = "the body stands on material laid down before"
 
-    def __init__(self, grid: _Raster, cells: np.ndarray, material: Material):
-        self.grid = grid
+    def __init__(self, grid: _Raster, m_uv: np.ndarray, material: Material):
         first = np.full(grid.shape, np.inf)
-        np.minimum.at(first, grid.cells(cells), material.t)
-        self.first = _sliding(_sliding(first, self.grid.window[0], 0, np.minimum), self.grid.window[1], 1,
-                              np.minimum)
-        self.found: list = []
+        kernels.scatter_min(first, *grid.cells(m_uv), material.t)
+        self.state = (kernels.window_min(first, *grid.window), *grid.params)  # what the kernels take
 
     def hits(self, uv: np.ndarray, z: np.ndarray, t: np.ndarray) -> np.ndarray:
-        return np.flatnonzero(self.first[self.grid.windows(uv)] < t)
+        """Indices of the nozzle samples (``uv`` (k, 2) in the robot's frame, heights, times)
+        whose body stands on material."""
+        return kernels.body_hits(*self.state, uv, t)
 
 
 class _HeadCheck:
-    """The highest material laid down so far in each cell: the nozzle samples are swept in time
-    order in batches of ``BATCH``; before each batch the material laid down until its start is
-    added (each robot's points are in time order), and the maximum over the printhead's reach is
-    taken over the batch's region only; the material laid down during the batch is compared
-    point by point."""
+    """The highest material laid down so far in each cell (and in blocks of ``HEAD_BLOCK`` x
+    ``HEAD_BLOCK`` cells): the nozzle samples are swept in time order, and before each the
+    material laid down until its time is added (each robot's points are in time order); a
+    sample's window is looked at block by block, cell by cell only in blocks that reach above
+    the printhead and straddle the window's edge."""
 
     kind = "printhead-hits-material"
 
-    def __init__(self, grid: _Raster, cells: np.ndarray, m_uv: np.ndarray, material: Material,
-                 profile: RobotProfile, tolerance: float):
-        self.grid, self.box = grid, grid.box
-        self.lift = profile.nozzle_height + tolerance
-        self.high = np.full(grid.shape, -np.inf, dtype=np.float32)
-        self.cells = grid.cells(cells)
-        self.m_uv, self.m_z, self.m_t = m_uv, material.xyz[:, 2], material.t
-        self.blocks = [material.robot(i) for i in range(len(material.bounds) - 1)]
-        self.top = np.concatenate([np.maximum.accumulate(self.m_z[b]) for b in self.blocks if b.stop > b.start]
-                                  + [np.zeros(0, np.float32)])  # each robot's highest so far
-        self.added = [b.start for b in self.blocks]
+    def __init__(self, grid: _Raster, m_uv: np.ndarray, material: Material, profile: RobotProfile,
+                 tolerance: float):
+        high = np.full(grid.shape, -np.inf, dtype=np.float32)
+        coarse = np.full(tuple(-(-n // HEAD_BLOCK) for n in grid.shape), -np.inf, dtype=np.float32)
+        added = material.bounds[:-1].astype(np.int64)  # per robot: its points added so far
+        top = np.full(1, -np.inf, dtype=np.float32)  # the highest material added
+        self.state = (high, coarse, HEAD_BLOCK, *grid.cells(m_uv), material.xyz, material.t,
+                      material.bounds[1:].astype(np.int64), added, top, *grid.params,
+                      np.float32(profile.nozzle_height + tolerance))  # what the kernels take
         self.detail = (f"material laid down before rises within the printhead's reach ({profile.nozzle_depth:g} mm) "
                        f"above its underside ({profile.nozzle_height:g} mm over the nozzle tip)")
-        self.found: list = []
+
+    @staticmethod
+    def idle() -> tuple:
+        """A state of the same types for a sweep that does not run the check."""
+        cells = np.zeros(0, np.int32)
+        return (np.zeros((1, 1), np.float32), np.zeros((1, 1), np.float32), HEAD_BLOCK, cells, cells,
+                np.zeros((0, 3), np.float32), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                np.zeros(1, np.float32), np.zeros(5), np.zeros(6, np.int64), np.float32(0))
 
     def hits(self, uv: np.ndarray, z: np.ndarray, t: np.ndarray) -> np.ndarray:
-        out = []
-        for a in range(0, len(t), BATCH):
-            hit = self._batch(uv[a:a + BATCH], z[a:a + BATCH] + self.lift, t[a:a + BATCH])
-            if hit is not None:
-                out.append(np.flatnonzero(hit) + a)
-        return np.concatenate(out) if out else np.zeros(0, np.int64)
-
-    def _batch(self, uv: np.ndarray, under: np.ndarray, t: np.ndarray) -> np.ndarray | None:
-        low = under.min()
-        spans = []  # per robot: its points laid down before the batch, and during it
-        for b in self.blocks:
-            ka, kb = np.searchsorted(self.m_t[b], [t[0], t[-1]]) + b.start
-            spans.append((b.start, ka, kb))
-        if not any(kb > s and self.top[kb - 1] > low for s, _, kb in spans):
-            return None  # nothing laid down yet reaches that high
-        for i, (s, ka, _) in enumerate(spans):
-            if ka > self.added[i]:
-                new = slice(self.added[i], ka)
-                np.maximum.at(self.high, (self.cells[0][new], self.cells[1][new]), self.m_z[new])
-                self.added[i] = ka
-        box, window = self.box, self.grid.window
-        hit = np.zeros(len(t), dtype=bool)
-        if any(ka > s for s, ka, _ in spans):
-            wr, wc = self.grid.windows(uv)
-            r0, c0 = wr.min(), wc.min()
-            part = self.high[r0:wr.max() + window[0], c0:wc.max() + window[1]]
-            part = _sliding(_sliding(part, window[0], 0, np.maximum), window[1], 1, np.maximum)
-            hit = part[wr - r0, wc - c0] > under
-        near = np.concatenate([np.arange(ka, kb) for _, ka, kb in spans])  # during the batch: point by point
-        near = near[self.m_z[near] > low]
-        if len(near):
-            lo, hi = uv.min(axis=0), uv.max(axis=0)
-            m = self.m_uv[near]
-            near = near[(m[:, 0] >= lo[0] + box[0]) & (m[:, 0] <= hi[0] + box[1])
-                        & (m[:, 1] >= lo[1] + box[2]) & (m[:, 1] <= hi[1] + box[3])]
-        rows = max(1, (1 << 22) // max(len(near), 1))  # bound the (samples x points) tests
-        for a in range(0, len(t) if len(near) else 0, rows):
-            b = slice(a, a + rows)
-            du = self.m_uv[near, 0][None, :] - uv[b, 0, None]
-            dv = self.m_uv[near, 1][None, :] - uv[b, 1, None]
-            hit[b] |= ((du >= box[0]) & (du <= box[1]) & (dv >= box[2]) & (dv <= box[3])
-                       & (self.m_z[near][None, :] > under[b, None])
-                       & (self.m_t[near][None, :] < t[b, None])).any(axis=1)
-        return hit
+        """Indices of the nozzle samples (in time order, after those of earlier calls) whose
+        printhead meets material."""
+        return kernels.head_hits(*self.state, uv, z, t)
 
 
 def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: Material,
@@ -342,53 +289,8 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
     xyz, t, h = material.xyz, material.t, material.h
     if len(t) == 0:
         return []
-    cell = radius / 2
-    cxy = np.floor(xyz[:, :2] / cell).astype(np.int64)
-    cxy -= cxy.min(axis=0) - 2
-    ny = int(cxy[:, 1].max()) + 3
-    zmin = float(xyz[:, 2].min())
-    zq = np.round((xyz[:, 2] - zmin) * 1000).astype(np.int64)  # micrometres above the lowest point
-    nz = int(zq.max()) + 1
-    # everything in the order of (cell, height); the earliest time of each (cell, height)
-    own = (cxy[:, 0] * ny + cxy[:, 1]) * nz
-    key = own + zq
-    order = np.argsort(key)
-    key, own, zq, t_s, h_s = key[order], own[order], zq[order], t[order], h[order]
-    del cxy
-    group = np.r_[True, key[1:] != key[:-1]]
-    key = key[group]
-    first = np.minimum.reduceat(t_s, np.flatnonzero(group))
-    gid = np.cumsum(group) - 1
-    del group
-    band = (np.clip(np.round(zq - 2500 * h_s), 0, None).astype(np.int64),
-            np.clip(np.round(zq - 500 * h_s), -1, None).astype(np.int64))
-    # on the floor, or one layer of air above it: supported; most other points have material
-    # right below in their own cell: one of the three (cell, height)s just before their own
-    ok = zq + round(zmin * 1000) <= np.round(2500 * h_s) + 1
-    for back in (1, 2, 3):
-        g = np.maximum(gid - back, 0)
-        below = key[g] - own
-        ok |= (gid >= back) & (below >= band[0]) & (below <= band[1]) & (first[g] < t_s)
-    todo = np.flatnonzero(~ok)
-    del ok, g, below, gid
-    # the rest: every height in the band, in the own cell and the 24 cells around
-    for dx, dy in [(0, 0)] + [(dx, dy) for dx in range(-2, 3) for dy in range(-2, 3) if dx or dy]:
-        if len(todo) == 0:
-            break
-        base = own[todo] + (dx * ny + dy) * nz
-        lo = np.searchsorted(key, base + band[0][todo], side="left")
-        hi = np.searchsorted(key, base + band[1][todo], side="right")
-        found = np.zeros(len(todo), dtype=bool)
-        live = np.flatnonzero(lo < hi)
-        while len(live):  # each height in the band, lowest first
-            ok = first[lo[live]] < t_s[todo[live]]
-            found[live[ok]] = True
-            lo[live] += 1
-            live = live[~ok & (lo[live] < hi[live])]
-        todo = todo[~found]
-    todo = order[todo]  # back to the material's order
+    todo = np.flatnonzero(kernels.overhang_flags(xyz, h, t, radius / 2))
     findings = []
-    todo.sort()
     for i, r in enumerate(robots):
         block = material.robot(i)
         bad = todo[np.searchsorted(todo, block.start):np.searchsorted(todo, block.stop)]
@@ -404,17 +306,11 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     findings = []
     end = max((tl.end for tl in timelines.values()), default=0.0)
     times = np.arange(0.0, end + dt, dt)
-    corners = {}
-    for r in robots:
-        nozzle = timelines[r.name].position(times)[:, :2]
-        corners[r.name] = nozzle[:, None, :] + body_corners(profile, r.facing, tolerance)[None]  # (T, 4, 2)
+    nozzle = {r.name: _nozzle_xy(timelines[r.name], times) for r in robots}
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
-            p, q = corners[a.name], corners[b.name]
-            near = np.flatnonzero((p[:, :, 0].min(1) <= q[:, :, 0].max(1)) & (q[:, :, 0].min(1) <= p[:, :, 0].max(1))
-                                  & (p[:, :, 1].min(1) <= q[:, :, 1].max(1)) & (q[:, :, 1].min(1) <= p[:, :, 1].max(1)))
-            hit = np.zeros(len(times), dtype=bool)  # boxes apart: no overlap; else separating axes
-            hit[near] = _rects_overlap(p[near], q[near])
+            hit = kernels.rects_overlap(nozzle[a.name], nozzle[b.name], body_corners(profile, a.facing, tolerance),
+                                        body_corners(profile, b.facing, tolerance))
             if hit.any():
                 k = np.flatnonzero(hit)
                 t = float(times[k[0]])
@@ -425,16 +321,11 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     return findings
 
 
-def _rects_overlap(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """(T,) whether convex quadrilaterals p[t] and q[t] (T, 4, 2) overlap (separating axes)."""
-    sep = np.zeros(len(p), dtype=bool)
-    for poly in (p, q):
-        edges = np.roll(poly, -1, axis=1) - poly
-        normals = np.stack([-edges[..., 1], edges[..., 0]], axis=-1)  # (T, 4, 2)
-        pa = np.einsum("tkd,tjd->tkj", normals, p)
-        qa = np.einsum("tkd,tjd->tkj", normals, q)
-        sep |= ((pa.max(axis=2) < qa.min(axis=2)) | (qa.max(axis=2) < pa.min(axis=2))).any(axis=1)
-    return ~sep
+def _nozzle_xy(tl: Timeline, times: np.ndarray) -> np.ndarray:
+    """(T, 2) the nozzle's XY at sorted ``times`` (as :meth:`Timeline.position`)."""
+    if len(tl.t1) == 0:
+        return np.zeros((len(times), 2))
+    return kernels.positions_at(tl.t0, tl.t1, tl.p0, tl.p1, times)
 
 
 def _chunk_of(r: SimRobot, tl: Timeline, t: float) -> str | None:

@@ -1,0 +1,469 @@
+"""Compiled loops of the simulator's checks (numba, one core).
+
+The checks are sweeps in time order and look-ups in rasters: sequential by nature, so they are
+written as plain loops and compiled, instead of being forced into whole-array passes that would
+each make a temporary of every sample. Each function here is small and has a pure-numpy
+counterpart in the tests (``tests/test_simulation.py``) that it must agree with.
+
+Arrays: positions float32 (as the samples are kept), times float64, cells int64.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def sample_counts(length, step):
+    """(k,) how many samples each move of ``length`` gets: ``ceil(length / step)``, at least 1."""
+    n = np.empty(len(length), np.int64)
+    for i in range(len(length)):
+        c = int(np.ceil(length[i] / step))
+        n[i] = c if c > 1 else 1
+    return n
+
+
+@_jit
+def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, k):
+    """Points along moves ``sel`` (``n[j]`` points on move ``sel[j]``: the i-th of n at i / n
+    of the way, its end included; with ``first`` the start of the first move before them),
+    written to ``xyz`` (float32), ``t`` and ``move`` from row ``k`` on. Returns the next row."""
+    if first:
+        m = sel[0]
+        for a in range(3):
+            xyz[k, a] = np.float32(p0[m, a])
+        t[k] = t0[m]
+        move[k] = m
+        k += 1
+    for j in range(len(sel)):
+        m = sel[j]
+        c = n[j]
+        a0 = np.float32(p0[m, 0])
+        a1 = np.float32(p0[m, 1])
+        a2 = np.float32(p0[m, 2])
+        d0 = np.float32(p1[m, 0]) - a0
+        d1 = np.float32(p1[m, 1]) - a1
+        d2 = np.float32(p1[m, 2]) - a2
+        dt = t1[m] - t0[m]
+        inv = 1.0 / c
+        for i in range(1, c + 1):
+            f = i * inv
+            f32 = np.float32(f)
+            xyz[k, 0] = a0 + f32 * d0
+            xyz[k, 1] = a1 + f32 * d1
+            xyz[k, 2] = a2 + f32 * d2
+            t[k] = t0[m] + f * dt
+            move[k] = m
+            k += 1
+    return k
+
+
+@_jit
+def to_frame(xyz, frame):
+    """(k, 2) float32: XY of ``xyz`` in a robot's frame (rows of ``frame``: facing, its left)."""
+    uv = np.empty((len(xyz), 2), np.float32)
+    f00, f01, f10, f11 = frame[0, 0], frame[0, 1], frame[1, 0], frame[1, 1]
+    for i in range(len(xyz)):
+        x, y = xyz[i, 0], xyz[i, 1]
+        uv[i, 0] = x * f00 + y * f01
+        uv[i, 1] = x * f10 + y * f11
+    return uv
+
+
+@_jit
+def bounds(uv):
+    """(2,), (2,) float32: lowest and highest u and v."""
+    lo = np.zeros(2, np.float32)
+    hi = np.zeros(2, np.float32)
+    if len(uv):
+        lo[:] = uv[0]
+        hi[:] = uv[0]
+    for i in range(len(uv)):
+        for a in range(2):
+            if uv[i, a] < lo[a]:
+                lo[a] = uv[i, a]
+            if uv[i, a] > hi[a]:
+                hi[a] = uv[i, a]
+    return lo, hi
+
+
+@_jit
+def cells_of(uv, lo, cell, pad0, pad1):
+    """(k,) row and (k,) column of each point's cell: ``floor((uv - lo) / cell)`` plus the padding."""
+    r = np.empty(len(uv), np.int32)
+    c = np.empty(len(uv), np.int32)
+    for i in range(len(uv)):
+        r[i] = int(np.floor((uv[i, 0] - lo[0]) / cell)) + pad0
+        c[i] = int(np.floor((uv[i, 1] - lo[1]) / cell)) + pad1
+    return r, c
+
+
+@_jit
+def _window(u, v, g, gi):
+    """Row and column of the low corner cell of the footprint of a nozzle at ``u, v`` on a raster
+    ``g = (lo_u, lo_v, cell, off_u, off_v)`` (``off``: the footprint's corner relative to the
+    nozzle), ``gi = (pad_u, pad_v, last_row, last_col, ...)``: clipped so the window lies in it."""
+    a = int(np.floor((u + g[3] - g[0]) / g[2])) + gi[0]
+    b = int(np.floor((v + g[4] - g[1]) / g[2])) + gi[1]
+    return min(max(a, 0), gi[2]), min(max(b, 0), gi[3])
+
+
+@_jit
+def scatter_min(grid, r, c, value):
+    """``grid[r, c] = min(grid[r, c], value)`` for every point."""
+    for i in range(len(r)):
+        if value[i] < grid[r[i], c[i]]:
+            grid[r[i], c[i]] = value[i]
+
+
+@_jit
+def _window_min_1d(a, out, w, tmp_pre, tmp_suf):
+    """out[i] = min(a[i:i + w]) (van Herk / Gil-Werman: prefix and suffix minima in blocks of w)."""
+    n = len(a)
+    for s in range(0, n, w):
+        e = min(s + w, n)
+        tmp_pre[s] = a[s]
+        for i in range(s + 1, e):
+            tmp_pre[i] = min(tmp_pre[i - 1], a[i])
+        tmp_suf[e - 1] = a[e - 1]
+        for i in range(e - 2, s - 1, -1):
+            tmp_suf[i] = min(tmp_suf[i + 1], a[i])
+    for i in range(n - w + 1):
+        out[i] = min(tmp_suf[i], tmp_pre[i + w - 1])
+
+
+@_jit
+def window_min(a, w0, w1):
+    """(n0 - w0 + 1, n1 - w1 + 1): the minimum of ``a`` over every w0 x w1 window (out[i, j] covers
+    a[i:i + w0, j:j + w1])."""
+    n0, n1 = a.shape
+    m0, m1 = n0 - w0 + 1, n1 - w1 + 1
+    rows = np.empty((n0, m1), a.dtype)
+    pre = np.empty(max(n0, n1), a.dtype)
+    suf = np.empty(max(n0, n1), a.dtype)
+    for i in range(n0):
+        _window_min_1d(a[i], rows[i], w1, pre, suf)
+    out = np.empty((m0, m1), a.dtype)
+    col = np.empty(n0, a.dtype)
+    res = np.empty(m0, a.dtype)
+    for j in range(m1):
+        for i in range(n0):
+            col[i] = rows[i, j]
+        _window_min_1d(col, res, w0, pre, suf)
+        for i in range(m0):
+            out[i, j] = res[i]
+    return out
+
+
+@_jit
+def _advance(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, t):
+    """Add to ``high`` (and ``coarse``, its maximum over blocks of ``block`` x ``block`` cells)
+    the material laid down before time ``t``: robot ``j``'s points ``added[j]:stops[j]`` of
+    ``m_xyz``, in time order, in cells ``m_r, m_c``; ``added`` and ``top`` (the highest so far)
+    are updated in place."""
+    for j in range(len(added)):
+        p = added[j]
+        e = stops[j]
+        while p < e and m_t[p] < t:
+            z = m_xyz[p, 2]
+            r, c = m_r[p], m_c[p]
+            if z > high[r, c]:
+                high[r, c] = z
+                if z > coarse[r // block, c // block]:
+                    coarse[r // block, c // block] = z
+                if z > top[0]:
+                    top[0] = z
+            p += 1
+        added[j] = p
+
+
+@_jit
+def _reaches(high, coarse, block, r0, c0, win0, win1, level):
+    """Whether a cell of the ``win0`` x ``win1`` window from ``r0, c0`` holds material higher
+    than ``level``: block by block, cell by cell only in blocks that reach above ``level`` and
+    straddle the window's edge."""
+    r1, c1 = r0 + win0 - 1, c0 + win1 - 1
+    for br in range(r0 // block, r1 // block + 1):
+        a0, a1 = max(br * block, r0), min(br * block + block - 1, r1)
+        for bc in range(c0 // block, c1 // block + 1):
+            if coarse[br, bc] <= level:
+                continue
+            b0, b1 = max(bc * block, c0), min(bc * block + block - 1, c1)
+            if a1 - a0 == block - 1 and b1 - b0 == block - 1:
+                return True  # the whole block lies in the window
+            for rr in range(a0, a1 + 1):
+                for cc in range(b0, b1 + 1):
+                    if high[rr, cc] > level:
+                        return True
+    return False
+
+
+@_jit
+def body_hits(first, g, gi, uv, t):
+    """Indices of the nozzle samples (``uv`` (k, 2) in the robot's frame, times ``t``) whose body
+    window (raster ``g, gi`` of :func:`_window`) holds material laid down before: ``first``
+    is the earliest time over each window."""
+    hit = np.empty(len(t), np.int64)
+    k = 0
+    for i in range(len(t)):
+        r, c = _window(uv[i, 0], uv[i, 1], g, gi)
+        if first[r, c] < t[i]:
+            hit[k] = i
+            k += 1
+    return hit[:k]
+
+
+@_jit
+def head_hits(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, g, gi, lift, uv, z, t):
+    """Indices of the nozzle samples (in time order, and after those of earlier calls) whose
+    printhead window (raster ``g, gi``; ``gi[4:6]`` its size in cells) holds material laid down
+    before that is higher than the nozzle by more than ``lift``. The material state is
+    :func:`_advance`'s."""
+    hit = np.empty(len(t), np.int64)
+    k = 0
+    for i in range(len(t)):
+        _advance(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, t[i])
+        level = z[i] + lift
+        if top[0] <= level:
+            continue
+        r, c = _window(uv[i, 0], uv[i, 1], g, gi)
+        if _reaches(high, coarse, block, r, c, gi[4], gi[5], level):
+            hit[k] = i
+            k += 1
+    return hit[:k]
+
+
+@_jit
+def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, first_time, bg, bgi,
+                    head, high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, hg, hgi, lift,
+                    count, when, where):
+    """Both footprint checks along a robot's whole path, sampled as :func:`sample_moves` does
+    (``n[m]`` points on move ``m``; ``first``: the start too), without keeping the samples.
+    A hit of check ``k`` (0: body, :func:`body_hits`; 1: printhead, :func:`head_hits`) on a
+    move of chunk ``chunk[m]`` adds one to ``count[k, chunk]``; the first one of each chunk
+    leaves its time in ``when`` and its position in ``where``."""
+    f00, f01, f10, f11 = frame[0, 0], frame[0, 1], frame[1, 0], frame[1, 1]
+    for m in range(len(t0)):
+        a0 = np.float32(p0[m, 0])
+        a1 = np.float32(p0[m, 1])
+        a2 = np.float32(p0[m, 2])
+        d0 = np.float32(p1[m, 0]) - a0
+        d1 = np.float32(p1[m, 1]) - a1
+        d2 = np.float32(p1[m, 2]) - a2
+        c = n[m]
+        inv = 1.0 / c
+        for i in range(0 if (first and m == 0) else 1, c + 1):
+            f = i * inv
+            f32 = np.float32(f)
+            x, y, z = a0 + f32 * d0, a1 + f32 * d1, a2 + f32 * d2
+            t = t0[m] + f * (t1[m] - t0[m])
+            u = x * f00 + y * f01
+            v = x * f10 + y * f11
+            for k in range(2):
+                if k == 0:
+                    if not body:
+                        continue
+                    r, cc = _window(u, v, bg, bgi)
+                    hit = first_time[r, cc] < t
+                else:
+                    if not head:
+                        continue
+                    _advance(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, t)
+                    level = z + lift
+                    hit = False
+                    if top[0] > level:
+                        r, cc = _window(u, v, hg, hgi)
+                        hit = _reaches(high, coarse, block, r, cc, hgi[4], hgi[5], level)
+                if hit:
+                    ch = chunk[m]
+                    count[k, ch] += 1
+                    if count[k, ch] == 1:
+                        when[k, ch] = t
+                        where[k, ch, 0], where[k, ch, 1], where[k, ch, 2] = x, y, z
+
+
+@_jit
+def _band_has_support(zs, ts, a, e, lo, hi, t):
+    """Whether a height of ``zs[a:e]`` (sorted, distinct) lies in ``[lo, hi]`` with an earliest
+    time ``ts`` before ``t``."""
+    end = e
+    while a < e:  # the first height >= lo
+        m = (a + e) >> 1
+        if zs[m] < lo:
+            a = m + 1
+        else:
+            e = m
+    while a < end and zs[a] <= hi:
+        if ts[a] < t:
+            return True
+        a += 1
+    return False
+
+
+@_jit
+def overhang_flags(xyz, h, t, cell):
+    """Whether each point (``xyz`` (k, 3) float32 mm, its layer height ``h``, its time ``t``) has
+    nothing below it: no point laid down before it whose height lies between 2.5 and 0.5 of its
+    layer height below it (heights in whole micrometres above the lowest point), in its own
+    square cell of ``cell`` mm or the 24 cells around; and it is not on the floor (at most 2.5
+    layer heights above the lowest point).
+
+    The points are put in order cell by cell (a counting sort); in each cell the distinct
+    heights, lowest first, keep the earliest time material was at them. A point looks in its
+    own cell first, while that cell is at hand (its points lowest first, the band's start found
+    by a pointer that follows them), then in the 24 around (by bisection).
+    """
+    n = len(xyz)
+    out = np.zeros(n, np.bool_)
+    if n == 0:
+        return out
+    mx, my, zmin, top_x, top_y = np.inf, np.inf, np.inf, -np.inf, -np.inf
+    for i in range(n):
+        fx, fy = np.floor(xyz[i, 0] / cell), np.floor(xyz[i, 1] / cell)
+        mx, my, top_x, top_y = min(mx, fx), min(my, fy), max(top_x, fx), max(top_y, fy)
+        zmin = min(zmin, float(xyz[i, 2]))
+    ox, oy = int(mx) - 2, int(my) - 2  # cells counted from 2 below the lowest: the 24 around exist
+    nx, ny = int(top_x) - ox + 3, int(top_y) - oy + 3
+    cells = nx * ny
+    start = np.zeros(cells + 1, np.int64)  # counting sort by cell: each point's data moved to its cell's place
+    for i in range(n):
+        start[(int(np.floor(xyz[i, 0] / cell)) - ox) * ny + int(np.floor(xyz[i, 1] / cell)) - oy + 1] += 1
+    for c in range(cells):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    point = np.empty(n, np.int64)  # the point at each place
+    zc = np.empty(n, np.int32)  # its height in micrometres above the lowest point
+    tc = np.empty(n)
+    hc = np.empty(n)
+    for i in range(n):
+        c = (int(np.floor(xyz[i, 0] / cell)) - ox) * ny + int(np.floor(xyz[i, 1] / cell)) - oy
+        j = fill[c]
+        fill[c] += 1
+        point[j], zc[j], tc[j], hc[j] = i, int(np.rint((xyz[i, 2] - zmin) * 1000.0)), t[i], h[i]
+    zmin_um = np.rint(zmin * 1000.0)
+    # each cell's distinct heights, lowest first, with their earliest times: zs, ts from first[c]
+    zs = np.empty(n, np.int32)
+    ts = np.empty(n)
+    first = np.zeros(cells + 1, np.int64)
+    lo_band = np.empty(n, np.int64)
+    hi_band = np.empty(n, np.int64)
+    todo = np.zeros(n, np.bool_)
+    k = 0
+    for c in range(cells):
+        first[c] = k
+        a, b = start[c], start[c + 1]
+        if a == b:
+            continue
+        ordered = True  # a cell's points mostly come in layer order already
+        for j in range(a + 1, b):
+            if zc[j] < zc[j - 1]:
+                ordered = False
+                break
+        o = np.arange(a, b) if ordered else np.argsort(zc[a:b]) + a
+        for j in o:
+            if k > first[c] and zs[k - 1] == zc[j]:
+                ts[k - 1] = min(ts[k - 1], tc[j])
+            else:
+                zs[k] = zc[j]
+                ts[k] = tc[j]
+                k += 1
+        p = first[c]  # the own cell, while it is at hand, lowest first: a pointer to the lowest height in the band
+        for j in o:
+            if zc[j] + zmin_um <= np.rint(2500.0 * hc[j]) + 1:
+                continue  # on the floor, or one layer of air above it
+            lo = int(max(np.rint(zc[j] - 2500.0 * hc[j]), 0.0))
+            hi = int(max(np.rint(zc[j] - 500.0 * hc[j]), -1.0))
+            lo_band[j], hi_band[j] = lo, hi
+            while p > first[c] and zs[p - 1] >= lo:
+                p -= 1
+            while p < k and zs[p] < lo:
+                p += 1
+            q = p
+            found = False
+            while q < k and zs[q] <= hi:
+                if ts[q] < tc[j]:
+                    found = True
+                    break
+                q += 1
+            todo[j] = not found
+    first[cells] = k
+    for c in range(cells):  # the 24 cells around
+        for j in range(start[c], start[c + 1]):
+            if not todo[j]:
+                continue
+            found = False
+            for q in range(25):
+                if q == 12:
+                    continue  # the own cell
+                d = c + (q // 5 - 2) * ny + q % 5 - 2
+                if _band_has_support(zs, ts, first[d], first[d + 1], lo_band[j], hi_band[j], tc[j]):
+                    found = True
+                    break
+            out[point[j]] = not found
+    return out
+
+
+@_jit
+def rects_overlap(pa, pb, ca, cb):
+    """(T,) bool: whether robot a's body (corners ``ca`` (4, 2) around its nozzle ``pa[i]``)
+    and robot b's overlap at each instant (a box test, then separating axes)."""
+    out = np.zeros(len(pa), np.bool_)
+    qa = np.empty((4, 2))
+    qb = np.empty((4, 2))
+    for i in range(len(pa)):
+        for k in range(4):
+            for d in range(2):
+                qa[k, d] = pa[i, d] + ca[k, d]
+                qb[k, d] = pb[i, d] + cb[k, d]
+        apart = False
+        for d in range(2):
+            amin, amax, bmin, bmax = np.inf, -np.inf, np.inf, -np.inf
+            for k in range(4):
+                amin, amax = min(amin, qa[k, d]), max(amax, qa[k, d])
+                bmin, bmax = min(bmin, qb[k, d]), max(bmax, qb[k, d])
+            if amin > bmax or bmin > amax:
+                apart = True
+        if apart:
+            continue
+        apart = False
+        for poly in range(2):
+            q = qa if poly == 0 else qb
+            for k in range(4):
+                nx = -(q[(k + 1) % 4, 1] - q[k, 1])
+                ny = q[(k + 1) % 4, 0] - q[k, 0]
+                amin, amax, bmin, bmax = np.inf, -np.inf, np.inf, -np.inf
+                for j in range(4):
+                    s = nx * qa[j, 0] + ny * qa[j, 1]
+                    amin, amax = min(amin, s), max(amax, s)
+                    s = nx * qb[j, 0] + ny * qb[j, 1]
+                    bmin, bmax = min(bmin, s), max(bmax, s)
+                if amax < bmin or bmax < amin:
+                    apart = True
+                    break
+            if apart:
+                break
+        out[i] = not apart
+    return out
+
+
+@_jit
+def positions_at(t0, t1, p0, p1, times):
+    """(T, 2) XY of the nozzle at sorted ``times`` (a pointer walks the moves)."""
+    out = np.empty((len(times), 2))
+    n = len(t1)
+    k = 0
+    for i in range(len(times)):
+        tt = times[i]
+        while k < n - 1 and t1[k] < tt:
+            k += 1
+        span = t1[k] - t0[k]
+        f = 1.0
+        if span > 0:
+            f = (tt - t0[k]) / span
+            f = min(max(f, 0.0), 1.0)
+        out[i, 0] = p0[k, 0] + f * (p1[k, 0] - p0[k, 0])
+        out[i, 1] = p0[k, 1] + f * (p1[k, 1] - p0[k, 1])
+    return out
