@@ -3,6 +3,7 @@ plain G-code files (one robot each, so that PrusaSlicer's or Cura's output simul
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import tomllib
@@ -134,19 +135,43 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     """A Marlin-flavour G-code file as a program: ``G0``/``G1`` moves (``G90``/``G91``,
     ``M82``/``M83``, ``G92``), moves that push filament become moves with the tool on (width
     from the filament pushed, height from the layer), ``F`` gives each move's speed, and each
-    move keeps its E (a move that only moves the filament, a retraction, takes ``|E| / F``)."""
+    move keeps its E (a move that only moves the filament, a retraction, takes ``|E| / F``).
+
+    A compiled sweep (:mod:`cooprint.simulation.gcode`) reads files whose lines are all in the
+    plain form (a slicer's output); any other file is read line by line (``_read_gcode_lines``,
+    the reference, which also words the errors)."""
+    from cooprint.simulation.gcode import gcode_rows  # numba: on first use
+
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8", errors="replace")
+        data = p.read_bytes()
     except FileNotFoundError:
         raise SimInputError(f"{p}: no such G-code file") from None
+    rows = gcode_rows(data, filament_diameter)
+    if rows is None:
+        return _read_gcode_lines(p, _gcode_text(data), filament_diameter)
+    prog = make_program(p.stem, rows.kind, rows.xyz if len(rows.kind) else None,
+                        role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height)
+    # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
+    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de)
+
+
+def _gcode_text(data: bytes) -> str:
+    """The text of a G-code file's bytes, as ``Path.read_text(encoding="utf-8", errors="replace")``
+    gives it (universal newlines)."""
+    return io.TextIOWrapper(io.BytesIO(data), encoding="utf-8", errors="replace").read()
+
+
+def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> SimRobot:
+    """:func:`read_gcode` of the text of G-code file ``p``, line by line: the reference of the
+    compiled sweep, and the reader of the files it does not take (and of their errors)."""
     fil_area = math.pi * (filament_diameter / 2) ** 2
     pos = np.zeros(3)
     rel_xyz, rel_e, e = False, False, 0.0  # Marlin's defaults: absolute XYZ and E
     feed = 1500.0 / 60.0
     kinds, xyz, speeds, widths, heights, pushed = [], [], [], [], [], []
     tool = False
-    layer_z, last_z, layer_h = 0.0, 0.0, 0.2
+    layer_z, layer_h = 0.0, 0.2  # the height of the last layer that deposited, and its thickness
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split(";", 1)[0].strip()
         if not line:
@@ -188,8 +213,8 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
                 pushed.append(0.0)
                 tool = deposit
             if deposit and target[2] != layer_z:
-                layer_h = max(target[2] - last_z, 1e-3) if target[2] > layer_z else layer_h
-                last_z, layer_z = layer_z, target[2]
+                layer_h = max(target[2] - layer_z, 1e-3) if target[2] > layer_z else layer_h
+                layer_z = target[2]
             kinds.append(MOVE)
             xyz.append(tuple(target))
             speeds.append(feed)

@@ -1,0 +1,330 @@
+"""The G-code reader's fast pass: one compiled sweep over a file's bytes (numba).
+
+:func:`cooprint.simulation.inputs.read_gcode` reads a slicer's G-code; a big print has millions
+of lines, nearly all of them ``G1 X.. Y.. E..``, comments or commands the simulator ignores. The
+sweep follows the reader's machine state (``G90``/``G91``, ``M82``/``M83``, ``G92``, the feed
+rate, the layer height) through the file and writes one row per ``G0``/``G1`` move; the rows are
+then made into the program's commands with whole-array operations (:func:`gcode_rows`).
+
+The line reader of :mod:`.inputs` (``_read_gcode_lines``) is the reference: the sweep gives the
+same result for every file it takes, and it takes a file only when every line is in the plain
+form. A ``G0``/``G1``/``G92`` line is plain when it holds only ASCII letters, digits, ``.``,
+``+``, ``-``, blanks and tabs before its ``;`` comment, and each word's number is a plain decimal
+(``-12.5``, ``+3``, ``.25``, ``7.``; at most 15 significant digits, no exponent; an empty number
+only after ``G92``). Such a number is its digits as an integer (exact in float64) divided by a
+power of ten (exact up to 10^22): one correctly rounded division, the same double that
+``float()`` gives. Other lines only need their first word found and their line breaks counted
+as Python counts them (``str.splitlines`` breaks lines at a few more characters than ``\\n`` and
+``\\r``; a file with any of those falls back). Any line not taken (an error, an exponent, a
+number word like ``Xabc``, a feed rate that is not positive) sends the whole file back to the
+line reader, which reads it, or raises its error, exactly as before.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON
+from cooprint.slicing.paths import extrusion_width
+
+_POW10 = np.array([10.0 ** k for k in range(23)])
+
+# the first word of a line, as the sweep tells them apart
+_OTHER, _G0, _G1, _G92, _G90, _G91, _M82, _M83 = range(8)
+
+
+@numba.njit(cache=True, nogil=True)
+def _end_of_line(c):
+    return c == 10 or c == 13
+
+
+@numba.njit(cache=True, nogil=True)
+def _rest_of_line(buf, i):
+    """The index of the line break (or the end) at or after ``i``, skipping text that does not
+    matter (a comment, the rest of a line the reader ignores); -1 if the text holds a character
+    that ``str.splitlines`` takes for a line break besides ``\\n`` and ``\\r``: VT, FF, FS, GS,
+    RS, and in UTF-8 NEL (C2 85), LS (E2 80 A8) and PS (E2 80 A9)."""
+    n = len(buf)
+    while i < n:
+        c = buf[i]
+        if 32 <= c < 128 or c == 9:
+            i += 1
+            continue
+        if c == 10 or c == 13:
+            return i
+        if c == 11 or c == 12 or 28 <= c <= 30:
+            return -1
+        if c == 0xC2 and i + 1 < n and buf[i + 1] == 0x85:
+            return -1
+        if c == 0xE2 and i + 2 < n and buf[i + 1] == 0x80 and (buf[i + 2] == 0xA8 or buf[i + 2] == 0xA9):
+            return -1
+        i += 1
+    return i
+
+
+@numba.njit(cache=True, nogil=True)
+def _code(buf, a, b):
+    """Which of the words the reader acts on ``buf[a:b]`` is (any case), or ``_OTHER``."""
+    size = b - a
+    if size < 2 or size > 3:
+        return _OTHER
+    c0 = buf[a] | 32  # lower case
+    c1 = buf[a + 1]
+    if size == 2:
+        if c0 == 103 and c1 == 48:  # g0
+            return _G0
+        if c0 == 103 and c1 == 49:  # g1
+            return _G1
+        return _OTHER
+    c2 = buf[a + 2]
+    if c0 == 103 and c1 == 57:  # g9.
+        if c2 == 50:
+            return _G92
+        if c2 == 48:
+            return _G90
+        if c2 == 49:
+            return _G91
+    elif c0 == 109 and c1 == 56:  # m8.
+        if c2 == 50:
+            return _M82
+        if c2 == 51:
+            return _M83
+    return _OTHER
+
+
+@numba.njit(cache=True, nogil=True)
+def _word_end(c):
+    """Whether byte ``c`` ends a G-code word: a blank, a tab, ``;`` or a line break."""
+    return c == 32 or c == 9 or c == 59 or c == 10 or c == 13
+
+
+@numba.njit(cache=True, nogil=True)
+def _number(buf, i, pow10):
+    """The plain decimal number at ``buf[i:]``, up to the word's end: ``(value, next index,
+    how many characters)``; ``(0.0, -1, 0)`` when it is not in the plain form."""
+    n = len(buf)
+    a = i
+    neg = False
+    c = buf[i] if i < n else 10
+    if c == 45 or c == 43:  # '-' '+'
+        neg = c == 45
+        i += 1
+    mant = 0.0
+    digits = 0  # significant digits (leading zeros not counted)
+    seen = 0  # digits of any kind
+    frac = -1  # digits after the point; -1: no point yet
+    while i < n:
+        c = buf[i]
+        if 48 <= c <= 57:
+            seen += 1
+            if digits or c != 48:
+                digits += 1
+            mant = mant * 10.0 + (c - 48)
+            if frac >= 0:
+                frac += 1
+        elif c == 46 and frac < 0:  # '.'
+            frac = 0
+        elif _word_end(c):
+            break
+        else:
+            return 0.0, -1, 0
+        i += 1
+    if i == a:
+        return 0.0, i, 0  # no number at all
+    if seen == 0 or digits > 15 or frac > 22:
+        return 0.0, -1, 0
+    if frac > 0:
+        mant = mant / pow10[frac]
+    return -mant if neg else mant, i, i - a
+
+
+@numba.njit(cache=True, nogil=True)
+def _sweep(buf, pow10):
+    """Every ``G0``/``G1`` move of the G-code in ``buf``: ``(bad, count, xyz, feed, de, deposit,
+    layer_h)``, where ``bad`` is 0 or the number of the first line not in the plain form (the
+    rows are then incomplete)."""
+    n = len(buf)
+    cap = 1
+    for i in range(n):
+        if buf[i] == 10 or buf[i] == 13:
+            cap += 1
+    xyz = np.empty((cap, 3))
+    feeds = np.empty(cap)
+    pushed = np.empty(cap)
+    deposit = np.empty(cap, np.bool_)
+    heights = np.empty(cap)
+    # the reader's state: Marlin's defaults, absolute XYZ and E, homed at 0, 0, 0
+    px, py, pz = 0.0, 0.0, 0.0
+    rel_xyz, rel_e, e = False, False, 0.0
+    feed = 1500.0 / 60.0
+    layer_z, layer_h = 0.0, 0.2  # the height of the last layer that deposited, and its thickness
+    m = 0
+    line = 0
+    i = 0
+    while i < n:
+        line += 1
+        while i < n and (buf[i] == 32 or buf[i] == 9):
+            i += 1
+        a = i
+        while i < n and 33 <= buf[i] < 127 and buf[i] != 59:  # the first word: printable ASCII, not ';'
+            i += 1
+        code = _code(buf, a, i)
+        if i < n and not _word_end(buf[i]):
+            # a byte that may be Unicode white space or part of the word (or a control)
+            if i == a or code != _OTHER:
+                return line, m, xyz, feeds, pushed, deposit, heights
+        if code == _G0 or code == _G1 or code == _G92:
+            have_x, have_y, have_z, have_e, have_f = False, False, False, False, False
+            vx, vy, vz, ve, vf = 0.0, 0.0, 0.0, 0.0, 0.0
+            while True:
+                while i < n and (buf[i] == 32 or buf[i] == 9):
+                    i += 1
+                if i == n or _end_of_line(buf[i]):
+                    break
+                k = buf[i]
+                if k == 59:  # ';'
+                    i = _rest_of_line(buf, i)
+                    if i < 0:
+                        return line, m, xyz, feeds, pushed, deposit, heights
+                    break
+                if 97 <= k <= 122:  # lower case
+                    k -= 32
+                if not (65 <= k <= 90 or 48 <= k <= 57 or k == 43 or k == 45 or k == 46):
+                    return line, m, xyz, feeds, pushed, deposit, heights
+                v, i, size = _number(buf, i + 1, pow10)
+                if i < 0 or (size == 0 and code != _G92):  # G92 E: E0
+                    return line, m, xyz, feeds, pushed, deposit, heights
+                if k == 88:
+                    have_x, vx = True, v
+                elif k == 89:
+                    have_y, vy = True, v
+                elif k == 90:
+                    have_z, vz = True, v
+                elif k == 69:
+                    have_e, ve = True, v
+                elif k == 70:
+                    have_f, vf = True, v
+            if code == _G92:
+                if have_e:
+                    e = ve
+            else:
+                if have_f:
+                    if not vf > 0:
+                        return line, m, xyz, feeds, pushed, deposit, heights
+                    feed = vf / 60.0
+                tx, ty, tz = px, py, pz
+                if have_x:
+                    tx = (px + vx) if rel_xyz else vx
+                if have_y:
+                    ty = (py + vy) if rel_xyz else vy
+                if have_z:
+                    tz = (pz + vz) if rel_xyz else vz
+                de = 0.0
+                if have_e:
+                    de = ve if (rel_xyz or rel_e) else ve - e
+                    e += de
+                dep = de > 0 and (tx != px or ty != py or tz != pz)
+                if dep and tz != layer_z:
+                    if tz > layer_z:
+                        layer_h = tz - layer_z
+                        if 1e-3 > layer_h:  # max(tz - layer_z, 1e-3)
+                            layer_h = 1e-3
+                    layer_z = tz
+                xyz[m, 0], xyz[m, 1], xyz[m, 2] = tx, ty, tz
+                feeds[m] = feed
+                pushed[m] = de
+                deposit[m] = dep
+                heights[m] = layer_h
+                m += 1
+                px, py, pz = tx, ty, tz
+        else:
+            if code == _G90 or code == _G91:
+                rel_xyz = code == _G91
+            elif code == _M82 or code == _M83:
+                rel_e = code == _M83
+            i = _rest_of_line(buf, i)
+            if i < 0:
+                return line, m, xyz, feeds, pushed, deposit, heights
+        # at the line break: CR LF, CR or LF ends the line
+        if i < n:
+            if buf[i] == 13 and i + 1 < n and buf[i + 1] == 10:
+                i += 2
+            else:
+                i += 1
+    return 0, m, xyz, feeds, pushed, deposit, heights
+
+
+@dataclass(frozen=True)
+class GcodeRows:
+    """A G-code file's commands, one row each (``TOOL ON``/``TOOL OFF`` where the deposit of
+    the moves starts and stops): the columns :func:`~cooprint.program.commands.make_program` and
+    :class:`~cooprint.simulation.timeline.SimRobot` take."""
+
+    kind: np.ndarray  # (n,) uint8
+    xyz: np.ndarray  # (n, 3) float64, NaN on the TOOL rows
+    speed: np.ndarray  # (n,) mm/s, 0 on the TOOL rows
+    width: np.ndarray  # (n,) mm, 0 but on deposit moves
+    height: np.ndarray  # (n,) mm, 0 but on deposit moves
+    de: np.ndarray  # (n,) filament pushed, mm
+
+
+def _widths(area: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """``extrusion_width(area, h)`` element by element, as the reference computes it for each
+    move: with a scalar height, whose ``(h / 2) ** 2`` is C's ``pow`` (not always the correctly
+    rounded square that an array's ``** 2`` gives). Whole arrays, but for the heights (few) where
+    the two differ."""
+    w = extrusion_width(area, h)
+    runs = np.flatnonzero(np.r_[True, h[1:] != h[:-1]]) if len(h) else np.zeros(0, np.int64)
+    heights = np.unique(h[runs])
+    scalar = np.array([float((np.asarray(v) / 2) ** 2) for v in heights.tolist()])
+    odd = heights[scalar != (heights / 2) ** 2]
+    if len(odd):
+        at = np.flatnonzero(np.isin(h, odd))
+        for v in odd.tolist():
+            sel = at[h[at] == v]
+            w[sel] = extrusion_width(area[sel], v)
+    return w
+
+
+def gcode_rows(data: bytes, filament_diameter: float) -> GcodeRows | None:
+    """The commands of the G-code ``data``, or ``None`` if a line is not in the plain form (the
+    line reader is then the one to read the file)."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    bad, m, xyz, feed, de, dep, layer_h = _sweep(buf, _POW10)
+    if bad:
+        return None
+    xyz, feed, de, dep, layer_h = xyz[:m], feed[:m], de[:m], dep[:m], layer_h[:m]
+    fil_area = math.pi * (filament_diameter / 2) ** 2  # as the line reader
+    # a TOOL ON / TOOL OFF row before each move whose deposit differs from the one before
+    change = dep != np.r_[False, dep[:-1]]
+    row = np.arange(m) + np.cumsum(change)  # each move's row
+    rows = m + int(change.sum())
+    kind = np.empty(rows, np.uint8)
+    kind[row - change] = np.where(dep, TOOL_ON, TOOL_OFF)  # overwritten by the MOVE where no change
+    kind[row] = MOVE
+    out_xyz = np.full((rows, 3), np.nan)
+    out_xyz[row] = xyz
+    speed = np.zeros(rows)
+    speed[row] = feed
+    pushed = np.zeros(rows)
+    pushed[row] = de
+    # the width whose flow cross-section carries the filament pushed: the length as the line
+    # reader's np.linalg.norm (a BLAS dot, which np.vecdot calls too), then its extrusion_width
+    d = np.flatnonzero(dep)
+    start = np.empty((len(d), 3))
+    start[d > 0] = xyz[d[d > 0] - 1]
+    start[d == 0] = 0.0
+    step = xyz[d] - start
+    length = np.sqrt(np.vecdot(step, step))
+    width = np.zeros(rows)
+    width[row[d]] = _widths(de[d] * fil_area / length, layer_h[d])
+    height = np.zeros(rows)
+    height[row[d]] = layer_h[d]
+    return GcodeRows(kind, out_xyz, speed, width, height, pushed)
+
+
+__all__ = ["GcodeRows", "gcode_rows"]
