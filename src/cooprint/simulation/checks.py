@@ -44,7 +44,8 @@ TOLERANCE = 2.0
 MAX_SAMPLES = 8_000_000
 MOVES_AT_ONCE = 100_000
 MAX_CELLS = 8_000_000
-#: The printhead check keeps the highest material over blocks of this many cells square too.
+#: The printhead check keeps the highest material over blocks of this many cells square too,
+#: and over blocks of this many blocks square.
 HEAD_BLOCK = 8
 #: The overhang check looks this far around a point for material below it (at least half the
 #: sparse infill's line spacing plus a sample step, so that skins over sparse infill are not
@@ -143,7 +144,8 @@ def head_box(profile: RobotProfile, tolerance: float = 0.0) -> tuple[float, floa
 class _Raster:
     """Square cells over the material's box in one robot's (u, v) frame, padded on each side by
     a window: a footprint (``box`` relative to the nozzle) covers ``window`` cells from the cell
-    of its low corner, which always lies in the padded grid after clipping."""
+    of its low corner, which always lies in the padded grid after clipping; a point's cell
+    counted from ``lo`` lies ``window`` cells further in the grid."""
 
     lo: np.ndarray  # (2,) float32: corner of the first cell inside the padding
     cell: float
@@ -157,10 +159,6 @@ class _Raster:
         window = tuple(int(np.ceil(s / cell)) + 1 for s in size)
         shape = tuple(int(np.floor((h - l) / cell)) + 1 + 2 * w for l, h, w in zip(lo, hi, window))
         return _Raster(lo, cell, shape, window, box)
-
-    def cells(self, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Cell indices (row, column) of points (k, 2) in the robot's frame."""
-        return kernels.cells_of(uv, self.lo, self.cell, *self.window)
 
     @property
     def params(self) -> tuple[np.ndarray, np.ndarray]:
@@ -212,12 +210,12 @@ def robot_checks(material: Material, frame: np.ndarray, profile: RobotProfile, b
     boxes = ([body_box(profile, tolerance)] if body else []) + ([head_box(profile, tolerance)] if head else [])
     if not boxes:
         return []
-    m_uv = kernels.to_frame(material.xyz, frame)
-    lo, hi = kernels.bounds(m_uv)
+    lo, hi = kernels.bounds_in_frame(material.xyz, frame)
     size = max((b[1] - b[0]) + (b[3] - b[2]) for b in boxes)
     cell = max(tolerance / 2, float(np.sqrt(np.prod(hi - lo + 2 * size) / MAX_CELLS)))
-    return ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), m_uv, material)] if body else []) + \
-        ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), m_uv, material, profile, tolerance)] if head else [])
+    cells = kernels.cells_of(material.xyz, frame, lo, cell)  # the material's, from lo: both rasters pad them
+    return ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), cells, material)] if body else []) + \
+        ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), cells, material, profile, tolerance)] if head else [])
 
 
 class _BodyCheck:
@@ -227,9 +225,9 @@ class _BodyCheck:
     kind = "body-on-material"
     detail = "the body stands on material laid down before"
 
-    def __init__(self, grid: _Raster, m_uv: np.ndarray, material: Material):
+    def __init__(self, grid: _Raster, cells: tuple[np.ndarray, np.ndarray], material: Material):
         first = np.full(grid.shape, np.inf)
-        kernels.scatter_min(first, *grid.cells(m_uv), material.t)
+        kernels.scatter_min(first, *cells, *grid.window, material.t)
         self.state = (kernels.window_min(first, *grid.window), *grid.params)  # what the kernels take
 
     def hits(self, uv: np.ndarray, z: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -247,13 +245,13 @@ class _HeadCheck:
 
     kind = "printhead-hits-material"
 
-    def __init__(self, grid: _Raster, m_uv: np.ndarray, material: Material, profile: RobotProfile,
-                 tolerance: float):
+    def __init__(self, grid: _Raster, cells: tuple[np.ndarray, np.ndarray], material: Material,
+                 profile: RobotProfile, tolerance: float):
         high = np.full(grid.shape, -np.inf, dtype=np.float32)
-        coarse = np.full(tuple(-(-n // HEAD_BLOCK) for n in grid.shape), -np.inf, dtype=np.float32)
+        coarse = np.full((2, *(-(-n // HEAD_BLOCK) for n in grid.shape)), -np.inf, dtype=np.float32)  # both levels
         added = material.bounds[:-1].astype(np.int64)  # per robot: its points added so far
         top = np.full(1, -np.inf, dtype=np.float32)  # the highest material added
-        self.state = (high, coarse, HEAD_BLOCK, *grid.cells(m_uv), material.xyz, material.t,
+        self.state = (high, coarse, HEAD_BLOCK, *cells, material.xyz, material.t,
                       material.bounds[1:].astype(np.int64), added, top, *grid.params,
                       np.float32(profile.nozzle_height + tolerance))  # what the kernels take
         self.detail = (f"material laid down before rises within the printhead's reach ({profile.nozzle_depth:g} mm) "
@@ -263,7 +261,7 @@ class _HeadCheck:
     def idle() -> tuple:
         """A state of the same types for a sweep that does not run the check."""
         cells = np.zeros(0, np.int32)
-        return (np.zeros((1, 1), np.float32), np.zeros((1, 1), np.float32), HEAD_BLOCK, cells, cells,
+        return (np.zeros((1, 1), np.float32), np.zeros((2, 1, 1), np.float32), HEAD_BLOCK, cells, cells,
                 np.zeros((0, 3), np.float32), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64),
                 np.zeros(1, np.float32), np.zeros(5), np.zeros(6, np.int64), np.float32(0))
 

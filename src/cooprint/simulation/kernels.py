@@ -13,7 +13,48 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON
+
 _jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def move_table(kind, xyz, start, started):
+    """The MOVEs of a program (``kind`` (n,) uint8, targets ``xyz`` (n, 3)): their command indices,
+    start and end positions (the first starts at ``start`` if ``started``, else at its own
+    target), whether they deposit (the tool on, as the TOOL commands before them leave it, and a
+    length above 0) and their lengths."""
+    n = len(kind)
+    k = 0
+    for i in range(n):
+        if kind[i] == MOVE:
+            k += 1
+    index = np.empty(k, np.int64)
+    p0 = np.empty((k, 3))
+    p1 = np.empty((k, 3))
+    on = np.empty(k, np.bool_)
+    length = np.empty(k)
+    tool = False
+    j = 0
+    for i in range(n):
+        c = kind[i]
+        if c == TOOL_ON:
+            tool = True
+        elif c == TOOL_OFF:
+            tool = False
+        elif c == MOVE:
+            index[j] = i
+            for a in range(3):
+                p1[j, a] = xyz[i, a]
+                if j > 0:
+                    p0[j, a] = p1[j - 1, a]
+                else:
+                    p0[j, a] = start[a] if started else xyz[i, a]
+            d0, d1, d2 = p1[j, 0] - p0[j, 0], p1[j, 1] - p0[j, 1], p1[j, 2] - p0[j, 2]
+            length[j] = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            on[j] = tool and length[j] > 0
+            j += 1
+    return index, p0, p1, on, length
 
 
 @_jit
@@ -62,42 +103,40 @@ def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, k):
 
 
 @_jit
-def to_frame(xyz, frame):
-    """(k, 2) float32: XY of ``xyz`` in a robot's frame (rows of ``frame``: facing, its left)."""
-    uv = np.empty((len(xyz), 2), np.float32)
-    f00, f01, f10, f11 = frame[0, 0], frame[0, 1], frame[1, 0], frame[1, 1]
-    for i in range(len(xyz)):
-        x, y = xyz[i, 0], xyz[i, 1]
-        uv[i, 0] = x * f00 + y * f01
-        uv[i, 1] = x * f10 + y * f11
-    return uv
+def _in_frame(x, y, frame):
+    """``x, y`` (float32) in a robot's frame (rows of ``frame``: its facing and its left)."""
+    return x * frame[0, 0] + y * frame[0, 1], x * frame[1, 0] + y * frame[1, 1]
 
 
 @_jit
-def bounds(uv):
-    """(2,), (2,) float32: lowest and highest u and v."""
+def bounds_in_frame(xyz, frame):
+    """(2,), (2,) float32: the lowest and highest (u, v) of points ``xyz`` (k, 3) float32 in a
+    robot's frame (zeros if there are none)."""
     lo = np.zeros(2, np.float32)
     hi = np.zeros(2, np.float32)
-    if len(uv):
-        lo[:] = uv[0]
-        hi[:] = uv[0]
-    for i in range(len(uv)):
-        for a in range(2):
-            if uv[i, a] < lo[a]:
-                lo[a] = uv[i, a]
-            if uv[i, a] > hi[a]:
-                hi[a] = uv[i, a]
+    for i in range(len(xyz)):
+        u, v = _in_frame(xyz[i, 0], xyz[i, 1], frame)
+        if i == 0 or u < lo[0]:
+            lo[0] = u
+        if i == 0 or v < lo[1]:
+            lo[1] = v
+        if i == 0 or u > hi[0]:
+            hi[0] = u
+        if i == 0 or v > hi[1]:
+            hi[1] = v
     return lo, hi
 
 
 @_jit
-def cells_of(uv, lo, cell, pad0, pad1):
-    """(k,) row and (k,) column of each point's cell: ``floor((uv - lo) / cell)`` plus the padding."""
-    r = np.empty(len(uv), np.int32)
-    c = np.empty(len(uv), np.int32)
-    for i in range(len(uv)):
-        r[i] = int(np.floor((uv[i, 0] - lo[0]) / cell)) + pad0
-        c[i] = int(np.floor((uv[i, 1] - lo[1]) / cell)) + pad1
+def cells_of(xyz, frame, lo, cell):
+    """(k,) row and (k,) column (int32) of the cell of each point ``xyz`` (k, 3) float32 in a
+    robot's frame: ``floor(((u, v) - lo) / cell)``."""
+    r = np.empty(len(xyz), np.int32)
+    c = np.empty(len(xyz), np.int32)
+    for i in range(len(xyz)):
+        u, v = _in_frame(xyz[i, 0], xyz[i, 1], frame)
+        r[i] = int(np.floor((u - lo[0]) / cell))
+        c[i] = int(np.floor((v - lo[1]) / cell))
     return r, c
 
 
@@ -112,11 +151,12 @@ def _window(u, v, g, gi):
 
 
 @_jit
-def scatter_min(grid, r, c, value):
-    """``grid[r, c] = min(grid[r, c], value)`` for every point."""
+def scatter_min(grid, r, c, pad0, pad1, value):
+    """``grid[r + pad0, c + pad1] = min(that, value)`` for every point."""
     for i in range(len(r)):
-        if value[i] < grid[r[i], c[i]]:
-            grid[r[i], c[i]] = value[i]
+        a, b = r[i] + pad0, c[i] + pad1
+        if value[i] < grid[a, b]:
+            grid[a, b] = value[i]
 
 
 @_jit
@@ -159,23 +199,26 @@ def window_min(a, w0, w1):
 
 
 @_jit
-def _advance(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, t):
-    """Add to ``high`` (and ``coarse``, its maximum over blocks of ``block`` x ``block`` cells)
-    the material laid down before time ``t``: robot ``j``'s points ``added[j]:stops[j]`` of
-    ``m_xyz``, in time order, in cells ``m_r, m_c``; ``added`` and ``top`` (the highest so far)
-    are updated in place."""
+def _advance(high, coarse, block, m_r, m_c, pad0, pad1, m_xyz, m_t, stops, added, top, t):
+    """Add to ``high`` (and ``coarse``: its maximum over blocks of ``block`` x ``block`` cells,
+    and ``coarse[1]`` over blocks of ``block`` x ``block`` of those) the material laid down before
+    time ``t``: robot ``j``'s points ``added[j]:stops[j]`` of ``m_xyz``, in time order, in cells
+    ``m_r + pad0, m_c + pad1``; ``added`` and ``top`` (the highest so far) are updated in place."""
+    big = block * block
     for j in range(len(added)):
         p = added[j]
         e = stops[j]
         while p < e and m_t[p] < t:
             z = m_xyz[p, 2]
-            r, c = m_r[p], m_c[p]
+            r, c = m_r[p] + pad0, m_c[p] + pad1
             if z > high[r, c]:
                 high[r, c] = z
-                if z > coarse[r // block, c // block]:
-                    coarse[r // block, c // block] = z
-                if z > top[0]:
-                    top[0] = z
+                if z > coarse[0, r // block, c // block]:
+                    coarse[0, r // block, c // block] = z
+                    if z > coarse[1, r // big, c // big]:
+                        coarse[1, r // big, c // big] = z
+                        if z > top[0]:
+                            top[0] = z
             p += 1
         added[j] = p
 
@@ -183,21 +226,27 @@ def _advance(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, t):
 @_jit
 def _reaches(high, coarse, block, r0, c0, win0, win1, level):
     """Whether a cell of the ``win0`` x ``win1`` window from ``r0, c0`` holds material higher
-    than ``level``: block by block, cell by cell only in blocks that reach above ``level`` and
-    straddle the window's edge."""
+    than ``level`` (``high``, ``coarse`` as :func:`_advance` keeps them): big block by big block,
+    block by block only in big blocks that reach above ``level``, cell by cell only in blocks
+    that reach above it and straddle the window's edge."""
     r1, c1 = r0 + win0 - 1, c0 + win1 - 1
-    for br in range(r0 // block, r1 // block + 1):
-        a0, a1 = max(br * block, r0), min(br * block + block - 1, r1)
-        for bc in range(c0 // block, c1 // block + 1):
-            if coarse[br, bc] <= level:
+    big = block * block
+    for gr in range(r0 // big, r1 // big + 1):
+        for gc in range(c0 // big, c1 // big + 1):
+            if coarse[1, gr, gc] <= level:
                 continue
-            b0, b1 = max(bc * block, c0), min(bc * block + block - 1, c1)
-            if a1 - a0 == block - 1 and b1 - b0 == block - 1:
-                return True  # the whole block lies in the window
-            for rr in range(a0, a1 + 1):
-                for cc in range(b0, b1 + 1):
-                    if high[rr, cc] > level:
-                        return True
+            for br in range(max(r0, gr * big) // block, min(r1, gr * big + big - 1) // block + 1):
+                a0, a1 = max(br * block, r0), min(br * block + block - 1, r1)
+                for bc in range(max(c0, gc * big) // block, min(c1, gc * big + big - 1) // block + 1):
+                    if coarse[0, br, bc] <= level:
+                        continue
+                    b0, b1 = max(bc * block, c0), min(bc * block + block - 1, c1)
+                    if a1 - a0 == block - 1 and b1 - b0 == block - 1:
+                        return True  # the whole block lies in the window
+                    for rr in range(a0, a1 + 1):
+                        for cc in range(b0, b1 + 1):
+                            if high[rr, cc] > level:
+                                return True
     return False
 
 
@@ -225,7 +274,7 @@ def head_hits(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, g, g
     hit = np.empty(len(t), np.int64)
     k = 0
     for i in range(len(t)):
-        _advance(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, t[i])
+        _advance(high, coarse, block, m_r, m_c, gi[0], gi[1], m_xyz, m_t, stops, added, top, t[i])
         level = z[i] + lift
         if top[0] <= level:
             continue
@@ -245,7 +294,6 @@ def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, first_time, bg
     A hit of check ``k`` (0: body, :func:`body_hits`; 1: printhead, :func:`head_hits`) on a
     move of chunk ``chunk[m]`` adds one to ``count[k, chunk]``; the first one of each chunk
     leaves its time in ``when`` and its position in ``where``."""
-    f00, f01, f10, f11 = frame[0, 0], frame[0, 1], frame[1, 0], frame[1, 1]
     for m in range(len(t0)):
         a0 = np.float32(p0[m, 0])
         a1 = np.float32(p0[m, 1])
@@ -260,8 +308,7 @@ def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, first_time, bg
             f32 = np.float32(f)
             x, y, z = a0 + f32 * d0, a1 + f32 * d1, a2 + f32 * d2
             t = t0[m] + f * (t1[m] - t0[m])
-            u = x * f00 + y * f01
-            v = x * f10 + y * f11
+            u, v = _in_frame(x, y, frame)
             for k in range(2):
                 if k == 0:
                     if not body:
@@ -271,7 +318,7 @@ def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, first_time, bg
                 else:
                     if not head:
                         continue
-                    _advance(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, t)
+                    _advance(high, coarse, block, m_r, m_c, hgi[0], hgi[1], m_xyz, m_t, stops, added, top, t)
                     level = z + lift
                     hit = False
                     if top[0] > level:
@@ -283,6 +330,13 @@ def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, first_time, bg
                     if count[k, ch] == 1:
                         when[k, ch] = t
                         where[k, ch, 0], where[k, ch, 1], where[k, ch, 2] = x, y, z
+
+
+@_jit
+def _band(z, h):
+    """The heights (micrometres) in which a point at ``z`` (micrometres) of layer height ``h``
+    (mm) looks for material below it: from 2.5 to 0.5 layer heights lower."""
+    return int(max(np.rint(z - 2500.0 * h), 0.0)), int(max(np.rint(z - 500.0 * h), -1.0))
 
 
 @_jit
@@ -348,8 +402,6 @@ def overhang_flags(xyz, h, t, cell):
     zs = np.empty(n, np.int32)
     ts = np.empty(n)
     first = np.zeros(cells + 1, np.int64)
-    lo_band = np.empty(n, np.int64)
-    hi_band = np.empty(n, np.int64)
     todo = np.zeros(n, np.bool_)
     k = 0
     for c in range(cells):
@@ -374,9 +426,7 @@ def overhang_flags(xyz, h, t, cell):
         for j in o:
             if zc[j] + zmin_um <= np.rint(2500.0 * hc[j]) + 1:
                 continue  # on the floor, or one layer of air above it
-            lo = int(max(np.rint(zc[j] - 2500.0 * hc[j]), 0.0))
-            hi = int(max(np.rint(zc[j] - 500.0 * hc[j]), -1.0))
-            lo_band[j], hi_band[j] = lo, hi
+            lo, hi = _band(zc[j], hc[j])
             while p > first[c] and zs[p - 1] >= lo:
                 p -= 1
             while p < k and zs[p] < lo:
@@ -394,12 +444,13 @@ def overhang_flags(xyz, h, t, cell):
         for j in range(start[c], start[c + 1]):
             if not todo[j]:
                 continue
+            lo, hi = _band(zc[j], hc[j])
             found = False
             for q in range(25):
                 if q == 12:
                     continue  # the own cell
                 d = c + (q // 5 - 2) * ny + q % 5 - 2
-                if _band_has_support(zs, ts, first[d], first[d + 1], lo_band[j], hi_band[j], tc[j]):
+                if _band_has_support(zs, ts, first[d], first[d + 1], lo, hi, tc[j]):
                     found = True
                     break
             out[point[j]] = not found

@@ -12,7 +12,6 @@ can never go on are a deadlock, found from the commands alone, before any geomet
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
@@ -74,6 +73,8 @@ class Timeline:
     waits : list of (start, end, events)
         Each WAIT: when the robot got there, when it went on, what it waited for.
     notifies : list of (time, event)
+    length : (k,) float64
+        Length of each move, mm (computed when not given).
     """
 
     robot: str
@@ -85,12 +86,12 @@ class Timeline:
     index: np.ndarray
     waits: list = field(default_factory=list)
     notifies: list = field(default_factory=list)
+    length: np.ndarray = field(default=None, repr=False)  # type: ignore[assignment]
 
-    @cached_property
-    def length(self) -> np.ndarray:
-        """(k,) length of each move, mm."""
-        d = self.p1 - self.p0
-        return np.sqrt(np.einsum("ij,ij->i", d, d))
+    def __post_init__(self) -> None:
+        if self.length is None:
+            d = self.p1 - self.p0
+            object.__setattr__(self, "length", np.sqrt(np.einsum("ij,ij->i", d, d)))
 
     @property
     def end(self) -> float:
@@ -146,17 +147,14 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     """Per MOVE of robot ``r``: start and end positions, whether it deposits, and its duration:
     length / speed, or with ``limits`` the trapezoidal profile of :mod:`.kinematics`.
 
-    Returns ``(p0 (k, 3), p1 (k, 3), on (k,), duration (k,))``.
+    Returns ``(index (k,), p0 (k, 3), p1 (k, 3), on (k,), length (k,), duration (k,))``: the
+    moves' command indices, ends, whether they deposit, lengths and durations.
     """
+    from cooprint.simulation.kernels import move_table  # numba: on first use
+
     program = r.program
-    mv = np.flatnonzero(program.kind == MOVE)
-    p1 = program.xyz[mv]
-    p0 = np.empty_like(p1)
-    if len(mv):
-        p0[0] = p1[0] if r.start is None else r.start
-        p0[1:] = p1[:-1]
-    length = np.linalg.norm(p1 - p0, axis=1)
-    on = program.tool_on()[mv] & (length > 0)
+    start = np.zeros(3) if r.start is None else np.asarray(r.start, dtype=np.float64)
+    mv, p0, p1, on, length = move_table(program.kind, program.xyz, start, r.start is not None)
     v = np.where(on, print_speed, travel_speed) if r.speed is None else r.speed[mv]
     de = np.zeros(len(mv)) if r.de is None else r.de[mv]
     if limits is None:
@@ -165,7 +163,7 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
         from cooprint.simulation.kinematics import trapezoid_durations
 
         dur = trapezoid_durations(np.column_stack([p1 - p0, de]), v, limits)
-    return p0, p1, on, dur
+    return mv, p0, p1, on, length, dur
 
 
 def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
@@ -177,14 +175,13 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, li
     """
     prep = {}
     for r in robots:
-        p0, p1, on, dur = move_durations(r, print_speed, travel_speed, limits)
+        mv, p0, p1, on, length, dur = move_durations(r, print_speed, travel_speed, limits)
         kind = r.program.kind
         cmd_dur = np.zeros(len(kind))
-        mv = np.flatnonzero(kind == MOVE)
         cmd_dur[mv] = dur
         before = np.concatenate([[0.0], np.cumsum(cmd_dur)])  # time at each command, no waits
         sync = np.flatnonzero((kind == NOTIFY) | (kind == WAIT)).tolist()
-        prep[r.name] = (r, p0, p1, on, dur, mv, before, sync)
+        prep[r.name] = (r, p0, p1, on, length, dur, mv, before, sync)
     announced: dict[str, float] = {}
     pos = {name: 0 for name in prep}  # next sync command
     waited = {name: 0.0 for name in prep}  # total time spent waiting so far
@@ -213,7 +210,7 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, li
                 pos[name] += 1
                 progress = True
     out, findings = {}, []
-    for name, (r, p0, p1, on, dur, mv, before, sync) in prep.items():
+    for name, (r, p0, p1, on, length, dur, mv, before, sync) in prep.items():
         shift = np.zeros(len(r.program.kind) + 1)
         for i, d in delay[name]:
             shift[i + 1] += d
@@ -232,7 +229,7 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, li
                                     f"{', '.join(missing)} is never announced by a robot that can still move"))
         t0 = before[mv[:keep]] + shift[mv[:keep]]
         out[name] = Timeline(name, t0, t0 + dur[:keep], p0[:keep], p1[:keep], on[:keep], mv[:keep], waits[name],
-                             notifies[name])
+                             notifies[name], length[:keep])
     return out, findings
 
 
