@@ -125,7 +125,12 @@ def _program_texts(draw):
             lines.append(draw(st.sampled_from(["", "; hello", "# MOVE 1 2 3"])))
         else:
             lines.append(draw(st.sampled_from([";@chunk L2", ";@chunk -", ";@layer 3 0.2", ";@layer -",
-                                               ";@path skin 0.5", ";@future thing"])))
+                                               ";@path skin 0.5", ";@future thing", ";@layer 12 0.25",
+                                               ";@layer  3\t0.2\r", ";@path outer-perimeter 0.45",
+                                               ";@layer 99999999999 0.2",
+                                               ";@path perimeter 0", ";@path infill 0.30000000000000004",
+                                               ";@layer 0012 .2", ";@LAYER 3 0.2", ";@ layer 4 0.2",
+                                               ";@path travel 0.0", ";@layerx 1 0.2"])))
     return "\n".join(lines) + draw(st.sampled_from(["", "\n"]))
 
 

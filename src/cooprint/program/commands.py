@@ -355,7 +355,7 @@ class _Lines:
                 return "ann", "chunk", self.chunks.index(vals[0])
             if key == "layer" and vals == ["-"]:
                 return "ann", "layer", (-1, 0.0)
-            if key == "layer" and len(vals) == 2 and int(vals[0]) >= 0 and float(vals[1]) > 0:
+            if key == "layer" and len(vals) == 2 and 0 <= int(vals[0]) < 2**31 and float(vals[1]) > 0:
                 return "ann", "layer", (int(vals[0]), float(vals[1]))
             if key == "path" and len(vals) == 2 and vals[0] in _ROLE_OF_WORD and float(vals[1]) >= 0:
                 return "ann", "path", (_ROLE_OF_WORD[vals[0]], float(vals[1]))
@@ -383,7 +383,8 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     ProgramError
         ``source:line:column: what is wrong`` for the first malformed line.
     """
-    from cooprint.program.scan import MOVE_LINE, OTHER, TOOL_OFF_LINE, TOOL_ON_LINE, sweep  # numba: on first use
+    from cooprint.program.scan import (LAYER_LINE, MOVE_LINE, OTHER, PATH_LINE, TOOL_OFF_LINE,  # numba: on first use
+                                       TOOL_ON_LINE, sweep)
 
     data = text.encode() if isinstance(text, str) else bytes(text)
     line_kind, starts, fast_xyz = sweep(data)
@@ -419,29 +420,32 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     xyz_of = fast_xyz[line_of]
     xyz_of[kind_of != MOVE] = np.nan
 
-    def state(key: str, start):
-        """Each command's value of an annotation: the last one above its line (0: ``start``)."""
-        bounds = np.diff(np.r_[0, np.array(ann_line[key], dtype=np.int64) + 1, len(kind_at)])
-        at = np.repeat(np.arange(len(bounds), dtype=np.int32), bounds)  # per line
-        return at[line_of], [start] + ann_val[key]
+    def state(key: str, start: tuple, fast: int = -1) -> list[np.ndarray]:
+        """Each command's value of an annotation (its columns): the last one above its line,
+        read by the sweep (lines of kind ``fast``) or by the line parser; ``start`` before any."""
+        at_fast = np.flatnonzero(line_kind == fast) if fast >= 0 else np.zeros(0, np.int64)
+        where = np.concatenate([np.array(ann_line[key], dtype=np.int64), at_fast])
+        order = np.argsort(where, kind="stable")
+        cols = [np.concatenate([[s], [v[j] if isinstance(v, tuple) else v for v in ann_val[key]],
+                                fast_xyz[at_fast, j]])[np.r_[0, order + 1]] for j, s in enumerate(start)]
+        bounds = np.diff(np.r_[0, where[order] + 1, len(kind_at)])
+        at = np.repeat(np.arange(len(bounds), dtype=np.int32), bounds)[line_of]  # per command
+        return [c[at] for c in cols]
 
-    c_at, c_vals = state("chunk", -1)
-    l_at, l_vals = state("layer", (-1, 0.0))
-    p_at, p_vals = state("path", (TRAVEL, 0.0))
+    (chunk,) = state("chunk", (-1,))
+    layer, height = state("layer", (-1, 0.0), LAYER_LINE)
+    role, width = state("path", (TRAVEL, 0.0), PATH_LINE)
     sync = (kind_of == NOTIFY) | (kind_of == WAIT)
     event = np.full(len(kind_of), -1, np.int32)
     event[sync] = np.arange(int(sync.sum()), dtype=np.int32)
-    chunk = np.array(c_vals, dtype=np.int16)[c_at]
+    chunk = chunk.astype(np.int16)
     # the chunk table: the chunks that commands belong to, in the order they first appear
     used, first = np.unique(chunk[chunk >= 0], return_index=True)
     used = used[np.argsort(first)]
     remap = np.full(len(lines.chunks) + 1, -1, dtype=np.int16)
     remap[used] = np.arange(len(used))
-    return Program(
-        robot, kind_of, xyz_of,
-        np.array([v[0] for v in p_vals], dtype=np.uint8)[p_at], np.array([v[1] for v in p_vals])[p_at],
-        np.array([v[0] for v in l_vals], dtype=np.int32)[l_at], np.array([v[1] for v in l_vals])[l_at],
-        remap[chunk], event, tuple(lines.chunks[c] for c in used.tolist()), tuple(events))
+    return Program(robot, kind_of, xyz_of, role.astype(np.uint8), width, layer.astype(np.int32), height,
+                   remap[chunk], event, tuple(lines.chunks[c] for c in used.tolist()), tuple(events))
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:

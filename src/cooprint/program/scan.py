@@ -1,8 +1,9 @@
 """The ``.coop`` parser's fast pass: one compiled sweep over a file's bytes (numba).
 
-Nearly every line of a program is ``MOVE x, y, z`` or ``TOOL ON`` / ``TOOL OFF``; the sweep reads
-those, skips blank lines and plain comments, and hands every other line (annotations, NOTIFY,
-WAIT, anything odd or wrong) to the line parser of :mod:`.commands`, which is the reference. A
+Nearly every line of a program is ``MOVE x, y, z``, ``TOOL ON`` / ``TOOL OFF`` or a ``;@layer`` or
+``;@path`` annotation; the sweep reads those, skips blank lines and plain comments, and hands
+every other line (``;@chunk``, NOTIFY, WAIT, anything odd or wrong) to the line parser of
+:mod:`.commands`, which is the reference. A
 MOVE line is taken only in the plain form: the word ``MOVE`` at the start of the line, then three
 decimal numbers (``-12.5``, ``+3``, ``.25``, ``7.``; at most 15 significant digits, no exponent)
 separated by blanks or by single commas, nothing after them. Such a number is its digits as an
@@ -15,10 +16,16 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from cooprint.program.commands import ROLE_WORDS
+
 #: Line kinds the sweep reports.
-OTHER, MOVE_LINE, TOOL_ON_LINE, TOOL_OFF_LINE, SKIP = range(5)
+OTHER, MOVE_LINE, TOOL_ON_LINE, TOOL_OFF_LINE, SKIP, LAYER_LINE, PATH_LINE = range(7)
 
 _POW10 = np.array([10.0 ** k for k in range(23)])
+# the annotation words the sweep knows: the path roles by number, then 'path' and 'layer'
+_WORD_LIST = [ROLE_WORDS[r].encode() for r in range(len(ROLE_WORDS))] + [b"path", b"layer"]
+_WORDS = np.frombuffer(b"".join(_WORD_LIST), np.uint8)
+_WORD_STARTS = np.cumsum([0] + [len(w) for w in _WORD_LIST])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -66,6 +73,75 @@ def _number(buf, i, end, pow10):
 
 
 @numba.njit(cache=True, nogil=True)
+def _starts_with(buf, a, end, text):
+    """Whether ``buf[a:end]`` begins with ``text``."""
+    if end - a < len(text):
+        return False
+    for k in range(len(text)):
+        if buf[a + k] != text[k]:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _word_end(buf, i, end):
+    """The end of the word at ``i`` (the next blank, carriage return or line end)."""
+    while i < end and not (_blank(buf[i]) or buf[i] == 13):
+        i += 1
+    return i
+
+
+@numba.njit(cache=True, nogil=True)
+def _annotation(buf, a, end, pow10, words, word_starts):
+    """A ``;@layer INDEX HEIGHT``, ``;@layer -`` or ``;@path ROLE WIDTH`` line in the plain form
+    (lower case, a plain index and decimal number, blanks between): ``(kind, value, number)``
+    with ``value`` the index (-1 for '-') or the role (the position of its word in ``words``),
+    or ``(OTHER, 0, 0)``."""
+    layer = _starts_with(buf, a, end, words[word_starts[-2]:word_starts[-1]])  # 'layer' is the last word
+    if layer:
+        i = a + 2 + 5
+    elif _starts_with(buf, a, end, words[word_starts[-3]:word_starts[-2]]):  # 'path', the one before
+        i = a + 2 + 4
+    else:
+        return OTHER, 0, 0.0
+    if i >= end or not _blank(buf[i]):
+        return OTHER, 0, 0.0
+    while i < end and _blank(buf[i]):
+        i += 1
+    e = _word_end(buf, i, end)
+    value = -2
+    if layer:
+        if e == i + 1 and buf[i] == 45:  # '-'
+            value = -1
+        elif e - i <= 9:
+            value = 0
+            for j in range(i, e):
+                if not 48 <= buf[j] <= 57:
+                    return OTHER, 0, 0.0
+                value = value * 10 + buf[j] - 48
+    else:
+        for w in range(len(word_starts) - 3):  # the roles
+            word = words[word_starts[w]:word_starts[w + 1]]
+            if e - i == len(word) and _starts_with(buf, i, e, word):
+                value = w
+    if value == -2 or e == i:
+        return OTHER, 0, 0.0
+    i = e
+    while i < end and _blank(buf[i]):
+        i += 1
+    number = 0.0
+    if value != -1 or not layer:
+        number, i = _number(buf, i, end, pow10)
+        if i < 0 or not (number > 0 or (not layer and number == 0)):
+            return OTHER, 0, 0.0
+    while i < end and (_blank(buf[i]) or buf[i] == 13):
+        i += 1
+    if i != end:
+        return OTHER, 0, 0.0
+    return (LAYER_LINE if layer else PATH_LINE), value, number
+
+
+@numba.njit(cache=True, nogil=True)
 def _is_text(buf, a, end, text):
     """Whether ``buf[a:end]`` is ``text`` (a trailing carriage return ignored)."""
     n = len(text)
@@ -80,7 +156,7 @@ def _is_text(buf, a, end, text):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sweep(buf, pow10, tool_on, tool_off):
+def _sweep(buf, pow10, tool_on, tool_off, words, word_starts):
     n = len(buf)
     lines = 1
     for i in range(n):
@@ -127,6 +203,9 @@ def _sweep(buf, pow10, tool_on, tool_off):
                 i += 1
             if i == end:
                 k = SKIP
+            elif i == a and end - a > 2 and buf[a] == 59 and buf[a + 1] == 64:  # ';@' at the start
+                k, value, number = _annotation(buf, a + 2, end, pow10, words, word_starts)
+                xyz[li, 0], xyz[li, 1] = value, number
             elif buf[i] == 35 or (buf[i] == 59 and not (i + 1 < end and buf[i + 1] == 64)):  # '#', ';' not ';@'
                 k = SKIP
                 for j in range(i, end):  # non-ASCII text: the line parser checks it is UTF-8
@@ -145,15 +224,19 @@ def sweep(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns
     -------
     kind : (lines,) int8
-        ``OTHER`` (for the line parser), ``MOVE_LINE``, ``TOOL_ON_LINE``, ``TOOL_OFF_LINE`` or
-        ``SKIP`` (blank, or a comment that is not an annotation).
+        ``OTHER`` (for the line parser), ``MOVE_LINE``, ``TOOL_ON_LINE``, ``TOOL_OFF_LINE``,
+        ``SKIP`` (blank, or a comment that is not an annotation), ``LAYER_LINE`` or
+        ``PATH_LINE``.
     starts : (lines + 1,) int64
         Where each line begins; line ``i`` is ``data[starts[i]:starts[i + 1] - 1]``.
     xyz : (lines, 3) float64
-        The coordinates of the ``MOVE_LINE`` lines (other rows undefined).
+        The coordinates of the ``MOVE_LINE`` lines; of a ``LAYER_LINE``, the index (-1: '-') and
+        the height; of a ``PATH_LINE``, the role (``cooprint.slicing.paths``) and the width
+        (other rows undefined).
     """
     buf = np.frombuffer(data, dtype=np.uint8)
-    return _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8), np.frombuffer(b"TOOL OFF", np.uint8))
+    return _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8), np.frombuffer(b"TOOL OFF", np.uint8),
+                  _WORDS, _WORD_STARTS)
 
 
-__all__ = ["MOVE_LINE", "OTHER", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "sweep"]
+__all__ = ["LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "sweep"]

@@ -84,8 +84,9 @@ def _step(timelines: dict[str, Timeline], step: float, deposits_only: bool) -> f
 @dataclass(frozen=True)
 class Material:
     """Every robot's deposited paths as points every ``step`` mm: position (k, 3) float32, time
-    (k,), layer height (k,) and move (k,) (its index in its robot's timeline); robot ``i``'s
-    points are ``bounds[i]:bounds[i + 1]``, in the order it laid them down."""
+    (k,) float64, layer height (k,) float32 and move (k,) int32 (its index in its robot's
+    timeline); robot ``i``'s points are ``bounds[i]:bounds[i + 1]``, in the order it laid them
+    down."""
 
     xyz: np.ndarray
     t: np.ndarray
@@ -99,14 +100,14 @@ class Material:
         step = _step(timelines, step, deposits_only=True)
         parts = [_selection(timelines[r.name], step, deposits_only=True) for r in robots]
         bounds = np.cumsum([0] + [int(n.sum()) for _, n, _ in parts])
-        xyz, t, move = np.empty((bounds[-1], 3), np.float32), np.empty(bounds[-1]), np.empty(bounds[-1], np.int64)
-        h = np.empty(bounds[-1])
+        xyz, t, move = np.empty((bounds[-1], 3), np.float32), np.empty(bounds[-1]), np.empty(bounds[-1], np.int32)
+        h = np.empty(bounds[-1], np.float32)
         for i, (r, (sel, n, _)) in enumerate(zip(robots, parts)):  # each robot's points in one pass, in place
             tl = timelines[r.name]
             if len(sel):
                 kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, False, xyz, t, move, bounds[i])
             block = slice(bounds[i], bounds[i + 1])
-            h[block] = r.bead(tl.index, 0.0, layer_height)[1][move[block]]
+            np.take(r.bead(tl.index, 0.0, layer_height)[1].astype(np.float32), move[block], out=h[block])
         return Material(xyz, t, h, move, bounds)
 
     def robot(self, i: int) -> slice:
