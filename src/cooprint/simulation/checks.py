@@ -182,7 +182,7 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
     for r in robots:
         tl = timelines[r.name]
         frame = _frame(r.facing).astype(np.float32)
-        checks = robot_checks(material, frame, profile, body, head, tolerance)
+        checks = robot_checks(material, frame, profile, body, head, tolerance, tl)
         if not checks or len(tl.t0) == 0:
             continue
         b, h = (checks[0] if body else None), (checks[-1] if head else None)
@@ -190,10 +190,9 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
         chunk[chunk < 0] = len(r.program.chunks)  # between chunks: the last slot
         slots = len(r.program.chunks) + 1
         count, when, where = np.zeros((2, slots), np.int64), np.full((2, slots), np.inf), np.zeros((2, slots, 3))
-        idle = np.zeros((1, 1)), np.zeros(5), np.zeros(6, np.int64)  # a check not run
         kernels.footprint_sweep(tl.p0, tl.p1, tl.t0, tl.t1, kernels.sample_counts(tl.length, n_step), True, chunk,
-                                frame, b is not None, *(b.state if b else idle),
-                                h is not None, *(h.state if h else _HeadCheck.idle()), count, when, where)
+                                frame, b is not None, (b or _BodyCheck.idle()).state, h is not None,
+                                (h or _HeadCheck.idle()).state, count, when, where)
         for k, c in enumerate((b, h)):
             for slot in np.flatnonzero(count[k]):
                 findings.append(Finding(c.kind, r.name, float(when[k, slot]), tuple(float(x) for x in where[k, slot]),
@@ -203,20 +202,22 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
 
 
 def robot_checks(material: Material, frame: np.ndarray, profile: RobotProfile, body: bool = True,
-                 head: bool = True, tolerance: float = TOLERANCE) -> list:
+                 head: bool = True, tolerance: float = TOLERANCE, timeline: Timeline | None = None) -> list:
     """The footprint checks of one robot (``frame``: its facing and its left, float32), on rasters
     sharing one cell size (1 mm, or more on very large prints) over the material; each has
     ``hits(uv, z, t)``: the indices of the nozzle samples (in the robot's frame, in time order)
-    that meet material."""
+    that meet material. With the robot's ``timeline``, the printhead check leaves out the
+    material that is never above the printhead when it passes (:func:`kernels.reachable`): its
+    nozzle samples must then come from that timeline."""
     boxes = ([body_box(profile, tolerance)] if body else []) + ([head_box(profile, tolerance)] if head else [])
     if not boxes:
         return []
     lo, hi = kernels.bounds_in_frame(material.xyz, frame)
     size = max((b[1] - b[0]) + (b[3] - b[2]) for b in boxes)
     cell = max(tolerance / 2, float(np.sqrt(np.prod(hi - lo + 2 * size) / MAX_CELLS)))
-    cells = kernels.cells_of(material.xyz, frame, lo, cell)  # the material's, from lo: both rasters pad them
-    return ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), cells, material)] if body else []) + \
-        ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), cells, material, profile, tolerance)] if head else [])
+    return ([_BodyCheck(_Raster.over(lo, hi, cell, boxes[0]), frame, material)] if body else []) + \
+        ([_HeadCheck(_Raster.over(lo, hi, cell, boxes[-1]), frame, material, profile, tolerance, timeline)]
+         if head else [])
 
 
 class _BodyCheck:
@@ -226,10 +227,17 @@ class _BodyCheck:
     kind = "body-on-material"
     detail = "the body stands on material laid down before"
 
-    def __init__(self, grid: _Raster, cells: tuple[np.ndarray, np.ndarray], material: Material):
+    def __init__(self, grid: _Raster, frame: np.ndarray, material: Material):
         first = np.full(grid.shape, np.inf)
-        kernels.scatter_min(first, *cells, *grid.window, material.t)
+        kernels.earliest(first, material.xyz, material.t, frame, *grid.params)
         self.state = (kernels.window_min(first, *grid.window), *grid.params)  # what the kernels take
+
+    @staticmethod
+    def idle() -> "_BodyCheck":
+        """A check of the same types for a sweep that does not run it."""
+        idle = object.__new__(_BodyCheck)
+        idle.state = (np.zeros((1, 1)), np.zeros(5), np.zeros(6, np.int64))
+        return idle
 
     def hits(self, uv: np.ndarray, z: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Indices of the nozzle samples (``uv`` (k, 2) in the robot's frame, heights, times)
@@ -246,25 +254,33 @@ class _HeadCheck:
 
     kind = "printhead-hits-material"
 
-    def __init__(self, grid: _Raster, cells: tuple[np.ndarray, np.ndarray], material: Material,
-                 profile: RobotProfile, tolerance: float):
+    def __init__(self, grid: _Raster, frame: np.ndarray, material: Material, profile: RobotProfile,
+                 tolerance: float, timeline: Timeline | None = None):
+        lift = np.float32(profile.nozzle_height + tolerance)
+        xyz, t, bounds = material.xyz, material.t, material.bounds
+        if timeline is not None:  # only the material that can reach this robot's printhead
+            keep = kernels.reachable(t, xyz[:, 2], bounds, timeline.t1,
+                                     np.minimum(timeline.p0[:, 2], timeline.p1[:, 2]), float(lift))
+        else:
+            keep = np.ones(len(t), dtype=bool)
         high = np.full(grid.shape, -np.inf, dtype=np.float32)
         coarse = np.full((2, *(-(-n // HEAD_BLOCK) for n in grid.shape)), -np.inf, dtype=np.float32)  # both levels
-        added = material.bounds[:-1].astype(np.int64)  # per robot: its points added so far
+        added = bounds[:-1].astype(np.int64)  # per robot: its points added so far
         top = np.full(1, -np.inf, dtype=np.float32)  # the highest material added
-        self.state = (high, coarse, HEAD_BLOCK, *cells, material.xyz, material.t,
-                      material.bounds[1:].astype(np.int64), added, top, *grid.params,
-                      np.float32(profile.nozzle_height + tolerance))  # what the kernels take
+        self.state = (high, coarse, HEAD_BLOCK, xyz, t, keep, frame, bounds[1:].astype(np.int64), added, top,
+                      *grid.params, lift)  # what the kernels take
         self.detail = (f"material laid down before rises within the printhead's reach ({profile.nozzle_depth:g} mm) "
                        f"above its underside ({profile.nozzle_height:g} mm over the nozzle tip)")
 
     @staticmethod
-    def idle() -> tuple:
-        """A state of the same types for a sweep that does not run the check."""
-        cells = np.zeros(0, np.int32)
-        return (np.zeros((1, 1), np.float32), np.zeros((2, 1, 1), np.float32), HEAD_BLOCK, cells, cells,
-                np.zeros((0, 3), np.float32), np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.int64),
-                np.zeros(1, np.float32), np.zeros(5), np.zeros(6, np.int64), np.float32(0))
+    def idle() -> "_HeadCheck":
+        """A check of the same types for a sweep that does not run it."""
+        idle = object.__new__(_HeadCheck)
+        idle.state = (np.zeros((1, 1), np.float32), np.zeros((2, 1, 1), np.float32), HEAD_BLOCK,
+                      np.zeros((0, 3), np.float32), np.zeros(0), np.zeros(0, bool), np.eye(2, dtype=np.float32),
+                      np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(1, np.float32), np.zeros(5),
+                      np.zeros(6, np.int64), np.float32(0))
+        return idle
 
     def hits(self, uv: np.ndarray, z: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Indices of the nozzle samples (in time order, after those of earlier calls) whose

@@ -16,6 +16,9 @@ import numpy as np
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON
 
 _jit = numba.njit(cache=True, nogil=True)
+#: For the small helpers called per sample: inlined into their callers (a call would pass each
+#: array with a reference count taken and dropped, which costs more than the helper's work).
+_inline = numba.njit(cache=True, nogil=True, inline="always")
 
 
 @_jit
@@ -102,7 +105,7 @@ def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, k):
     return k
 
 
-@_jit
+@_inline
 def _in_frame(x, y, frame):
     """``x, y`` (float32) in a robot's frame (rows of ``frame``: its facing and its left)."""
     return x * frame[0, 0] + y * frame[0, 1], x * frame[1, 0] + y * frame[1, 1]
@@ -127,20 +130,15 @@ def bounds_in_frame(xyz, frame):
     return lo, hi
 
 
-@_jit
-def cells_of(xyz, frame, lo, cell):
-    """(k,) row and (k,) column (int32) of the cell of each point ``xyz`` (k, 3) float32 in a
-    robot's frame: ``floor(((u, v) - lo) / cell)``."""
-    r = np.empty(len(xyz), np.int32)
-    c = np.empty(len(xyz), np.int32)
-    for i in range(len(xyz)):
-        u, v = _in_frame(xyz[i, 0], xyz[i, 1], frame)
-        r[i] = int(np.floor((u - lo[0]) / cell))
-        c[i] = int(np.floor((v - lo[1]) / cell))
-    return r, c
+@_inline
+def _cell(x, y, frame, g, gi):
+    """Row and column of the cell of a point at ``x, y`` on a raster in a robot's frame
+    (``g, gi`` as :func:`_window` takes them): ``floor(((u, v) - lo) / cell)`` plus the padding."""
+    u, v = _in_frame(x, y, frame)
+    return int(np.floor((u - g[0]) / g[2])) + gi[0], int(np.floor((v - g[1]) / g[2])) + gi[1]
 
 
-@_jit
+@_inline
 def _window(u, v, g, gi):
     """Row and column of the low corner cell of the footprint of a nozzle at ``u, v`` on a raster
     ``g = (lo_u, lo_v, cell, off_u, off_v)`` (``off``: the footprint's corner relative to the
@@ -151,12 +149,13 @@ def _window(u, v, g, gi):
 
 
 @_jit
-def scatter_min(grid, r, c, pad0, pad1, value):
-    """``grid[r + pad0, c + pad1] = min(that, value)`` for every point."""
-    for i in range(len(r)):
-        a, b = r[i] + pad0, c[i] + pad1
-        if value[i] < grid[a, b]:
-            grid[a, b] = value[i]
+def earliest(grid, xyz, t, frame, g, gi):
+    """``grid[cell] = min(grid[cell], t)`` for every point ``xyz`` (k, 3) float32 laid down at
+    ``t``, in its cell of the raster ``g, gi`` (:func:`_cell`)."""
+    for i in range(len(t)):
+        a, b = _cell(xyz[i, 0], xyz[i, 1], frame, g, gi)
+        if t[i] < grid[a, b]:
+            grid[a, b] = t[i]
 
 
 @_jit
@@ -198,35 +197,10 @@ def window_min(a, w0, w1):
     return out
 
 
-@_jit
-def _advance(high, coarse, block, m_r, m_c, pad0, pad1, m_xyz, m_t, stops, added, top, t):
-    """Add to ``high`` (and ``coarse``: its maximum over blocks of ``block`` x ``block`` cells,
-    and ``coarse[1]`` over blocks of ``block`` x ``block`` of those) the material laid down before
-    time ``t``: robot ``j``'s points ``added[j]:stops[j]`` of ``m_xyz``, in time order, in cells
-    ``m_r + pad0, m_c + pad1``; ``added`` and ``top`` (the highest so far) are updated in place."""
-    big = block * block
-    for j in range(len(added)):
-        p = added[j]
-        e = stops[j]
-        while p < e and m_t[p] < t:
-            z = m_xyz[p, 2]
-            r, c = m_r[p] + pad0, m_c[p] + pad1
-            if z > high[r, c]:
-                high[r, c] = z
-                if z > coarse[0, r // block, c // block]:
-                    coarse[0, r // block, c // block] = z
-                    if z > coarse[1, r // big, c // big]:
-                        coarse[1, r // big, c // big] = z
-                        if z > top[0]:
-                            top[0] = z
-            p += 1
-        added[j] = p
-
-
-@_jit
+@_inline
 def _reaches(high, coarse, block, r0, c0, win0, win1, level):
     """Whether a cell of the ``win0`` x ``win1`` window from ``r0, c0`` holds material higher
-    than ``level`` (``high``, ``coarse`` as :func:`_advance` keeps them): big block by big block,
+    than ``level`` (``high``, ``coarse`` as :func:`head_hits` keeps them): big block by big block,
     block by block only in big blocks that reach above ``level``, cell by cell only in blocks
     that reach above it and straddle the window's edge."""
     r1, c1 = r0 + win0 - 1, c0 + win1 - 1
@@ -251,6 +225,27 @@ def _reaches(high, coarse, block, r0, c0, win0, win1, level):
 
 
 @_jit
+def reachable(m_t, m_z, bounds, t1, z_low, lift):
+    """Which material points can ever reach a robot's printhead: higher by more than ``lift``
+    than the lowest the robot's nozzle goes after the point is laid down (its moves end at
+    ``t1`` and go no lower than ``z_low``). Robot ``j``'s points ``bounds[j]:bounds[j + 1]`` are
+    in time order. The others can never be above the printhead when it passes."""
+    k = len(t1)
+    low = np.empty(k + 1)
+    low[k] = np.inf
+    for i in range(k - 1, -1, -1):  # the lowest from each move on
+        low[i] = min(low[i + 1], z_low[i])
+    out = np.zeros(len(m_t), np.bool_)
+    for j in range(len(bounds) - 1):
+        i = 0
+        for p in range(bounds[j], bounds[j + 1]):
+            while i < k and t1[i] <= m_t[p]:  # the moves that end before: none of their samples comes after
+                i += 1
+            out[p] = m_z[p] > low[i] + lift
+    return out
+
+
+@_jit
 def body_hits(first, g, gi, uv, t):
     """Indices of the nozzle samples (``uv`` (k, 2) in the robot's frame, times ``t``) whose body
     window (raster ``g, gi`` of :func:`_window`) holds material laid down before: ``first``
@@ -266,15 +261,39 @@ def body_hits(first, g, gi, uv, t):
 
 
 @_jit
-def head_hits(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, g, gi, lift, uv, z, t):
-    """Indices of the nozzle samples (in time order, and after those of earlier calls) whose
-    printhead window (raster ``g, gi``; ``gi[4:6]`` its size in cells) holds material laid down
-    before that is higher than the nozzle by more than ``lift``. The material state is
-    :func:`_advance`'s."""
+def head_hits(high, coarse, block, m_xyz, m_t, keep, frame, stops, added, top, g, gi, lift, uv, z, t):
+    """Indices of the nozzle samples (``uv`` (k, 2) in the robot's frame, heights ``z``, times
+    ``t``; in time order, and after those of earlier calls) whose printhead window (raster
+    ``g, gi``; ``gi[4:6]`` its size in cells) holds material laid down before that is higher than
+    the nozzle by more than ``lift``.
+
+    Before each sample, the material laid down before its time is added to ``high`` (the highest
+    in each cell), ``coarse[0]`` (over blocks of ``block`` x ``block`` cells), ``coarse[1]`` (over
+    blocks of those) and ``top`` (the highest of all): robot ``j``'s points ``added[j]:stops[j]``
+    of ``m_xyz`` (in time order; those with ``keep``), in their cells in the robot's ``frame``;
+    ``added`` says how far each robot's points are in. All of these are updated in place.
+    """
     hit = np.empty(len(t), np.int64)
     k = 0
+    big = block * block
     for i in range(len(t)):
-        _advance(high, coarse, block, m_r, m_c, gi[0], gi[1], m_xyz, m_t, stops, added, top, t[i])
+        for j in range(len(added)):  # the material laid down before this sample
+            p = added[j]
+            e = stops[j]
+            while p < e and m_t[p] < t[i]:
+                if keep[p]:
+                    zm = m_xyz[p, 2]
+                    r, c = _cell(m_xyz[p, 0], m_xyz[p, 1], frame, g, gi)
+                    if zm > high[r, c]:
+                        high[r, c] = zm
+                        if zm > coarse[0, r // block, c // block]:
+                            coarse[0, r // block, c // block] = zm
+                            if zm > coarse[1, r // big, c // big]:
+                                coarse[1, r // big, c // big] = zm
+                                if zm > top[0]:
+                                    top[0] = zm
+                p += 1
+            added[j] = p
         level = z[i] + lift
         if top[0] <= level:
             continue
@@ -286,14 +305,20 @@ def head_hits(high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, g, g
 
 
 @_jit
-def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, first_time, bg, bgi,
-                    head, high, coarse, block, m_r, m_c, m_xyz, m_t, stops, added, top, hg, hgi, lift,
-                    count, when, where):
+def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, body_state, head, head_state, count, when, where):
     """Both footprint checks along a robot's whole path, sampled as :func:`sample_moves` does
-    (``n[m]`` points on move ``m``; ``first``: the start too), without keeping the samples.
-    A hit of check ``k`` (0: body, :func:`body_hits`; 1: printhead, :func:`head_hits`) on a
-    move of chunk ``chunk[m]`` adds one to ``count[k, chunk]``; the first one of each chunk
+    (``n[m]`` points on move ``m``; ``first``: the start too), a few thousand samples at a time,
+    without keeping them. ``body_state`` is what :func:`body_hits` takes before the samples,
+    ``head_state`` what :func:`head_hits` takes. A hit of check ``k`` (0: body, 1: printhead)
+    on a move of chunk ``chunk[m]`` adds one to ``count[k, chunk]``; the first one of each chunk
     leaves its time in ``when`` and its position in ``where``."""
+    size = 4096
+    xyz = np.empty((size, 3), np.float32)
+    uv = np.empty((size, 2), np.float32)
+    t = np.empty(size)
+    move = np.empty(size, np.int64)
+    k = 0
+    last = len(t0) - 1
     for m in range(len(t0)):
         a0 = np.float32(p0[m, 0])
         a1 = np.float32(p0[m, 1])
@@ -306,40 +331,36 @@ def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, first_time, bg
         for i in range(0 if (first and m == 0) else 1, c + 1):
             f = i * inv
             f32 = np.float32(f)
-            x, y, z = a0 + f32 * d0, a1 + f32 * d1, a2 + f32 * d2
-            t = t0[m] + f * (t1[m] - t0[m])
-            u, v = _in_frame(x, y, frame)
-            for k in range(2):
-                if k == 0:
-                    if not body:
+            xyz[k, 0], xyz[k, 1], xyz[k, 2] = a0 + f32 * d0, a1 + f32 * d1, a2 + f32 * d2
+            uv[k, 0], uv[k, 1] = _in_frame(xyz[k, 0], xyz[k, 1], frame)
+            t[k] = t0[m] + f * (t1[m] - t0[m])
+            move[k] = m
+            k += 1
+            if k == size or (m == last and i == c):  # a full buffer, or the last sample
+                for check in range(2):
+                    if check == 0 and body:
+                        hits = body_hits(body_state[0], body_state[1], body_state[2], uv[:k], t[:k])
+                    elif check == 1 and head:
+                        hits = head_hits(*head_state, uv[:k], xyz[:k, 2], t[:k])
+                    else:
                         continue
-                    r, cc = _window(u, v, bg, bgi)
-                    hit = first_time[r, cc] < t
-                else:
-                    if not head:
-                        continue
-                    _advance(high, coarse, block, m_r, m_c, hgi[0], hgi[1], m_xyz, m_t, stops, added, top, t)
-                    level = z + lift
-                    hit = False
-                    if top[0] > level:
-                        r, cc = _window(u, v, hg, hgi)
-                        hit = _reaches(high, coarse, block, r, cc, hgi[4], hgi[5], level)
-                if hit:
-                    ch = chunk[m]
-                    count[k, ch] += 1
-                    if count[k, ch] == 1:
-                        when[k, ch] = t
-                        where[k, ch, 0], where[k, ch, 1], where[k, ch, 2] = x, y, z
+                    for h in hits:
+                        ch = chunk[move[h]]
+                        count[check, ch] += 1
+                        if count[check, ch] == 1:
+                            when[check, ch] = t[h]
+                            where[check, ch, 0], where[check, ch, 1], where[check, ch, 2] = xyz[h, 0], xyz[h, 1], xyz[h, 2]
+                k = 0
 
 
-@_jit
+@_inline
 def _band(z, h):
     """The heights (micrometres) in which a point at ``z`` (micrometres) of layer height ``h``
     (mm) looks for material below it: from 2.5 to 0.5 layer heights lower."""
     return int(max(np.rint(z - 2500.0 * h), 0.0)), int(max(np.rint(z - 500.0 * h), -1.0))
 
 
-@_jit
+@_inline
 def _band_has_support(zs, ts, a, e, lo, hi, t):
     """Whether a height of ``zs[a:e]`` (sorted, distinct) lies in ``[lo, hi]`` with an earliest
     time ``ts`` before ``t``."""
