@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from cooprint.config import SlicingSettings
 from cooprint.program import scan
-from cooprint.program.scan import OTHER, sweep
+from cooprint.program.scan import LAYER_LINE, MOVE_LINE, OTHER, PATH_LINE, SKIP, TOOL_ON_LINE, sweep
 from cooprint.program.commands import (MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, ProgramError, coop_text,
                                        make_program, parse_coop, quantize, read_coop)
 from cooprint.program.gcode import Feeds, gcode_text
@@ -132,6 +132,17 @@ def _program_texts(draw):
                                                ";@layer 0012 .2", ";@LAYER 3 0.2", ";@ layer 4 0.2",
                                                ";@path travel 0.0", ";@layerx 1 0.2"])))
     return "\n".join(lines) + draw(st.sampled_from(["", "\n"]))
+
+
+def test_the_sweep_reads_plain_lines_itself():
+    text = (b"MOVE 1, -2.5, .25\nTOOL ON\n;@layer 3 0.2\n;@layer -\n;@path outer-perimeter 0.45\n; note\n\n"
+            b";@chunk C\nNOTIFY\nMOVE 1 2 3 ; c\n")
+    kind, starts, xyz = sweep(text)
+    assert kind.tolist() == [MOVE_LINE, TOOL_ON_LINE, LAYER_LINE, LAYER_LINE, PATH_LINE, SKIP, SKIP, OTHER, OTHER,
+                             OTHER, SKIP]
+    assert xyz[0].tolist() == [1.0, -2.5, 0.25]
+    assert xyz[2, :2].tolist() == [3, 0.2] and xyz[3, 0] == -1 and xyz[4, :2].tolist() == [PERIMETER_OUTER, 0.45]
+    assert starts.tolist()[:3] == [0, 18, 26]
 
 
 @settings(max_examples=150, deadline=None)

@@ -93,15 +93,16 @@ def _word_end(buf, i, end):
 
 @numba.njit(cache=True, nogil=True)
 def _annotation(buf, a, end, pow10, words, word_starts):
-    """A ``;@layer INDEX HEIGHT``, ``;@layer -`` or ``;@path ROLE WIDTH`` line in the plain form
+    """The annotation at ``buf[a:end]`` (after its ``;@``) of a ``;@layer INDEX HEIGHT``,
+    ``;@layer -`` or ``;@path ROLE WIDTH`` line in the plain form
     (lower case, a plain index and decimal number, blanks between): ``(kind, value, number)``
     with ``value`` the index (-1 for '-') or the role (the position of its word in ``words``),
     or ``(OTHER, 0, 0)``."""
     layer = _starts_with(buf, a, end, words[word_starts[-2]:word_starts[-1]])  # 'layer' is the last word
     if layer:
-        i = a + 2 + 5
+        i = a + 5
     elif _starts_with(buf, a, end, words[word_starts[-3]:word_starts[-2]]):  # 'path', the one before
-        i = a + 2 + 4
+        i = a + 4
     else:
         return OTHER, 0, 0.0
     if i >= end or not _blank(buf[i]):
