@@ -428,9 +428,8 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
         order = np.argsort(where, kind="stable")
         cols = [np.concatenate([[s], [v[j] if isinstance(v, tuple) else v for v in ann_val[key]],
                                 fast_xyz[at_fast, j]])[np.r_[0, order + 1]] for j, s in enumerate(start)]
-        bounds = np.diff(np.r_[0, where[order] + 1, len(kind_at)])
-        at = np.repeat(np.arange(len(bounds), dtype=np.int32), bounds)[line_of]  # per command
-        return [c[at] for c in cols]
+        before = np.searchsorted(line_of, where[order])  # the commands above each annotation
+        return [np.repeat(c, np.diff(np.r_[0, before, len(line_of)])) for c in cols]
 
     (chunk,) = state("chunk", (-1,))
     layer, height = state("layer", (-1, 0.0), LAYER_LINE)
@@ -440,7 +439,8 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     event[sync] = np.arange(int(sync.sum()), dtype=np.int32)
     chunk = chunk.astype(np.int16)
     # the chunk table: the chunks that commands belong to, in the order they first appear
-    used, first = np.unique(chunk[chunk >= 0], return_index=True)
+    runs = chunk[np.flatnonzero(np.r_[True, chunk[1:] != chunk[:-1]])] if len(chunk) else chunk
+    used, first = np.unique(runs[runs >= 0], return_index=True)
     used = used[np.argsort(first)]
     remap = np.full(len(lines.chunks) + 1, -1, dtype=np.int16)
     remap[used] = np.arange(len(used))
