@@ -302,11 +302,11 @@ def test_the_raster_checks_agree_with_looking_at_every_point(seed, calls):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), layers=st.integers(1, 6))
-def test_the_overhang_kernel_agrees_with_looking_at_every_pair(seed, layers):
+@given(seed=st.integers(0, 2**32 - 1), layers=st.integers(1, 6), budget=st.sampled_from([1, 37, 10**6]))
+def test_the_overhang_kernel_agrees_with_looking_at_every_pair(seed, layers, budget):
     """Every point against every other: a point is an overhang unless it is on the floor or some
     point laid down before it lies in its own or the 24 cells around, between 2.5 and 0.5 of its
-    layer height below it."""
+    layer height below it; the same whether the kernel works in one band or in many."""
     from cooprint.simulation.kernels import overhang_flags
 
     rng = np.random.default_rng(seed)
@@ -317,7 +317,7 @@ def test_the_overhang_kernel_agrees_with_looking_at_every_pair(seed, layers):
     t = rng.uniform(0, 50, n)
     t[rng.integers(0, n, 20)] = t[rng.integers(0, n, 20)]  # some at the same instant
     cell = 2.5
-    got = overhang_flags(xyz, h, t, cell)
+    got = overhang_flags(xyz, h, t, cell, budget)  # in bands of columns of about `budget` points
     zmin = float(xyz[:, 2].min())
     zq = np.rint((xyz[:, 2].astype(np.float64) - zmin) * 1000)
     c = np.floor(xyz[:, :2] / np.float32(cell)).astype(np.int64)

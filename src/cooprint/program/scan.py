@@ -157,15 +157,9 @@ def _is_text(buf, a, end, text):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sweep(buf, pow10, tool_on, tool_off, words, word_starts):
+def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, starts, xyz):
     n = len(buf)
-    lines = 1
-    for i in range(n):
-        if buf[i] == 10:
-            lines += 1
-    kind = np.empty(lines, np.int8)
-    starts = np.empty(lines + 1, np.int64)
-    xyz = np.empty((lines, 3))
+    lines = len(kind)
     a = 0
     for li in range(lines):
         end = a
@@ -216,7 +210,6 @@ def _sweep(buf, pow10, tool_on, tool_off, words, word_starts):
         kind[li] = k
         a = end + 1
     starts[lines] = n + 1
-    return kind, starts, xyz
 
 
 def sweep(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -236,8 +229,12 @@ def sweep(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         (other rows undefined).
     """
     buf = np.frombuffer(data, dtype=np.uint8)
-    return _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8), np.frombuffer(b"TOOL OFF", np.uint8),
-                  _WORDS, _WORD_STARTS)
+    lines = data.count(b"\n") + 1
+    # the results allocated here: numpy asks the OS for huge pages for large arrays
+    kind, starts, xyz = np.empty(lines, np.int8), np.empty(lines + 1, np.int64), np.empty((lines, 3))
+    _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8), np.frombuffer(b"TOOL OFF", np.uint8), _WORDS,
+           _WORD_STARTS, kind, starts, xyz)
+    return kind, starts, xyz
 
 
 __all__ = ["LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "sweep"]

@@ -259,8 +259,9 @@ class _HeadCheck:
         lift = np.float32(profile.nozzle_height + tolerance)
         xyz, t, bounds = material.xyz, material.t, material.bounds
         if timeline is not None:  # only the material that can reach this robot's printhead
-            keep = kernels.reachable(t, xyz[:, 2], bounds, timeline.t1,
-                                     np.minimum(timeline.p0[:, 2], timeline.p1[:, 2]), float(lift))
+            keep = np.empty(len(t), dtype=bool)
+            kernels.reachable(t, xyz[:, 2], bounds, timeline.t1, np.minimum(timeline.p0[:, 2], timeline.p1[:, 2]),
+                              float(lift), keep)
         else:
             keep = np.ones(len(t), dtype=bool)
         high = np.full(grid.shape, -np.inf, dtype=np.float32)

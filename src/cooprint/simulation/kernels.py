@@ -22,24 +22,14 @@ _inline = numba.njit(cache=True, nogil=True, inline="always")
 
 
 @_jit
-def move_table(kind, xyz, start, started):
-    """The MOVEs of a program (``kind`` (n,) uint8, targets ``xyz`` (n, 3)): their command indices,
-    start and end positions (the first starts at ``start`` if ``started``, else at its own
-    target), whether they deposit (the tool on, as the TOOL commands before them leave it, and a
-    length above 0) and their lengths."""
-    n = len(kind)
-    k = 0
-    for i in range(n):
-        if kind[i] == MOVE:
-            k += 1
-    index = np.empty(k, np.int64)
-    p0 = np.empty((k, 3))
-    p1 = np.empty((k, 3))
-    on = np.empty(k, np.bool_)
-    length = np.empty(k)
+def move_table(kind, xyz, start, started, index, p0, p1, on, length):
+    """The MOVEs of a program (``kind`` (n,) uint8, targets ``xyz`` (n, 3)) written to ``index``
+    (their command indices), ``p0`` and ``p1`` (start and end positions; the first starts at
+    ``start`` if ``started``, else at its own target), ``on`` (they deposit: the tool on, as the
+    TOOL commands before them leave it, and a length above 0) and ``length``."""
     tool = False
     j = 0
-    for i in range(n):
+    for i in range(len(kind)):
         c = kind[i]
         if c == TOOL_ON:
             tool = True
@@ -57,7 +47,6 @@ def move_table(kind, xyz, start, started):
             length[j] = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
             on[j] = tool and length[j] > 0
             j += 1
-    return index, p0, p1, on, length
 
 
 @_jit
@@ -225,24 +214,23 @@ def _reaches(high, coarse, block, r0, c0, win0, win1, level):
 
 
 @_jit
-def reachable(m_t, m_z, bounds, t1, z_low, lift):
+def reachable(m_t, m_z, bounds, t1, z_low, lift, out):
     """Which material points can ever reach a robot's printhead: higher by more than ``lift``
     than the lowest the robot's nozzle goes after the point is laid down (its moves end at
     ``t1`` and go no lower than ``z_low``). Robot ``j``'s points ``bounds[j]:bounds[j + 1]`` are
-    in time order. The others can never be above the printhead when it passes."""
+    in time order. The others can never be above the printhead when it passes. Writes ``out``
+    (k,) bool."""
     k = len(t1)
     low = np.empty(k + 1)
     low[k] = np.inf
     for i in range(k - 1, -1, -1):  # the lowest from each move on
         low[i] = min(low[i + 1], z_low[i])
-    out = np.zeros(len(m_t), np.bool_)
     for j in range(len(bounds) - 1):
         i = 0
         for p in range(bounds[j], bounds[j + 1]):
             while i < k and t1[i] <= m_t[p]:  # the moves that end before: none of their samples comes after
                 i += 1
             out[p] = m_z[p] > low[i] + lift
-    return out
 
 
 @_jit
@@ -361,69 +349,89 @@ def _band(z, h):
 
 
 @_inline
-def _band_has_support(zs, ts, a, e, lo, hi, t):
-    """Whether a height of ``zs[a:e]`` (sorted, distinct) lies in ``[lo, hi]`` with an earliest
-    time ``ts`` before ``t``."""
+def _band_has_support(heights, a, e, lo, hi, t):
+    """Whether a height ``z`` of ``heights[a:e]`` (sorted, distinct) lies in ``[lo, hi]`` with an
+    earliest time ``t`` before ``t``."""
     end = e
     while a < e:  # the first height >= lo
         m = (a + e) >> 1
-        if zs[m] < lo:
+        if heights[m].z < lo:
             a = m + 1
         else:
             e = m
-    while a < end and zs[a] <= hi:
-        if ts[a] < t:
+    while a < end and heights[a].z <= hi:
+        if heights[a].t < t:
             return True
         a += 1
     return False
 
 
-@_jit
-def overhang_flags(xyz, h, t, cell):
-    """Whether each point (``xyz`` (k, 3) float32 mm, its layer height ``h``, its time ``t``) has
-    nothing below it: no point laid down before it whose height lies between 2.5 and 0.5 of its
-    layer height below it (heights in whole micrometres above the lowest point), in its own
-    square cell of ``cell`` mm or the 24 cells around; and it is not on the floor (at most 2.5
-    layer heights above the lowest point).
+#: Work records of :func:`overhang_band`: a point (height in micrometres above the lowest point,
+#: layer height, time, index) and a distinct height of a cell (and its earliest time).
+OVERHANG_POINT = np.dtype([("z", "<i4"), ("h", "<f4"), ("t", "<f8"), ("p", "<i4")])
+OVERHANG_HEIGHT = np.dtype([("z", "<i4"), ("t", "<f8")])
 
-    The points are put in order cell by cell (a counting sort); in each cell the distinct
-    heights, lowest first, keep the earliest time material was at them. A point looks in its
-    own cell first, while that cell is at hand (its points lowest first, the band's start found
-    by a pointer that follows them), then in the 24 around (by bisection).
-    """
-    n = len(xyz)
-    out = np.zeros(n, np.bool_)
-    if n == 0:
-        return out
+
+@_inline
+def _column(x, cell, ox):
+    return int(np.floor(x / cell)) - ox
+
+
+@_jit
+def overhang_grid(xyz, cell):
+    """The cells of the overhang test: ``ox, oy`` (the first cell, 2 below the lowest so that
+    the 24 around each point exist), ``nx, ny`` (how many), ``zmin`` (the lowest height) and
+    how many points lie in each column of cells (nx,)."""
     mx, my, zmin, top_x, top_y = np.inf, np.inf, np.inf, -np.inf, -np.inf
-    for i in range(n):
+    for i in range(len(xyz)):
         fx, fy = np.floor(xyz[i, 0] / cell), np.floor(xyz[i, 1] / cell)
         mx, my, top_x, top_y = min(mx, fx), min(my, fy), max(top_x, fx), max(top_y, fy)
         zmin = min(zmin, float(xyz[i, 2]))
-    ox, oy = int(mx) - 2, int(my) - 2  # cells counted from 2 below the lowest: the 24 around exist
+    ox, oy = int(mx) - 2, int(my) - 2
     nx, ny = int(top_x) - ox + 3, int(top_y) - oy + 3
-    cells = nx * ny
-    start = np.zeros(cells + 1, np.int64)  # counting sort by cell: each point's data moved to its cell's place
-    for i in range(n):
-        start[(int(np.floor(xyz[i, 0] / cell)) - ox) * ny + int(np.floor(xyz[i, 1] / cell)) - oy + 1] += 1
+    columns = np.zeros(nx, np.int64)
+    for i in range(len(xyz)):
+        columns[_column(xyz[i, 0], cell, ox)] += 1
+    return ox, oy, nx, ny, zmin, columns
+
+
+@_jit
+def overhang_band(xyz, h, t, cell, ox, oy, ny, zmin, x0, x1, rec, heights, out):
+    """The overhang test of the points in the columns of cells ``x0:x1`` (of
+    :func:`overhang_grid`'s cells): ``out[i]`` is set when point ``i`` (``xyz`` (k, 3) float32 mm,
+    its layer height ``h``, its time ``t``) has nothing below it: no point laid down before it
+    whose height lies between 2.5 and 0.5 of its layer height below it (heights in whole
+    micrometres above the lowest point ``zmin``), in its own square cell of ``cell`` mm or the 24
+    cells around; and it is not on the floor (at most 2.5 layer heights above the lowest point).
+
+    The points of the columns ``x0 - 2:x1 + 2`` are put in order cell by cell (a counting sort)
+    in ``rec`` (:data:`OVERHANG_POINT`, at least as many); in each cell the distinct heights,
+    lowest first, keep the earliest time material was at them (``heights``,
+    :data:`OVERHANG_HEIGHT`). A point looks in its own cell first, while that cell is at hand
+    (its points lowest first, the band's start found by a pointer that follows them), then in
+    the 24 around (by bisection). The work space comes from numpy, which asks the OS for huge
+    pages: the scatter into cells misses the TLB less.
+    """
+    lo_x, hi_x = x0 - 2, x1 + 2  # with the columns around
+    cells = (hi_x - lo_x) * ny
+    start = np.zeros(cells + 1, np.int64)  # counting sort by cell
+    for i in range(len(xyz)):
+        x = _column(xyz[i, 0], cell, ox)
+        if lo_x <= x < hi_x:
+            start[(x - lo_x) * ny + int(np.floor(xyz[i, 1] / cell)) - oy + 1] += 1
     for c in range(cells):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
-    point = np.empty(n, np.int64)  # the point at each place
-    zc = np.empty(n, np.int32)  # its height in micrometres above the lowest point
-    tc = np.empty(n)
-    hc = np.empty(n)
-    for i in range(n):
-        c = (int(np.floor(xyz[i, 0] / cell)) - ox) * ny + int(np.floor(xyz[i, 1] / cell)) - oy
-        j = fill[c]
-        fill[c] += 1
-        point[j], zc[j], tc[j], hc[j] = i, int(np.rint((xyz[i, 2] - zmin) * 1000.0)), t[i], h[i]
+    for i in range(len(xyz)):  # each point to its place, in one record (one stream of writes per cell)
+        x = _column(xyz[i, 0], cell, ox)
+        if lo_x <= x < hi_x:
+            c = (x - lo_x) * ny + int(np.floor(xyz[i, 1] / cell)) - oy
+            j = fill[c]
+            fill[c] += 1
+            rec[j].z, rec[j].t, rec[j].h, rec[j].p = int(np.rint((xyz[i, 2] - zmin) * 1000.0)), t[i], h[i], i
     zmin_um = np.rint(zmin * 1000.0)
-    # each cell's distinct heights, lowest first, with their earliest times: zs, ts from first[c]
-    zs = np.empty(n, np.int32)
-    ts = np.empty(n)
-    first = np.zeros(cells + 1, np.int64)
-    todo = np.zeros(n, np.bool_)
+    first = np.zeros(cells + 1, np.int64)  # each cell's distinct heights: heights[first[c]:first[c + 1]]
+    todo = np.zeros(start[cells], np.bool_)
     k = 0
     for c in range(cells):
         first[c] = k
@@ -432,30 +440,32 @@ def overhang_flags(xyz, h, t, cell):
             continue
         ordered = True  # a cell's points mostly come in layer order already
         for j in range(a + 1, b):
-            if zc[j] < zc[j - 1]:
+            if rec[j].z < rec[j - 1].z:
                 ordered = False
                 break
-        o = np.arange(a, b) if ordered else np.argsort(zc[a:b]) + a
+        o = np.arange(a, b) if ordered else np.argsort(rec.z[a:b]) + a
         for j in o:
-            if k > first[c] and zs[k - 1] == zc[j]:
-                ts[k - 1] = min(ts[k - 1], tc[j])
+            if k > first[c] and heights[k - 1].z == rec[j].z:
+                heights[k - 1].t = min(heights[k - 1].t, rec[j].t)
             else:
-                zs[k] = zc[j]
-                ts[k] = tc[j]
+                heights[k].z, heights[k].t = rec[j].z, rec[j].t
                 k += 1
-        p = first[c]  # the own cell, while it is at hand, lowest first: a pointer to the lowest height in the band
+        if not (2 <= c // ny < hi_x - lo_x - 2):
+            continue  # a column around: its points are tested in their own band
+        p = first[c]  # the own cell, lowest first: a pointer to the lowest height in the band
         for j in o:
-            if zc[j] + zmin_um <= np.rint(2500.0 * hc[j]) + 1:
+            z, tj, hj = rec[j].z, rec[j].t, rec[j].h
+            if z + zmin_um <= np.rint(2500.0 * hj) + 1:
                 continue  # on the floor, or one layer of air above it
-            lo, hi = _band(zc[j], hc[j])
-            while p > first[c] and zs[p - 1] >= lo:
+            lo, hi = _band(z, hj)
+            while p > first[c] and heights[p - 1].z >= lo:
                 p -= 1
-            while p < k and zs[p] < lo:
+            while p < k and heights[p].z < lo:
                 p += 1
             q = p
             found = False
-            while q < k and zs[q] <= hi:
-                if ts[q] < tc[j]:
+            while q < k and heights[q].z <= hi:
+                if heights[q].t < tj:
                     found = True
                     break
                 q += 1
@@ -465,16 +475,36 @@ def overhang_flags(xyz, h, t, cell):
         for j in range(start[c], start[c + 1]):
             if not todo[j]:
                 continue
-            lo, hi = _band(zc[j], hc[j])
+            lo, hi = _band(rec[j].z, rec[j].h)
             found = False
             for q in range(25):
                 if q == 12:
                     continue  # the own cell
                 d = c + (q // 5 - 2) * ny + q % 5 - 2
-                if _band_has_support(zs, ts, first[d], first[d + 1], lo, hi, tc[j]):
+                if _band_has_support(heights, first[d], first[d + 1], lo, hi, rec[j].t):
                     found = True
                     break
-            out[point[j]] = not found
+            out[rec[j].p] = not found
+
+
+def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, budget: int = 1 << 21) -> np.ndarray:
+    """(k,) bool: :func:`overhang_band`'s test of every point, band by band of columns of cells
+    with at most about ``budget`` points each (and the two columns on each side), so that the
+    work space stays small whatever the print's size."""
+    out = np.zeros(len(t), dtype=bool)
+    if len(t) == 0:
+        return out
+    ox, oy, nx, ny, zmin, columns = overhang_grid(xyz, cell)
+    counts = np.cumsum(columns)
+    cuts = [0]
+    while cuts[-1] < nx:  # at least one column a band
+        cuts.append(max(cuts[-1] + 1, int(np.searchsorted(counts, counts[cuts[-1]] - columns[cuts[-1]] + budget,
+                                                          side="right"))))
+    cuts[-1] = nx
+    most = max(int(columns[max(a - 2, 0):b + 2].sum()) for a, b in zip(cuts[:-1], cuts[1:]))
+    rec, heights = np.empty(most, OVERHANG_POINT), np.empty(most, OVERHANG_HEIGHT)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        overhang_band(xyz, h, t, cell, ox, oy, ny, zmin, a, b, rec, heights, out)
     return out
 
 

@@ -154,7 +154,9 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
 
     program = r.program
     start = np.zeros(3) if r.start is None else np.asarray(r.start, dtype=np.float64)
-    mv, p0, p1, on, length = move_table(program.kind, program.xyz, start, r.start is not None)
+    k = int(np.count_nonzero(program.kind == MOVE))
+    mv, p0, p1, on, length = np.empty(k, np.int64), np.empty((k, 3)), np.empty((k, 3)), np.empty(k, bool), np.empty(k)
+    move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
     v = np.where(on, print_speed, travel_speed) if r.speed is None else r.speed[mv]
     de = np.zeros(len(mv)) if r.de is None else r.de[mv]
     if limits is None:
