@@ -85,14 +85,16 @@ def source_digest(src: Path) -> str:
 
 @dataclass(frozen=True)
 class Measurement:
-    """One timed process: wall seconds, peak RSS in MB (2**20 bytes), exit code, stdout, and
-    the line of its output most likely to say what went wrong."""
+    """One timed process: wall seconds, peak RSS in MB (2**20 bytes), exit code, stdout, the
+    line of its output most likely to say what went wrong, and CPU seconds (user + system, all
+    its threads: above the wall time only when it used more than one core)."""
 
     wall_s: float
     peak_mb: float
     returncode: int
     stdout: str
     error_line: str
+    cpu_s: float = float("nan")
 
 
 def time_process(cmd: list[str], log_dir: Path, tag: str,
@@ -114,9 +116,8 @@ def time_process(cmd: list[str], log_dir: Path, tag: str,
             return Measurement(float(timeout_s), 0.0, -1, "", f"{TIMED_OUT} {timeout_s:g} s")
     (log_dir / f"{tag}.out").write_text(stdout)
     (log_dir / f"{tag}.err").write_text(stderr)
-    wall_s, peak_kb = parse_gnu_time(report.read_text())
-    return Measurement(wall_s, peak_kb / 1024.0, proc.returncode, stdout,
-                       error_line(stdout, stderr))
+    wall_s, peak_kb, cpu_s = parse_gnu_time(report.read_text())
+    return Measurement(wall_s, peak_kb / 1024.0, proc.returncode, stdout, error_line(stdout, stderr), cpu_s)
 
 
 def timed(cmd: list[str], out: Path, tool: str, i: int, runs: int,
@@ -137,6 +138,7 @@ def summarise(runs: list[Measurement]) -> dict:
             "returncodes": [m.returncode for m in runs],
             "wall_median_s": median([m.wall_s for m in ok]),
             "peak_median_mb": median([m.peak_mb for m in ok]),
+            "cpu_median_s": median([m.cpu_s for m in ok]),
             "error": (failed[-1].error_line or f"exit code {failed[-1].returncode}")
             if failed else None}
 
@@ -156,16 +158,19 @@ def error_line(stdout: str, stderr: str) -> str:
     return (raised or last_err)[-1]
 
 
-def parse_gnu_time(text: str) -> tuple[float, int]:
-    """(wall seconds, max RSS kB) from the report of ``/usr/bin/time -v``."""
-    wall_s, peak_kb = float("nan"), 0
+def parse_gnu_time(text: str) -> tuple[float, int, float]:
+    """(wall seconds, max RSS kB, user + system CPU seconds) from the report of
+    ``/usr/bin/time -v``."""
+    wall_s, peak_kb, cpu_s = float("nan"), 0, 0.0
     for line in text.splitlines():
         key, _, value = line.strip().rpartition(": ")
         if key.startswith("Elapsed (wall clock) time"):
             wall_s = sum(float(part) * 60 ** i for i, part in enumerate(reversed(value.split(":"))))
         elif key == "Maximum resident set size (kbytes)":
             peak_kb = int(value)
-    return wall_s, peak_kb
+        elif key in ("User time (seconds)", "System time (seconds)"):
+            cpu_s += float(value)
+    return wall_s, peak_kb, cpu_s
 
 
 def median(values: list[float]) -> float | None:
