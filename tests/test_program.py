@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from cooprint.config import SlicingSettings
 from cooprint.program import scan
-from cooprint.program.scan import LAYER_LINE, MOVE_LINE, OTHER, PATH_LINE, SKIP, TOOL_ON_LINE, sweep
+from cooprint.program.scan import LAYER_LINE, PATH_LINE, Sweep, sweep
 from cooprint.program.commands import (MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, ProgramError, coop_text,
                                        make_program, parse_coop, quantize, read_coop)
 from cooprint.program.gcode import Feeds, gcode_text
@@ -137,20 +137,25 @@ def _program_texts(draw):
 def test_the_sweep_reads_plain_lines_itself():
     text = (b"MOVE 1, -2.5, .25\nTOOL ON\n;@layer 3 0.2\n;@layer -\n;@path outer-perimeter 0.45\n; note\n\n"
             b";@chunk C\nNOTIFY\nMOVE 1 2 3 ; c\n")
-    kind, starts, xyz = sweep(text)
-    assert kind.tolist() == [MOVE_LINE, TOOL_ON_LINE, LAYER_LINE, LAYER_LINE, PATH_LINE, SKIP, SKIP, OTHER, OTHER,
-                             OTHER, SKIP]
-    assert xyz[0].tolist() == [1.0, -2.5, 0.25]
-    assert xyz[2, :2].tolist() == [3, 0.2] and xyz[3, 0] == -1 and xyz[4, :2].tolist() == [PERIMETER_OUTER, 0.45]
-    assert starts.tolist()[:3] == [0, 18, 26]
+    swept = sweep(text)
+    assert swept.kind.tolist() == [MOVE, TOOL_ON, -1, -1, -1]  # then ;@chunk, NOTIFY and the commented MOVE
+    assert swept.xyz[0].tolist() == [1.0, -2.5, 0.25] and np.isnan(swept.xyz[1:]).all()
+    assert [text[a:b] for _, a, b, _ in swept.other] == [b";@chunk C", b"NOTIFY", b"MOVE 1 2 3 ; c"]
+    assert swept.other[:, [0, 3]].tolist() == [[7, 2], [8, 3], [9, 4]]  # lines (from 0) and slots
+    assert swept.notes.tolist() == [[2, 2, LAYER_LINE], [3, 2, LAYER_LINE], [4, 2, PATH_LINE]]
+    assert swept.values.tolist() == [[3, 0.2], [-1, 0], [PERIMETER_OUTER, 0.45]]
 
 
 @settings(max_examples=150, deadline=None)
 @given(_program_texts())
 def test_the_fast_pass_reads_exactly_what_the_line_parser_reads(text):
     def every_line_to_the_line_parser(data):
-        kind, starts, xyz = sweep(data)
-        return np.full_like(kind, OTHER), starts, xyz
+        data = bytes(data)
+        starts = np.r_[0, np.flatnonzero(np.frombuffer(data, np.uint8) == 10) + 1]
+        ends = np.r_[starts[1:] - 1, len(data)]
+        lines = np.arange(len(starts))
+        return Sweep(np.full(len(starts), -1, np.int8), np.full((len(starts), 3), np.nan),
+                     np.column_stack([lines, starts, ends, lines]), np.zeros((0, 3), np.int64), np.zeros((0, 2)))
 
     def parse(text):
         try:

@@ -33,6 +33,8 @@ from __future__ import annotations
 
 import io
 import math
+import mmap
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -368,7 +370,7 @@ class _Lines:
         return None  # an annotation of a later version: a comment here
 
 
-def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Program:
+def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<program>") -> Program:
     """Read ``.coop`` text into a :class:`Program`.
 
     Parameters
@@ -383,53 +385,48 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
     ProgramError
         ``source:line:column: what is wrong`` for the first malformed line.
     """
-    from cooprint.program.scan import (LAYER_LINE, MOVE_LINE, OTHER, PATH_LINE, TOOL_OFF_LINE,  # numba: on first use
-                                       TOOL_ON_LINE, sweep)
+    from cooprint.program.scan import LAYER_LINE, PATH_LINE, sweep  # numba: on first use
 
-    data = text.encode() if isinstance(text, str) else bytes(text)
-    line_kind, starts, fast_xyz = sweep(data)
+    data = text.encode() if isinstance(text, str) else text
+    swept = sweep(data)
+    kind_of, xyz_of = swept.kind, swept.xyz  # per slot: a command, or a line for the line parser
     lines = _Lines(source, robot)
-    others = np.flatnonzero(line_kind == OTHER)
-    # every line's command kind (-1: none) and MOVE target; the line parser fills in its lines
-    kind_at = np.full(len(line_kind), -1, np.int8)
-    for k, line in ((MOVE, MOVE_LINE), (TOOL_ON, TOOL_ON_LINE), (TOOL_OFF, TOOL_OFF_LINE)):
-        kind_at[line_kind == line] = k
     events = []
-    ann_line: dict[str, list[int]] = {"chunk": [], "layer": [], "path": []}
-    ann_val: dict[str, list] = {"chunk": [], "layer": [], "path": []}
-    for i, a, b in zip(others.tolist(), starts[others].tolist(), (starts[others + 1] - 1).tolist()):
+    ann: dict[str, list] = {"chunk": [], "layer": [], "path": []}  # (line, slot, value) of the line parser's
+    for i, a, b, slot in swept.other.tolist():
         try:
-            line = data[a:b].decode("utf-8")
+            line = bytes(data[a:b]).decode("utf-8")
         except UnicodeDecodeError:
             raise lines.error(i + 1, 1, "not UTF-8 text") from None
         got = lines.parse(line, i + 1)
         if got is None:
             continue
         if got[0] == "ann":
-            ann_line[got[1]].append(i)
-            ann_val[got[1]].append(got[2])
+            ann[got[1]].append((i, slot, got[2] if isinstance(got[2], tuple) else (got[2],)))
             continue
         kind, payload = got
-        kind_at[i] = kind
+        kind_of[slot] = kind
         if kind == MOVE:
-            fast_xyz[i] = payload
+            xyz_of[slot] = payload
         elif kind in (NOTIFY, WAIT):
             events.append(payload)
-    line_of = np.flatnonzero(kind_at >= 0)
-    kind_of = kind_at[line_of].astype(np.uint8)
-    xyz_of = fast_xyz[line_of]
-    xyz_of[kind_of != MOVE] = np.nan
+    slot_of = None  # each command's slot, if some slots are not commands
+    if (kind_of < 0).any():
+        slot_of = np.flatnonzero(kind_of >= 0)
+        kind_of, xyz_of = kind_of[slot_of], xyz_of[slot_of]
+    kind_of = kind_of.astype(np.uint8)
 
     def state(key: str, start: tuple, fast: int = -1) -> list[np.ndarray]:
         """Each command's value of an annotation (its columns): the last one above its line,
-        read by the sweep (lines of kind ``fast``) or by the line parser; ``start`` before any."""
-        at_fast = np.flatnonzero(line_kind == fast) if fast >= 0 else np.zeros(0, np.int64)
-        where = np.concatenate([np.array(ann_line[key], dtype=np.int64), at_fast])
-        order = np.argsort(where, kind="stable")
-        cols = [np.concatenate([[s], [v[j] if isinstance(v, tuple) else v for v in ann_val[key]],
-                                fast_xyz[at_fast, j]])[np.r_[0, order + 1]] for j, s in enumerate(start)]
-        before = np.searchsorted(line_of, where[order])  # the commands above each annotation
-        return [np.repeat(c, np.diff(np.r_[0, before, len(line_of)])) for c in cols]
+        read by the sweep (``fast``) or by the line parser; ``start`` before any."""
+        mine = swept.notes[:, 2] == fast
+        line = np.concatenate([np.array([x[0] for x in ann[key]], dtype=np.int64), swept.notes[mine, 0]])
+        slot = np.concatenate([np.array([x[1] for x in ann[key]], dtype=np.int64), swept.notes[mine, 1]])
+        order = np.argsort(line, kind="stable")
+        cols = [np.concatenate([[s], [x[2][j] for x in ann[key]], swept.values[mine, j]])[np.r_[0, order + 1]]
+                for j, s in enumerate(start)]
+        before = slot[order] if slot_of is None else np.searchsorted(slot_of, slot[order])  # commands above
+        return [np.repeat(c, np.diff(np.r_[0, before, len(kind_of)])) for c in cols]
 
     (chunk,) = state("chunk", (-1,))
     layer, height = state("layer", (-1, 0.0), LAYER_LINE)
@@ -449,15 +446,19 @@ def parse_coop(text: str | bytes, robot: str, source: str = "<program>") -> Prog
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:
-    """Read a ``.coop`` file; the robot's name defaults to the file's stem."""
+    """Read a ``.coop`` file; the robot's name defaults to the file's stem. The file is mapped,
+    not copied: its pages stay the page cache's."""
     p = Path(path)
     try:
-        data = p.read_bytes()
+        with open(p, "rb") as f:
+            if os.fstat(f.fileno()).st_size == 0:
+                return parse_coop(b"", robot or p.stem, str(p))
+            with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
+                return parse_coop(data, robot or p.stem, str(p))
     except FileNotFoundError:
         raise ProgramError(f"{p}: no such command file") from None
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read ({exc})") from None
-    return parse_coop(data, robot or p.stem, str(p))
 
 
 __all__ = ["FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",

@@ -13,12 +13,14 @@ division, the same double that ``float()`` gives.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba
 import numpy as np
 
-from cooprint.program.commands import ROLE_WORDS
+from cooprint.program.commands import MOVE, ROLE_WORDS, TOOL_OFF, TOOL_ON
 
-#: Line kinds the sweep reports.
+#: Kinds of line the sweep tells apart.
 OTHER, MOVE_LINE, TOOL_ON_LINE, TOOL_OFF_LINE, SKIP, LAYER_LINE, PATH_LINE = range(7)
 
 _POW10 = np.array([10.0 ** k for k in range(23)])
@@ -157,15 +159,28 @@ def _is_text(buf, a, end, text):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, starts, xyz):
+def _lines(buf):
+    """How many lines ``buf`` has (its newlines plus one)."""
+    k = 1
+    for c in buf:
+        if c == 10:
+            k += 1
+    return k
+
+
+@numba.njit(cache=True, nogil=True)
+def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, xyz, other, ann, ann_val):
+    """Fill ``kind``/``xyz`` (one slot a command, or a line the line parser reads), ``other``
+    (line, start, end, slot of each such line) and ``ann``/``ann_val`` (line, slot, key;
+    value, number of each annotation read here); return how many of each."""
     n = len(buf)
-    lines = len(kind)
+    slots, others, notes = 0, 0, 0
     a = 0
-    for li in range(lines):
+    li = 0
+    while a <= n:
         end = a
         while end < n and buf[end] != 10:
             end += 1
-        starts[li] = a
         k = OTHER
         if end - a >= 5 and buf[a] == 77 and buf[a + 1] == 79 and buf[a + 2] == 86 and buf[a + 3] == 69 \
                 and _blank(buf[a + 4]):  # 'MOVE '
@@ -182,7 +197,7 @@ def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, starts, xyz)
                 if i < 0:
                     ok = False
                     break
-                xyz[li, j] = v
+                xyz[slots, j] = v
             if ok:
                 while i < end and (_blank(buf[i]) or buf[i] == 13):
                     i += 1
@@ -200,41 +215,76 @@ def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, starts, xyz)
                 k = SKIP
             elif i == a and end - a > 2 and buf[a] == 59 and buf[a + 1] == 64:  # ';@' at the start
                 k, value, number = _annotation(buf, a + 2, end, pow10, words, word_starts)
-                xyz[li, 0], xyz[li, 1] = value, number
+                if k != OTHER:
+                    ann[notes, 0], ann[notes, 1], ann[notes, 2] = li, slots, k
+                    ann_val[notes, 0], ann_val[notes, 1] = value, number
+                    notes += 1
             elif buf[i] == 35 or (buf[i] == 59 and not (i + 1 < end and buf[i + 1] == 64)):  # '#', ';' not ';@'
                 k = SKIP
                 for j in range(i, end):  # non-ASCII text: the line parser checks it is UTF-8
                     if buf[j] >= 128:
                         k = OTHER
                         break
-        kind[li] = k
+        if k == MOVE_LINE:
+            kind[slots] = MOVE
+            slots += 1
+        elif k == TOOL_ON_LINE or k == TOOL_OFF_LINE or k == OTHER:
+            kind[slots] = TOOL_ON if k == TOOL_ON_LINE else (TOOL_OFF if k == TOOL_OFF_LINE else -1)
+            xyz[slots, 0], xyz[slots, 1], xyz[slots, 2] = np.nan, np.nan, np.nan
+            if k == OTHER:
+                other[others, 0], other[others, 1], other[others, 2], other[others, 3] = li, a, end, slots
+                others += 1
+            slots += 1
         a = end + 1
-    starts[lines] = n + 1
+        li += 1
+    return slots, others, notes
 
 
-def sweep(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Classify every line of ``data`` and read its plain MOVEs.
+@dataclass(frozen=True)
+class Sweep:
+    """What the sweep read of a ``.coop`` text.
 
-    Returns
-    -------
-    kind : (lines,) int8
-        ``OTHER`` (for the line parser), ``MOVE_LINE``, ``TOOL_ON_LINE``, ``TOOL_OFF_LINE``,
-        ``SKIP`` (blank, or a comment that is not an annotation), ``LAYER_LINE`` or
-        ``PATH_LINE``.
-    starts : (lines + 1,) int64
-        Where each line begins; line ``i`` is ``data[starts[i]:starts[i + 1] - 1]``.
-    xyz : (lines, 3) float64
-        The coordinates of the ``MOVE_LINE`` lines; of a ``LAYER_LINE``, the index (-1: '-') and
-        the height; of a ``PATH_LINE``, the role (``cooprint.slicing.paths``) and the width
-        (other rows undefined).
+    Attributes
+    ----------
+    kind : (slots,) int8
+        A slot for each command line and each line left to the line parser, in line order:
+        ``MOVE``, ``TOOL_ON``, ``TOOL_OFF`` (of :mod:`.commands`) or -1 (the line parser's).
+    xyz : (slots, 3) float64
+        The MOVEs' targets (NaN in the other slots).
+    other : (k, 4) int64
+        The lines left to the line parser: line index (from 0), start and end (byte offsets,
+        without the newline), slot.
+    notes : (m, 3) int64
+        The ``;@layer`` and ``;@path`` annotations read here: line index, the slot before which
+        they stand, ``LAYER_LINE`` or ``PATH_LINE``.
+    values : (m, 2) float64
+        Their values: layer index (-1 for '-') and height, or role (``cooprint.slicing.paths``)
+        and width.
     """
+
+    kind: np.ndarray
+    xyz: np.ndarray
+    other: np.ndarray
+    notes: np.ndarray
+    values: np.ndarray
+
+
+def sweep(data) -> Sweep:
+    """Read the plain lines of ``data`` (bytes, or any buffer of them, such as an ``mmap``) and
+    say which lines the line parser must read."""
     buf = np.frombuffer(data, dtype=np.uint8)
-    lines = data.count(b"\n") + 1
-    # the results allocated here: numpy asks the OS for huge pages for large arrays
-    kind, starts, xyz = np.empty(lines, np.int8), np.empty(lines + 1, np.int64), np.empty((lines, 3))
-    _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8), np.frombuffer(b"TOOL OFF", np.uint8), _WORDS,
-           _WORD_STARTS, kind, starts, xyz)
-    return kind, starts, xyz
+    lines = _lines(buf)
+    # room for every line; numpy asks the OS for huge pages, and pages never written are never
+    # backed by memory: the slots of the lines that are not commands, the rows of other and notes
+    kind, xyz = np.empty(lines, np.int8), np.empty((lines, 3))
+    other, notes, values = np.empty((lines, 4), np.int64), np.empty((lines, 3), np.int64), np.empty((lines, 2))
+    slots, others, annotations = _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8),
+                                        np.frombuffer(b"TOOL OFF", np.uint8), _WORDS, _WORD_STARTS, kind, xyz,
+                                        other, notes, values)
+    del buf
+    for arr, rows in ((kind, slots), (xyz, slots), (other, others), (notes, annotations), (values, annotations)):
+        arr.resize((rows,) + arr.shape[1:], refcheck=False)  # in place: the rest goes back to the heap
+    return Sweep(kind, xyz, other, notes, values)
 
 
-__all__ = ["LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "sweep"]
+__all__ = ["LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep", "sweep"]
