@@ -1,7 +1,5 @@
 """``python -m cooprint`` = the ``cooprint`` command."""
 
-import sys
+from cooprint.cli import entry
 
-from cooprint.cli import main
-
-sys.exit(main())
+entry()
