@@ -23,7 +23,9 @@ from cooprint.program.commands import MOVE, ROLE_WORDS, TOOL_OFF, TOOL_ON
 #: Kinds of line the sweep tells apart.
 OTHER, MOVE_LINE, TOOL_ON_LINE, TOOL_OFF_LINE, SKIP, LAYER_LINE, PATH_LINE = range(7)
 
-_POW10 = np.array([10.0 ** k for k in range(23)])
+#: 10**0 .. 10**22, all exact in float64: a plain decimal's digits over one of them is the
+#: correctly rounded value, the double ``float()`` gives.
+POW10 = np.array([10.0 ** k for k in range(23)])
 # the annotation words the sweep knows: the path roles by number, then 'path' and 'layer'
 _WORD_LIST = [ROLE_WORDS[r].encode() for r in range(len(ROLE_WORDS))] + [b"path", b"layer"]
 _WORDS = np.frombuffer(b"".join(_WORD_LIST), np.uint8)
@@ -36,9 +38,13 @@ def _blank(c):
 
 
 @numba.njit(cache=True, nogil=True)
-def _number(buf, i, end, pow10):
-    """The plain decimal number at ``buf[i:]`` (before ``end``): ``(value, next index)``, or
-    ``(0.0, -1)`` when there is none in the plain form."""
+def decimal(buf, i, end, pow10):
+    """The plain decimal number at ``buf[i:end]`` (a sign, digits, at most one point; at most 15
+    significant digits and 22 after the point), up to the first byte that cannot continue it:
+    ``(value, next index, bytes read)``; ``(0.0, i, 0)`` when there is nothing of a number there,
+    and a next index of -1 when what is there is not a plain number (a lone sign or point, too
+    many digits). ``pow10`` holds 10**0 .. 10**22 (:data:`POW10`)."""
+    a = i
     sign = 1.0
     c = buf[i] if i < end else 0
     if c == 45 or c == 43:  # '-' '+'
@@ -63,15 +69,23 @@ def _number(buf, i, end, pow10):
         else:
             break
         i += 1
+    if i == a:
+        return 0.0, i, 0
     if seen == 0 or digits > 15 or frac > 22:
-        return 0.0, -1
-    if i < end:
-        c = buf[i]
-        if not (c == 32 or c == 9 or c == 44 or c == 13):  # blank, comma or CR: anything else is odd
-            return 0.0, -1
+        return 0.0, -1, 0
     if frac > 0:
         mant = mant / pow10[frac]
-    return sign * mant, i
+    return sign * mant, i, i - a
+
+
+@numba.njit(cache=True, nogil=True)
+def _number(buf, i, end, pow10):
+    """The plain decimal number at ``buf[i:]`` (before ``end``) followed by a blank, a comma, a
+    carriage return or the end: ``(value, next index)``, or ``(0.0, -1)`` when there is none."""
+    v, i, size = decimal(buf, i, end, pow10)
+    if i < 0 or size == 0 or (i < end and not (_blank(buf[i]) or buf[i] == 44 or buf[i] == 13)):
+        return 0.0, -1
+    return v, i
 
 
 @numba.njit(cache=True, nogil=True)
@@ -278,7 +292,7 @@ def sweep(data) -> Sweep:
     # backed by memory: the slots of the lines that are not commands, the rows of other and notes
     kind, xyz = np.empty(lines, np.int8), np.empty((lines, 3))
     other, notes, values = np.empty((lines, 4), np.int64), np.empty((lines, 3), np.int64), np.empty((lines, 2))
-    slots, others, annotations = _sweep(buf, _POW10, np.frombuffer(b"TOOL ON", np.uint8),
+    slots, others, annotations = _sweep(buf, POW10, np.frombuffer(b"TOOL ON", np.uint8),
                                         np.frombuffer(b"TOOL OFF", np.uint8), _WORDS, _WORD_STARTS, kind, xyz,
                                         other, notes, values)
     del buf
@@ -287,4 +301,4 @@ def sweep(data) -> Sweep:
     return Sweep(kind, xyz, other, notes, values)
 
 
-__all__ = ["LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep", "sweep"]
+__all__ = ["POW10", "decimal", "LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep", "sweep"]

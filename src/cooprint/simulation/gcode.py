@@ -29,9 +29,9 @@ import numba
 import numpy as np
 
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON
+from cooprint.program.scan import POW10, decimal
 from cooprint.slicing.paths import extrusion_width
 
-_POW10 = np.array([10.0 ** k for k in range(23)])
 
 # the first word of a line, as the sweep tells them apart
 _OTHER, _G0, _G1, _G92, _G90, _G91, _M82, _M83 = range(8)
@@ -106,40 +106,10 @@ def _word_end(c):
 def _number(buf, i, pow10):
     """The plain decimal number at ``buf[i:]``, up to the word's end: ``(value, next index,
     how many characters)``; ``(0.0, -1, 0)`` when it is not in the plain form."""
-    n = len(buf)
-    a = i
-    neg = False
-    c = buf[i] if i < n else 10
-    if c == 45 or c == 43:  # '-' '+'
-        neg = c == 45
-        i += 1
-    mant = 0.0
-    digits = 0  # significant digits (leading zeros not counted)
-    seen = 0  # digits of any kind
-    frac = -1  # digits after the point; -1: no point yet
-    while i < n:
-        c = buf[i]
-        if 48 <= c <= 57:
-            seen += 1
-            if digits or c != 48:
-                digits += 1
-            mant = mant * 10.0 + (c - 48)
-            if frac >= 0:
-                frac += 1
-        elif c == 46 and frac < 0:  # '.'
-            frac = 0
-        elif _word_end(c):
-            break
-        else:
-            return 0.0, -1, 0
-        i += 1
-    if i == a:
-        return 0.0, i, 0  # no number at all
-    if seen == 0 or digits > 15 or frac > 22:
+    v, j, size = decimal(buf, i, len(buf), pow10)
+    if j >= 0 and j < len(buf) and not _word_end(buf[j]):
         return 0.0, -1, 0
-    if frac > 0:
-        mant = mant / pow10[frac]
-    return -mant if neg else mant, i, i - a
+    return v, j, size
 
 
 @numba.njit(cache=True, nogil=True)
@@ -294,7 +264,7 @@ def gcode_rows(data: bytes, filament_diameter: float) -> GcodeRows | None:
     """The commands of the G-code ``data``, or ``None`` if a line is not in the plain form (the
     line reader is then the one to read the file)."""
     buf = np.frombuffer(data, dtype=np.uint8)
-    bad, m, xyz, feed, de, dep, layer_h = _sweep(buf, _POW10)
+    bad, m, xyz, feed, de, dep, layer_h = _sweep(buf, POW10)
     if bad:
         return None
     xyz, feed, de, dep, layer_h = xyz[:m], feed[:m], de[:m], dep[:m], layer_h[:m]

@@ -2,10 +2,12 @@
 
 The checks are sweeps in time order and look-ups in rasters: sequential by nature, so they are
 written as plain loops and compiled, instead of being forced into whole-array passes that would
-each make a temporary of every sample. Each function here is small and has a pure-numpy
-counterpart in the tests (``tests/test_simulation.py``) that it must agree with.
+each make a temporary of every sample. The tests (``tests/test_simulation.py``) hold each to a
+plain definition: the rasters and the overhang test to brute force over every pair of points,
+the footprint sweep to the per-sample checks.
 
-Arrays: positions float32 (as the samples are kept), times float64, cells int64.
+Arrays: positions float32 (as the samples are kept), times float64. Large work arrays are
+allocated by the callers with numpy (huge pages), not here.
 """
 
 from __future__ import annotations
@@ -59,6 +61,13 @@ def sample_counts(length, step):
     return n
 
 
+@_inline
+def _segment(p0, p1, m):
+    """Move ``m``'s start and its step to the end, in float32 (as the samples are kept)."""
+    a0, a1, a2 = np.float32(p0[m, 0]), np.float32(p0[m, 1]), np.float32(p0[m, 2])
+    return a0, a1, a2, np.float32(p1[m, 0]) - a0, np.float32(p1[m, 1]) - a1, np.float32(p1[m, 2]) - a2
+
+
 @_jit
 def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, k):
     """Points along moves ``sel`` (``n[j]`` points on move ``sel[j]``: the i-th of n at i / n
@@ -74,12 +83,7 @@ def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, k):
     for j in range(len(sel)):
         m = sel[j]
         c = n[j]
-        a0 = np.float32(p0[m, 0])
-        a1 = np.float32(p0[m, 1])
-        a2 = np.float32(p0[m, 2])
-        d0 = np.float32(p1[m, 0]) - a0
-        d1 = np.float32(p1[m, 1]) - a1
-        d2 = np.float32(p1[m, 2]) - a2
+        a0, a1, a2, d0, d1, d2 = _segment(p0, p1, m)
         dt = t1[m] - t0[m]
         inv = 1.0 / c
         for i in range(1, c + 1):
@@ -308,12 +312,7 @@ def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, body_state, he
     k = 0
     last = len(t0) - 1
     for m in range(len(t0)):
-        a0 = np.float32(p0[m, 0])
-        a1 = np.float32(p0[m, 1])
-        a2 = np.float32(p0[m, 2])
-        d0 = np.float32(p1[m, 0]) - a0
-        d1 = np.float32(p1[m, 1]) - a1
-        d2 = np.float32(p1[m, 2]) - a2
+        a0, a1, a2, d0, d1, d2 = _segment(p0, p1, m)
         c = n[m]
         inv = 1.0 / c
         for i in range(0 if (first and m == 0) else 1, c + 1):
