@@ -278,7 +278,7 @@ def test_the_raster_checks_agree_with_looking_at_every_point(seed, calls):
     n_t.sort()
     a = rng.uniform(0, 2 * np.pi)
     frame = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]], dtype=np.float32)
-    material = checks.Material(m_xyz, m_t, np.full(300, 0.2), np.arange(300), np.array([0, 300]))
+    material = checks.Material(m_xyz, m_t, np.full(300, 0.2), np.array([0, 300]))
     body, head = checks.robot_checks(material, frame, prof)
     uv = n_xyz[:, :2] @ frame.T
     found = [set(), set()]
@@ -331,6 +331,22 @@ def test_the_overhang_kernel_agrees_with_looking_at_every_pair(seed, layers, bud
     assert not got[floor].any()
 
 
+def test_material_samples_know_their_moves_and_layer_heights():
+    from cooprint.simulation import checks
+
+    text = "MOVE 0 0 0.2\nTOOL ON\n;@layer 0 0.2\nMOVE 10 0 0.2\nMOVE 10 0.5 0.2\nTOOL OFF\nMOVE 10 0.5 0.2\nMOVE 0 7 0.5\n" \
+           "TOOL ON\n;@layer 1 0.3\nMOVE 9 7 0.5\nMOVE 9 7.1 0.5\n"
+    r = _robot("A", text, start=(0, 0, 0.2))
+    res = _sim(r)
+    tl = res.timelines["A"]
+    m = checks.Material.sample([r], res.timelines, 2.0, 0.2)
+    _, t, move = checks.path_samples(tl, 2.0, deposits_only=True)
+    assert np.array_equal(m.t, t)
+    assert np.array_equal(m.moves(np.arange(len(t)), tl), move)
+    assert move.tolist() == [1] * 5 + [2] + [5] * 5 + [6]
+    assert m.h.tolist() == pytest.approx([0.2] * 6 + [0.3] * 6)
+
+
 def test_the_footprint_sweep_finds_what_the_sample_checks_find():
     """The fused sweep along a robot's path (samples made on the fly) against the same samples
     made first and given to each check: the same hits, chunk by chunk."""
@@ -351,8 +367,7 @@ def test_the_footprint_sweep_finds_what_the_sample_checks_find():
     robot = SimRobot("A", prog, p0[0], np.array([0.6, 0.8]))
     tl = Timeline("A", t0, t1, p0, p1, np.ones(k, bool), np.arange(k))
     m_xyz = np.column_stack([rng.uniform(-40, 40, (500, 2)), rng.uniform(0, 12, 500)]).astype(np.float32)
-    material = checks.Material(m_xyz, np.sort(rng.uniform(0, t1[-1], 500)), np.full(500, 0.2), np.zeros(500, np.int64),
-                               np.array([0, 500]))
+    material = checks.Material(m_xyz, np.sort(rng.uniform(0, t1[-1], 500)), np.full(500, 0.2), np.array([0, 500]))
     got = checks.footprint_checks([robot], {"A": tl}, prof, material, step=1.5)
     frame = checks._frame(robot.facing).astype(np.float32)
     body, head = checks.robot_checks(material, frame, prof)

@@ -71,7 +71,7 @@ def path_samples(tl: Timeline, step: float, deposits_only: bool, moves: slice = 
     k = int(n.sum()) + first
     out = np.empty((k, 3), np.float32), np.empty(k), np.empty(k, np.int64)
     if len(sel):
-        kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, first, *out, 0)
+        kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, first, *out, np.zeros(0), np.zeros(0), 0)
     return out
 
 
@@ -84,14 +84,13 @@ def _step(timelines: dict[str, Timeline], step: float, deposits_only: bool) -> f
 @dataclass(frozen=True)
 class Material:
     """Every robot's deposited paths as points every ``step`` mm: position (k, 3) float32, time
-    (k,) float64, layer height (k,) float32 and move (k,) int32 (its index in its robot's
-    timeline); robot ``i``'s points are ``bounds[i]:bounds[i + 1]``, in the order it laid them
-    down."""
+    (k,) float64 and layer height (k,) float32; robot ``i``'s points are
+    ``bounds[i]:bounds[i + 1]``, in the order it laid them down (:meth:`moves` says on which of
+    its moves)."""
 
     xyz: np.ndarray
     t: np.ndarray
     h: np.ndarray
-    move: np.ndarray
     bounds: np.ndarray
 
     @staticmethod
@@ -100,15 +99,19 @@ class Material:
         step = _step(timelines, step, deposits_only=True)
         parts = [_selection(timelines[r.name], step, deposits_only=True) for r in robots]
         bounds = np.cumsum([0] + [int(n.sum()) for _, n, _ in parts])
-        xyz, t, move = np.empty((bounds[-1], 3), np.float32), np.empty(bounds[-1]), np.empty(bounds[-1], np.int32)
-        h = np.empty(bounds[-1], np.float32)
+        xyz, t, h = np.empty((bounds[-1], 3), np.float32), np.empty(bounds[-1]), np.empty(bounds[-1], np.float32)
         for i, (r, (sel, n, _)) in enumerate(zip(robots, parts)):  # each robot's points in one pass, in place
             tl = timelines[r.name]
             if len(sel):
-                kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, False, xyz, t, move, bounds[i])
-            block = slice(bounds[i], bounds[i + 1])
-            np.take(r.bead(tl.index, 0.0, layer_height)[1].astype(np.float32), move[block], out=h[block])
-        return Material(xyz, t, h, move, bounds)
+                kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, False, xyz, t, np.zeros(0, np.int64),
+                                     r.bead(tl.index, 0.0, layer_height)[1].astype(np.float32), h, bounds[i])
+        return Material(xyz, t, h, bounds)
+
+    def moves(self, points: np.ndarray, timeline: Timeline) -> np.ndarray:
+        """The move (index into its robot's ``timeline``) each of ``points`` (indices into the
+        material, of one robot) lies on: the first to end at or after the point's time (a
+        point's time lies in its move's, and a move that deposits takes some time)."""
+        return np.searchsorted(timeline.t1, self.t[points], side="left")
 
     def robot(self, i: int) -> slice:
         return slice(int(self.bounds[i]), int(self.bounds[i + 1]))
@@ -310,7 +313,8 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
     for i, r in enumerate(robots):
         block = material.robot(i)
         bad = todo[np.searchsorted(todo, block.start):np.searchsorted(todo, block.stop)]
-        findings += _group([(t[bad], xyz[bad], material.move[bad])], "overhang", r, timelines[r.name],
+        findings += _group([(t[bad], xyz[bad], material.moves(bad, timelines[r.name]))], "overhang", r,
+                           timelines[r.name],
                            f"material laid down with nothing below it within {radius:g} mm (more than one layer "
                            "of air)")
     return findings

@@ -69,16 +69,21 @@ def _segment(p0, p1, m):
 
 
 @_jit
-def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, k):
+def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, value, out, k):
     """Points along moves ``sel`` (``n[j]`` points on move ``sel[j]``: the i-th of n at i / n
     of the way, its end included; with ``first`` the start of the first move before them),
-    written to ``xyz`` (float32), ``t`` and ``move`` from row ``k`` on. Returns the next row."""
+    written to ``xyz`` (float32) and ``t`` from row ``k`` on, with the move of each to ``move``
+    and a value of its move (``value[m]``) to ``out``, unless those are empty. Returns the next
+    row."""
     if first:
         m = sel[0]
         for a in range(3):
             xyz[k, a] = np.float32(p0[m, a])
         t[k] = t0[m]
-        move[k] = m
+        if len(move):
+            move[k] = m
+        if len(out):
+            out[k] = value[m]
         k += 1
     for j in range(len(sel)):
         m = sel[j]
@@ -93,7 +98,10 @@ def sample_moves(p0, p1, t0, t1, sel, n, first, xyz, t, move, k):
             xyz[k, 1] = a1 + f32 * d1
             xyz[k, 2] = a2 + f32 * d2
             t[k] = t0[m] + f * dt
-            move[k] = m
+            if len(move):
+                move[k] = m
+            if len(out):
+                out[k] = value[m]
             k += 1
     return k
 
