@@ -14,12 +14,13 @@
 The nozzle is looked at every ``step`` mm of its path (and at every move's ends); material is the
 deposited paths sampled every ``step`` mm (more on prints of more than ``MAX_SAMPLES`` points). The
 body and printhead checks work on rasters in the robot's frame (u along its facing, v to its
-left) with cells of half the ``tolerance`` (more on very large prints): the body check
-keeps, per cell, the earliest time material was laid down there, takes the minimum over the
-footprint with a sliding-window filter once, and then needs one look-up per nozzle sample; the
-printhead check keeps, per cell, the highest material laid down so far and sweeps the nozzle
-samples in time order in batches, adding the material laid down before each batch and filtering
-only the batch's region (the material laid down during a batch is compared point by point). A
+left) with cells of half the ``tolerance`` (more on very large prints), in one sweep along each
+robot's path that makes its nozzle samples on the fly: the body check keeps, per cell, the
+earliest time material was laid down there, takes the minimum over the footprint with a
+sliding-window filter once, and then needs one look-up per nozzle sample; the printhead check
+adds, before each nozzle sample, the material laid down before it to a raster of the highest
+material so far (and to its maxima over blocks of cells) and looks at the reach block by block.
+The overhang check sorts the material into cells. The loops are compiled (:mod:`.kernels`). A
 footprint that only touches material (within ``tolerance``, which covers half a line width) is
 not a finding; a plan the chunker made keeps the body just clear of its chunk's outer edge.
 """
@@ -39,10 +40,9 @@ STEP = 2.0
 #: Overlap below this is touching, not standing on, mm (half a line width, and the cells of
 #: the rasters, which are half of it).
 TOLERANCE = 2.0
-#: At most this many material samples (the spacing grows on very long prints); nozzle moves
-#: sampled at once; cells of one raster (the cells grow on very large prints).
+#: At most this many material samples (the spacing grows on very long prints); cells of one
+#: raster (the cells grow on very large prints).
 MAX_SAMPLES = 8_000_000
-MOVES_AT_ONCE = 100_000
 MAX_CELLS = 8_000_000
 #: The printhead check keeps the highest material over blocks of this many cells square too,
 #: and over blocks of this many blocks square.
@@ -53,21 +53,18 @@ HEAD_BLOCK = 8
 OVERHANG_RADIUS = 5.0
 
 
-def _selection(tl: Timeline, step: float, deposits_only: bool, moves: slice = slice(None)
-               ) -> tuple[np.ndarray, np.ndarray, bool]:
-    """The moves to sample (of the range ``moves``), how many points each gets, and whether the
-    very first position comes first (when the nozzle's whole path is asked for)."""
-    sel = np.arange(len(tl.t0))[moves]
-    if deposits_only:
-        sel = sel[tl.on[sel]]
-    return sel, kernels.sample_counts(tl.length[sel], step), bool(not deposits_only and len(sel) and sel[0] == 0)
+def _selection(tl: Timeline, step: float, deposits_only: bool) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The moves to sample, how many points each gets, and whether the very first position
+    comes first (when the nozzle's whole path is asked for)."""
+    sel = np.flatnonzero(tl.on) if deposits_only else np.arange(len(tl.t0))
+    return sel, kernels.sample_counts(tl.length[sel], step), bool(not deposits_only and len(sel))
 
 
-def path_samples(tl: Timeline, step: float, deposits_only: bool, moves: slice = slice(None)
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Points (k, 3) float32 along the moves (of the range ``moves``) every ``step`` mm and at
-    their ends, their times (k,) and the move each lies on (k,)."""
-    sel, n, first = _selection(tl, step, deposits_only, moves)
+def path_samples(tl: Timeline, step: float, deposits_only: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points (k, 3) float32 along the moves every ``step`` mm and at their ends (the nozzle's
+    whole path, or the material), their times (k,) and the move each lies on (k,): the samples
+    the checks see."""
+    sel, n, first = _selection(tl, step, deposits_only)
     k = int(n.sum()) + first
     out = np.empty((k, 3), np.float32), np.empty(k), np.empty(k, np.int64)
     if len(sel):
@@ -193,9 +190,10 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
         chunk[chunk < 0] = len(r.program.chunks)  # between chunks: the last slot
         slots = len(r.program.chunks) + 1
         count, when, where = np.zeros((2, slots), np.int64), np.full((2, slots), np.inf), np.zeros((2, slots, 3))
-        kernels.footprint_sweep(tl.p0, tl.p1, tl.t0, tl.t1, kernels.sample_counts(tl.length, n_step), True, chunk,
-                                frame, b is not None, (b or _BodyCheck.idle()).state, h is not None,
-                                (h or _HeadCheck.idle()).state, count, when, where)
+        _, n, first = _selection(tl, n_step, deposits_only=False)  # the nozzle samples: all its path
+        kernels.footprint_sweep(tl.p0, tl.p1, tl.t0, tl.t1, n, first, chunk, frame, b is not None,
+                                (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state,
+                                count, when, where)
         for k, c in enumerate((b, h)):
             for slot in np.flatnonzero(count[k]):
                 findings.append(Finding(c.kind, r.name, float(when[k, slot]), tuple(float(x) for x in where[k, slot]),
@@ -375,4 +373,5 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["Material", "body_box", "body_corners", "footprint_checks", "head_box", "overhangs", "path_samples", "robots_collide"]
+__all__ = ["Material", "body_box", "body_corners", "footprint_checks", "head_box", "overhangs", "path_samples",
+           "robots_collide"]
