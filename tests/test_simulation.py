@@ -334,8 +334,8 @@ def test_the_overhang_kernel_agrees_with_looking_at_every_pair(seed, layers, bud
 def test_material_samples_know_their_moves_and_layer_heights():
     from cooprint.simulation import checks
 
-    text = "MOVE 0 0 0.2\nTOOL ON\n;@layer 0 0.2\nMOVE 10 0 0.2\nMOVE 10 0.5 0.2\nTOOL OFF\nMOVE 10 0.5 0.2\nMOVE 0 7 0.5\n" \
-           "TOOL ON\n;@layer 1 0.3\nMOVE 9 7 0.5\nMOVE 9 7.1 0.5\n"
+    text = ("MOVE 0 0 0.2\nTOOL ON\n;@layer 0 0.2\nMOVE 10 0 0.2\nMOVE 10 0.5 0.2\nTOOL OFF\nMOVE 10 0.5 0.2\n"
+            "MOVE 0 7 0.5\nTOOL ON\n;@layer 1 0.3\nMOVE 9 7 0.5\nMOVE 9 7.1 0.5\n")
     r = _robot("A", text, start=(0, 0, 0.2))
     res = _sim(r)
     tl = res.timelines["A"]

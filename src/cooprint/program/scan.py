@@ -301,4 +301,5 @@ def sweep(data) -> Sweep:
     return Sweep(kind, xyz, other, notes, values)
 
 
-__all__ = ["POW10", "decimal", "LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep", "sweep"]
+__all__ = ["LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "POW10", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep",
+           "decimal", "sweep"]

@@ -344,7 +344,8 @@ def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, body_state, he
                         count[check, ch] += 1
                         if count[check, ch] == 1:
                             when[check, ch] = t[h]
-                            where[check, ch, 0], where[check, ch, 1], where[check, ch, 2] = xyz[h, 0], xyz[h, 1], xyz[h, 2]
+                            for a in range(3):
+                                where[check, ch, a] = xyz[h, a]
                 k = 0
 
 
