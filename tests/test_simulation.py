@@ -216,6 +216,18 @@ def test_pictures_of_a_simulation(car_bundle, tmp_path):
     assert (np.abs(gantt.astype(int) - (235, 200, 60)).sum(axis=2) < 10).sum() > 500  # B's wait
 
 
+def test_progress_bars_count_the_printing_done():
+    from cooprint.render.sim import _Scene
+
+    res = _sim(_robot("A", "MOVE 0 0 0\nTOOL ON\nMOVE 40 0 0\nTOOL OFF\nMOVE 40 120 0\nTOOL ON\nMOVE 0 120 0\n"))
+    scene = _Scene(res, (320, 200), 30.0, 30.0)
+    tl = res.timelines["A"]
+    for t in (0.0, 0.5, 1.0, 1.5, 2.0, 2.2, 3.0, 3.5, 4.0, 9.0):  # printing 0-1 s and 2-3 s, travel 1-2 s
+        brute = float(np.clip(np.minimum(tl.t1, t) - tl.t0, 0, None)[tl.on].sum())
+        assert scene.printed("A", t) == pytest.approx((brute, 2.0))
+    assert scene.printed("A", 2.5)[0] == pytest.approx(1.5)
+
+
 def test_animations_and_the_cli_render(car_bundle, tmp_path):
     import imageio_ffmpeg
 

@@ -42,6 +42,20 @@ class _Scene:
         self.palette = np.array([_colour(i) for i in range(len(result.robots))])
         depth = (np.vstack(extent) if extent else np.zeros((1, 3))) @ self.basis.T[:, 2]  # for shading
         self.d_lo, self.d_span = float(depth.min()), max(float(np.ptp(depth)), 1e-9)
+        # per robot, for its progress bar: its printing moves' starts and ends, and the printing
+        # time done before each
+        self.printing = {}
+        for r in result.robots:
+            tl = result.timelines[r.name]
+            t0, t1 = tl.t0[tl.on], tl.t1[tl.on]
+            self.printing[r.name] = (t0, t1, np.concatenate([[0.0], np.cumsum(t1 - t0)]))
+
+    def printed(self, robot: str, t: float) -> tuple[float, float]:
+        """Seconds of printing robot ``robot`` has done by ``t``, and in all."""
+        t0, t1, before = self.printing[robot]
+        k = int(np.searchsorted(t1, t, side="right"))  # printing moves finished by t
+        under_way = t - t0[k] if k < len(t0) and t0[k] < t else 0.0
+        return float(before[k] + under_way), float(before[-1])
 
     def px(self, p: np.ndarray) -> np.ndarray:
         return ((p @ self.basis.T)[..., :2] - self.lo) * self.scale * np.array([1, -1]) + self.off
@@ -93,7 +107,7 @@ def render_snapshot(result: SimResult, t: float, path: str | Path, size: tuple[i
     scene.robots(draw, t, filled=True)
     scene.material(draw, seg, col, sort=True)
     scene.robots(draw, t, filled=False)
-    _overlay(draw, result, t, size)
+    _overlay(draw, scene, t, size)
     path = Path(path)
     img.save(path, format="PNG")
     return path
@@ -147,7 +161,7 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
             for seg, col in partial:
                 scene.material(fd, seg, col, sort=False)
             scene.robots(fd, t, filled=False)
-            _overlay(fd, result, t, size)
+            _overlay(fd, scene, t, size)
             if gif:
                 frames.append(frame.quantize(colors=128))
             else:
@@ -167,16 +181,17 @@ def _footprint(result: SimResult, r, nozzle: np.ndarray) -> np.ndarray:
     return np.column_stack([xy, np.zeros(4)])
 
 
-def _overlay(draw: ImageDraw.ImageDraw, result: SimResult, t: float, size: tuple[int, int]) -> None:
+def _overlay(draw: ImageDraw.ImageDraw, scene: _Scene, t: float, size: tuple[int, int]) -> None:
     """Clock and per-robot progress bars at the top."""
+    result = scene.result
     font = _font(18)
     span = max(result.makespan, 1e-9)
     draw.text((20, 15), f"t = {_hms(t)} / {_hms(span)}", fill=(20, 20, 20), font=_font(22))
     x = 320
     for i, r in enumerate(result.robots):
         tl = result.timelines[r.name]
-        total = float((tl.t1 - tl.t0)[tl.on].sum()) or 1.0
-        done = float(np.clip(np.minimum(tl.t1, t) - tl.t0, 0, None)[tl.on].sum())
+        done, total = scene.printed(r.name, t)
+        total = total or 1.0
         draw.text((x, 12), f"robot {r.name}", fill=_colour(i), font=font)
         draw.rectangle([x, 40, x + 160, 54], outline=(90, 90, 90))
         draw.rectangle([x, 40, x + int(160 * done / total), 54], fill=_colour(i))
