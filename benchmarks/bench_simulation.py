@@ -10,7 +10,7 @@ from harness import (BenchContext, fmt, plural, prepare_mesh, summarise, timed, 
 
 NAME = "simulation"
 TITLE = "Simulation"
-DEFAULT_MESHES = ["benchy.stl", "nefertiti.stl"]
+DEFAULT_MESHES = ["benchy.stl", "nefertiti.stl", "occt_tr12j_housing.stl"]
 PEER_PACKAGES = ["prusa-slicer"]
 FRAMES = (10.0, 24.0)  # seconds, frames per second of the timed animation
 PRUSA_ESTIMATE = re.compile(r"^; estimated printing time \(normal mode\) = (.+)$", re.M)
