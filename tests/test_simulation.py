@@ -393,3 +393,58 @@ def test_the_footprint_sweep_finds_what_the_sample_checks_find():
     key = lambda f: (f.kind, f.chunk or "", f.time, f.count)  # noqa: E731
     assert sorted(map(key, got)) == sorted(map(key, want))
     assert all(np.allclose(a.position, b.position) for a, b in zip(sorted(got, key=key), sorted(want, key=key)))
+
+
+def _fig15(robot_text: str, dt: float, steps: int) -> list[tuple[float, float, float]]:
+    """The seed's Fig. 15 loop as written: a time budget per step, as many commands as fit, the
+    last one in part (its remainder carried into the next step)."""
+    prog = parse_coop(robot_text, "A")
+    moves = [tuple(p) for p, k in zip(prog.xyz.tolist(), prog.kind.tolist()) if k == 0]
+    on = prog.tool_on()[prog.kind == 0].tolist()
+    pos, i, into, out = list(moves[0]), 1, 0.0, []  # start at the first target; `into` mm along move i
+    for _ in range(steps):
+        out.append(tuple(pos))
+        budget = dt
+        while i < len(moves) and budget > 0:
+            a, b = np.array(moves[i - 1]), np.array(moves[i])
+            length = float(np.linalg.norm(b - a))
+            speed = PROFILE.print_speed if on[i] and length > 0 else PROFILE.travel_speed
+            left = (length - into) / speed
+            if left <= budget:
+                budget -= left
+                i, into = i + 1, 0.0
+                pos = list(b)
+            else:
+                into += budget * speed
+                pos = list(a + (b - a) * into / length)
+                budget = 0.0
+    return out
+
+
+def test_frames_follow_the_seed_fig15_loop_and_the_material_adds_up(tmp_path):
+    from cooprint.simulation import frames
+
+    text = "MOVE 0 0 0\nTOOL ON\nMOVE 10 0 0\nMOVE 10 7 0\nTOOL OFF\nMOVE 0 7 0.2\nTOOL ON\nMOVE 0 0 0.2\nTOOL OFF\n"
+    res = _sim(_robot("A", text))
+    fr = frames(res, 0.07)
+    assert fr.t[0] == 0 and fr.t[-1] == pytest.approx(res.makespan) and np.allclose(np.diff(fr.t[:-1]), 0.07)
+    ref = np.array(_fig15(text, 0.07, len(fr.t) - 1))
+    assert np.allclose(fr.position[:-1, 0], ref, atol=1e-9)  # the same positions, no drift
+    assert np.all(np.diff(fr.material[:, 0]) >= 0) and fr.material[0, 0] == 0
+    volume = summary(res)["robots"][0]["material_mm3"]
+    assert fr.material[-1, 0] == pytest.approx(volume)
+    # material grows only while printing: 10 + 7 mm at 40 mm/s, then a travel, then 7 mm
+    area = volume / 24.0
+    for t, m in zip(fr.t, fr.material[:, 0]):
+        printed = min(t, 17 / 40) * 40 + max(0.0, min(t - 17 / 40 - np.hypot(10, 0.2) / 120, 7 / 40)) * 40
+        assert m == pytest.approx(printed * area, abs=1e-9)
+    # the CLI writes them beside the summary
+    job = tmp_path / "job"
+    (job / "robots").mkdir(parents=True)
+    (job / "robots" / "A.coop").write_text(text)
+    (job / "fleet.toml").write_text('[[robots]]\nname = "A"\nprogram = "robots/A.coop"\nstart = [0.0, 0.0, 0.0]\n')
+    assert main(["simulate", "--manifest", str(job / "fleet.toml"), "--out", str(job), "--frames", "0.07", "-q"]) == 0
+    with np.load(job / "sim" / "frames.npz") as saved:
+        assert np.array_equal(saved["position"], fr.position) and saved["robots"].tolist() == ["A"]
+    assert main(["simulate", "--manifest", str(job / "fleet.toml"), "--out", str(job), "--frames", "0", "-q",
+                 "--force"]) == 2

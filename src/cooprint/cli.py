@@ -234,24 +234,42 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
 @click.option("--strict", is_flag=True, help="Exit with code 1 if any check finds a problem (overhang warnings too).")
 @click.option("--accel", is_flag=True, help="Moves accelerate (robot profile's acceleration and jerk; "
               "G-code: PrusaSlicer's machine limits) instead of keeping their speed.")
-@click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json.")
+@click.option("--frames", "frame_step", type=float, default=None, metavar="SECONDS",
+              help="Also write sim/frames.npz: every robot's position and material every SECONDS (seed Fig. 15).")
+@click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json (and frames.npz).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary on stdout.")
 def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, accel: bool,
-             force: bool, quiet: bool) -> None:
+             frame_step: float | None, force: bool, quiet: bool) -> None:
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
     robot each), or .coop files with --manifest. Writes sim/summary.json."""
+    import math
+
+    import numpy as np
+
     from cooprint.io.bundle import atomic_file, write_json
-    from cooprint.simulation import findings_line, load_inputs, simulate as run_sim, summary
+    from cooprint.simulation import findings_line, frames, load_inputs, simulate as run_sim, summary
 
     _need_inputs(inputs, manifest)
+    if frame_step is not None and not (math.isfinite(frame_step) and frame_step > 0):
+        raise UserError(f"--frames {frame_step:g}: expected a positive number of seconds")
     folder = _sim_folder(inputs, out)
-    target = folder / "summary.json"
-    if target.exists() and not force:
-        raise UserError(f"{target}: exists; use --force to replace it")
+    targets = [folder / "summary.json"] + ([folder / "frames.npz"] if frame_step is not None else [])
+    for target in targets:
+        if target.exists() and not force:
+            raise UserError(f"{target}: exists; use --force to replace it")
+    target = targets[0]
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest), accel=accel)
     record = summary(result)
     folder.mkdir(parents=True, exist_ok=True)
+    if frame_step is not None:
+        if result.makespan / frame_step > 10_000_000:
+            raise UserError(f"--frames {frame_step:g}: more than 10 million frames over {result.makespan:.0f} s; "
+                            "take a longer step")
+        fr = frames(result, frame_step)
+        with atomic_file(targets[1], force=True) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(f, t=fr.t, robots=np.array(fr.robots), position=fr.position, done=fr.done,
+                                material=fr.material)
     with atomic_file(target, force=True) as tmp:
         write_json(tmp, record)
     if not quiet:
@@ -264,7 +282,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
             click.echo(f"  {f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
                        f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
                        f"{f.detail}" + (f" ({f.count} samples)" if f.count > 1 else ""))
-        click.echo(f"wrote {target}")
+        click.echo("wrote " + ", ".join(map(str, targets)))
     if strict and result.findings:
         raise click.exceptions.Exit(1)
 

@@ -66,11 +66,73 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
                      tuple(k for k in KINDS if k in checked))
 
 
+def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings) -> np.ndarray:
+    """(k,) mm^3 each move of a robot lays down: width x height x length with the tool on, 0
+    without (a program without width and height annotations prints at the slicing settings'
+    width and layer)."""
+    w, h = r.bead(tl.index, s.extrusion_width, s.layer_height)
+    return np.where(tl.on, extrusion_area(w, h) * tl.length, 0.0)
+
+
 def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
-    """mm^3 a robot lays down: width x height x length of its moves with the tool on (a program
-    without width and height annotations prints at the slicing settings' width and layer)."""
-    w, h = r.bead(tl.index[tl.on], s.extrusion_width, s.layer_height)
-    return float((extrusion_area(w, h) * tl.length[tl.on]).sum())
+    """mm^3 a robot lays down in all (:func:`move_volumes`)."""
+    return float(move_volumes(r, tl, s).sum())
+
+
+@dataclass(frozen=True)
+class Frames:
+    """The seed's Fig. 15 dataset: the state of every robot at a fixed time step.
+
+    Attributes
+    ----------
+    t : (T,) float64
+        Frame times, s: 0, dt, 2 dt, ... and the makespan last.
+    robots : tuple of str
+    position : (T, R, 3) float64
+        Each robot's nozzle, mm.
+    done : (T, R) int64
+        How many of each robot's moves are finished (its timeline's ``[:done]``): the material
+        so far is their deposits, and the move under way up to the nozzle.
+    material : (T, R) float64
+        mm^3 each robot has laid down (width x height x length, the part of the move under way
+        included).
+    """
+
+    t: np.ndarray
+    robots: tuple[str, ...]
+    position: np.ndarray
+    done: np.ndarray
+    material: np.ndarray
+
+
+def frames(result: SimResult, dt: float) -> Frames:
+    """Every robot's state every ``dt`` seconds (seed Fig. 15: at each step as many commands as
+    fit, the last one in part, material only with the tool on), computed from the timelines, so
+    that frame ``i`` is exact at ``i * dt`` and nothing drifts."""
+    if not dt > 0:
+        raise ValueError(f"time step {dt!r}: expected a positive number of seconds")
+    span = result.makespan
+    t = np.arange(0.0, span, dt) if span > 0 else np.zeros(0)
+    t = np.append(t, span)
+    pos, done, material = [], [], []
+    for r in result.robots:
+        tl = result.timelines[r.name]
+        vol = move_volumes(r, tl, result.slicing)
+        k = np.searchsorted(tl.t1, t, side="right")  # moves finished
+        cur = np.minimum(k, max(len(tl.t1) - 1, 0))  # the move under way (if any)
+        part = np.zeros(len(t))
+        if len(tl.t1):
+            span_k = tl.t1[cur] - tl.t0[cur]
+            under_way = (k < len(tl.t1)) & (tl.t0[cur] < t) & (span_k > 0)
+            part[under_way] = vol[cur[under_way]] * (t[under_way] - tl.t0[cur[under_way]]) / span_k[under_way]
+        pos.append(tl.position(t))
+        done.append(k)
+        material.append(np.concatenate([[0.0], np.cumsum(vol)])[k] + part)
+    shape = (len(t), 0)
+    return Frames(t, tuple(r.name for r in result.robots),
+                  np.stack(pos, axis=1) if pos else np.zeros(shape + (3,)),
+                  np.stack(done, axis=1) if done else np.zeros(shape, np.int64),
+                  np.stack(material, axis=1) if material else np.zeros(shape))
 
 
 def findings_line(counts: dict[str, int]) -> str:
@@ -105,5 +167,5 @@ def summary(result: SimResult) -> dict[str, object]:
             "findings": [f.to_dict() for f in result.findings]}
 
 
-__all__ = ["KINDS", "SimInput", "SimInputError", "SimResult", "deposited_volume", "findings_line", "load_inputs",
-           "simulate", "summary"]
+__all__ = ["KINDS", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "findings_line", "frames",
+           "load_inputs", "simulate", "summary"]
