@@ -3,9 +3,8 @@
 Nearly every line of a program is ``MOVE x, y, z``, ``TOOL ON`` / ``TOOL OFF`` or a ``;@layer`` or
 ``;@path`` annotation; the sweep reads those, skips blank lines and plain comments, and hands
 every other line (``;@chunk``, NOTIFY, WAIT, anything odd or wrong) to the line parser of
-:mod:`.commands`, which is the reference. A
-MOVE line is taken only in the plain form: the word ``MOVE`` at the start of the line, then three
-decimal numbers (``-12.5``, ``+3``, ``.25``, ``7.``; at most 15 significant digits, no exponent)
+:mod:`.commands`, which is the reference. A MOVE line is taken only in the plain form: the word
+``MOVE`` at the start of the line, then three decimal numbers (``-12.5``, ``+3``, ``.25``, ``7.``; at most 15 significant digits, no exponent)
 separated by blanks or by single commas, nothing after them. Such a number is its digits as an
 integer (exact in float64) divided by a power of ten (exact up to 10^22): one correctly rounded
 division, the same double that ``float()`` gives.

@@ -32,7 +32,6 @@ from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON
 from cooprint.program.scan import POW10, decimal
 from cooprint.slicing.paths import extrusion_width
 
-
 # the first word of a line, as the sweep tells them apart
 _OTHER, _G0, _G1, _G92, _G90, _G91, _M82, _M83 = range(8)
 
