@@ -394,8 +394,11 @@ def entry() -> None:
     interpreter down. Everything a command writes is closed by then; what is left is unloading
     numba's compiled code one function at a time, 0.15-0.25 s for nothing."""
     code = main()
-    sys.stdout.flush()
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a reader that went away (`| head`), a closed stream
+            pass
     os._exit(code)
 
 

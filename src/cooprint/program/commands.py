@@ -34,7 +34,6 @@ from __future__ import annotations
 import io
 import math
 import mmap
-import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -451,14 +450,22 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
     p = Path(path)
     try:
         with open(p, "rb") as f:
-            if os.fstat(f.fileno()).st_size == 0:
-                return parse_coop(b"", robot or p.stem, str(p))
-            with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as data:
-                return parse_coop(data, robot or p.stem, str(p))
+            try:
+                data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+            except (OSError, ValueError):  # empty, or not a regular file (a pipe): read it
+                data = f.read()
     except FileNotFoundError:
         raise ProgramError(f"{p}: no such command file") from None
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read ({exc})") from None
+    try:
+        return parse_coop(data, robot or p.stem, str(p))
+    finally:
+        if isinstance(data, mmap.mmap):
+            try:
+                data.close()
+            except BufferError:  # a view still held (by a traceback): the collector closes it
+                pass
 
 
 __all__ = ["FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
