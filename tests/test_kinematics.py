@@ -1,4 +1,4 @@
-"""The acceleration model: closed forms, and the whole-array planner against a plain loop."""
+"""The acceleration model: closed forms, and the compiled planner against the firmware loops written in Python."""
 
 import math
 
@@ -95,7 +95,7 @@ def _reference(delta, feed, lim):
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(1, 60), st.integers(0, 2**32 - 1))
-def test_the_whole_array_planner_equals_the_loops(n, seed):
+def test_the_planner_equals_the_firmware_loops(n, seed):
     rng = np.random.default_rng(seed)
     delta = np.column_stack([rng.normal(size=(n, 2)) * rng.choice([0.3, 5, 60], size=(n, 1)),
                              rng.choice([0, 0, 0.2], size=n), rng.choice([0, 0.05, -0.8], size=n)])

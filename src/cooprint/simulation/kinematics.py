@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 
@@ -46,71 +47,90 @@ def trapezoid_durations(delta: np.ndarray, feed: np.ndarray, limits: MachineLimi
     feed : (k,) float
         Each move's requested speed, mm/s.
     """
-    k = len(delta)
-    if k == 0:
-        return np.zeros(0)
-    d = np.asarray(delta, dtype=np.float64)
-    xyz = np.linalg.norm(d[:, :3], axis=1)
-    length = np.where(xyz > 0, xyz, np.abs(d[:, 3]))  # an E-only move's length is its E
-    moving = length > 0
-    safe_len = np.where(moving, length, 1.0)
-    unit = d / safe_len[:, None]  # per-axis share of the move
-    mf = np.asarray(limits.max_feedrate)
-    share = np.abs(unit)
-    with np.errstate(divide="ignore"):
-        axis_cap = np.where(share > 0, mf / np.where(share > 0, share, 1.0), np.inf).min(axis=1)
-    v = np.minimum(np.asarray(feed, dtype=np.float64), axis_cap)
-    extruding = (d[:, 3] > 0) & (xyz > 0)
-    retracting = xyz == 0
-    acc = np.where(extruding, limits.acceleration_extruding,
-                   np.where(retracting, limits.acceleration_retracting, limits.acceleration_travel))
-    ma = np.asarray(limits.max_acceleration)
-    with np.errstate(divide="ignore"):
-        acc = np.minimum(acc, np.where(share > 0, ma / np.where(share > 0, share, 1.0), np.inf).min(axis=1))
-    jerk = np.asarray(limits.max_jerk)
-    axis_v = unit * v[:, None]  # signed per-axis speed at the nominal speed
-    # the speed a block may start from or stop to at once: no axis over its jerk
-    safe = np.minimum(v, np.where(np.abs(axis_v) > jerk, jerk, np.inf).min(axis=1))
-    # junction speeds (classic jerk, as Marlin 1.1 and PrusaSlicer's estimator): the slower of the
-    # two nominal speeds, the faster block's exit scaled down to it, then scaled by how far each
-    # axis' change of speed exceeds its jerk (axis after axis, each scaling the next)
-    prev_v, cur_v = v[:-1], v[1:]
-    prev_larger = prev_v > cur_v
-    ratio = np.where(prev_larger, cur_v / np.where(prev_v > 0, prev_v, 1.0), 1.0)
-    junction = np.where(prev_larger, cur_v, prev_v)
-    factor = np.ones(k - 1)
-    limited = np.zeros(k - 1, dtype=bool)
-    for ax in range(4):
-        v_exit = axis_v[:-1, ax] * ratio * np.where(limited, factor, 1.0)
-        v_entry = axis_v[1:, ax] * np.where(limited, factor, 1.0)
-        change = np.where(v_exit > v_entry,
-                          np.where((v_entry > 0) | (v_exit < 0), v_exit - v_entry, np.maximum(v_exit, -v_entry)),
-                          np.where((v_entry < 0) | (v_exit > 0), v_entry - v_exit, np.maximum(-v_exit, v_entry)))
-        over = change > jerk[ax]
-        factor = np.where(over, factor * jerk[ax] / np.where(over, change, 1.0), factor)
-        limited |= over
-    junction = np.where(limited, junction * factor, junction)
-    stop_anyway = (safe[:-1] > 0.99 * junction) & (safe[1:] > 0.99 * junction)  # not coasting
-    junction = np.where(stop_anyway | (prev_v <= 0), safe[1:], junction)
-    # entry speed limits (squared): the first block starts at its safe speed
-    m = np.empty(k + 1)
-    m[0] = safe[0] ** 2
-    m[1:k] = junction ** 2
-    m[k] = safe[-1] ** 2  # the last block ends at its safe speed
-    c = 2.0 * acc * length
-    s = np.concatenate([[0.0], np.cumsum(c)])
-    u = np.minimum.accumulate((m + s)[::-1])[::-1] - s  # backward pass
-    u = np.minimum(u, m)
-    w = np.minimum.accumulate(u - s) + s  # forward pass
-    v0, v1 = np.sqrt(np.maximum(w[:-1], 0.0)), np.sqrt(np.maximum(w[1:], 0.0))
-    vmax = np.maximum(v, np.maximum(v0, v1))
-    d_acc = (vmax ** 2 - v0 ** 2) / (2 * acc)
-    d_dec = (vmax ** 2 - v1 ** 2) / (2 * acc)
-    cruise = d_acc + d_dec <= length
-    peak = np.sqrt(np.maximum((2 * acc * length + v0 ** 2 + v1 ** 2) / 2, 0.0))
-    t_trap = (vmax - v0) / acc + (vmax - v1) / acc + (length - d_acc - d_dec) / np.where(vmax > 0, vmax, 1.0)
-    t_tri = (peak - v0) / acc + (peak - v1) / acc
-    return np.where(moving, np.where(cruise, t_trap, t_tri), 0.0)
+    d = np.ascontiguousarray(delta, dtype=np.float64).reshape(-1, 4)
+    accel = np.array([limits.acceleration_extruding, limits.acceleration_retracting, limits.acceleration_travel])
+    return _plan(d, np.ascontiguousarray(feed, dtype=np.float64), accel, np.asarray(limits.max_acceleration, float),
+                 np.asarray(limits.max_feedrate, float), np.asarray(limits.max_jerk, float))
+
+
+@numba.njit(cache=True, nogil=True)
+def _plan(d, feed, accel, max_acc, max_feed, jerk):
+    """The planner of :func:`trapezoid_durations`, move by move: each block's nominal speed,
+    acceleration and safe speed and the junction speed with the block before (classic jerk, as
+    Marlin 1.1 and PrusaSlicer's estimator), the backward and forward passes over the squared
+    entry speeds, then every block's trapezoid (or triangle)."""
+    k = len(d)
+    length = np.empty(k)
+    v = np.empty(k)
+    acc = np.empty(k)
+    m = np.empty(k + 1)  # entry speed limits, squared; the last: the end of the last block
+    prev_axis = np.zeros(4)
+    axis = np.zeros(4)
+    prev_v, prev_safe = 0.0, 0.0
+    for i in range(k):
+        xyz = np.sqrt(d[i, 0] ** 2 + d[i, 1] ** 2 + d[i, 2] ** 2)
+        n = xyz if xyz > 0 else abs(d[i, 3])  # an E-only move's length is its E
+        length[i] = n
+        cap, acap = np.inf, np.inf
+        for a in range(4):
+            share = abs(d[i, a] / n) if n > 0 else 0.0  # the axis' share of the move
+            if share > 0:
+                cap = min(cap, max_feed[a] / share)
+                acap = min(acap, max_acc[a] / share)
+        vi = min(feed[i], cap)
+        v[i] = vi
+        base = accel[0] if (d[i, 3] > 0 and xyz > 0) else (accel[1] if xyz == 0 else accel[2])
+        acc[i] = min(base, acap)
+        safe = vi  # the speed it may start from or stop to at once: no axis over its jerk
+        for a in range(4):
+            axis[a] = (d[i, a] / n if n > 0 else 0.0) * vi
+            if abs(axis[a]) > jerk[a]:
+                safe = min(safe, jerk[a])
+        if i == 0:
+            m[0] = safe * safe
+        else:  # the junction with the block before: the slower nominal speed, scaled by the jerk
+            larger = prev_v > vi
+            ratio = (vi / (prev_v if prev_v > 0 else 1.0)) if larger else 1.0
+            junction = vi if larger else prev_v
+            factor, limited = 1.0, False
+            for a in range(4):
+                scale = factor if limited else 1.0
+                v_exit, v_entry = prev_axis[a] * ratio * scale, axis[a] * scale
+                if v_exit > v_entry:
+                    change = v_exit - v_entry if (v_entry > 0 or v_exit < 0) else max(v_exit, -v_entry)
+                else:
+                    change = v_entry - v_exit if (v_entry < 0 or v_exit > 0) else max(-v_exit, v_entry)
+                if change > jerk[a]:
+                    factor *= jerk[a] / change
+                    limited = True
+            if limited:
+                junction *= factor
+            if (prev_safe > 0.99 * junction and safe > 0.99 * junction) or prev_v <= 0:
+                junction = safe  # not coasting: from the safe speed
+            m[i] = junction * junction
+        for a in range(4):
+            prev_axis[a] = axis[a]
+        prev_v, prev_safe = vi, safe
+    if k:
+        m[k] = prev_safe * prev_safe  # the last block ends at its safe speed
+    for i in range(k - 1, -1, -1):  # backward: every block can slow down to the next one's entry
+        m[i] = min(m[i], m[i + 1] + 2.0 * acc[i] * length[i])
+    for i in range(k):  # forward: and speed up from its own
+        m[i + 1] = min(m[i + 1], m[i] + 2.0 * acc[i] * length[i])
+    out = np.zeros(k)
+    for i in range(k):
+        n, a = length[i], acc[i]
+        if not n > 0:
+            continue
+        v0, v1 = np.sqrt(max(m[i], 0.0)), np.sqrt(max(m[i + 1], 0.0))
+        vmax = max(v[i], v0, v1)
+        d_acc, d_dec = (vmax * vmax - v0 * v0) / (2 * a), (vmax * vmax - v1 * v1) / (2 * a)
+        if d_acc + d_dec <= n:
+            out[i] = (vmax - v0) / a + (vmax - v1) / a + (n - d_acc - d_dec) / (vmax if vmax > 0 else 1.0)
+        else:
+            peak = np.sqrt(max((2 * a * n + v0 * v0 + v1 * v1) / 2, 0.0))
+            out[i] = (peak - v0) / a + (peak - v1) / a
+    return out
 
 
 __all__ = ["MachineLimits", "trapezoid_durations"]
