@@ -160,15 +160,9 @@ def _annotation(buf, a, end, pow10, words, word_starts):
 @numba.njit(cache=True, nogil=True)
 def _is_text(buf, a, end, text):
     """Whether ``buf[a:end]`` is ``text`` (a trailing carriage return ignored)."""
-    n = len(text)
     if end > a and buf[end - 1] == 13:
         end -= 1
-    if end - a != n:
-        return False
-    for k in range(n):
-        if buf[a + k] != text[k]:
-            return False
-    return True
+    return end - a == len(text) and _starts_with(buf, a, end, text)
 
 
 @numba.njit(cache=True, nogil=True)

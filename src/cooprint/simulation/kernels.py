@@ -306,47 +306,43 @@ def head_hits(high, coarse, block, m_xyz, m_t, keep, frame, stops, added, top, g
 
 @_jit
 def footprint_sweep(p0, p1, t0, t1, n, first, chunk, frame, body, body_state, head, head_state, count, when, where):
-    """Both footprint checks along a robot's whole path, sampled as :func:`sample_moves` does
-    (``n[m]`` points on move ``m``; ``first``: the start too), a few thousand samples at a time,
+    """Both footprint checks along a robot's whole path, sampled by :func:`sample_moves`
+    (``n[m]`` points on move ``m``; ``first``: the start too) a few thousand samples at a time,
     without keeping them. ``body_state`` is what :func:`body_hits` takes before the samples,
     ``head_state`` what :func:`head_hits` takes. A hit of check ``k`` (0: body, 1: printhead)
     on a move of chunk ``chunk[m]`` adds one to ``count[k, chunk]``; the first one of each chunk
     leaves its time in ``when`` and its position in ``where``."""
-    size = 4096
+    size = max(4096, int(n.max()) + 1) if len(n) else 1  # samples at a time; a move's all fit
     xyz = np.empty((size, 3), np.float32)
     uv = np.empty((size, 2), np.float32)
     t = np.empty(size)
     move = np.empty(size, np.int64)
-    k = 0
-    last = len(t0) - 1
-    for m in range(len(t0)):
-        a0, a1, a2, d0, d1, d2 = _segment(p0, p1, m)
-        c = n[m]
-        inv = 1.0 / c
-        for i in range(0 if (first and m == 0) else 1, c + 1):
-            f = i * inv
-            f32 = np.float32(f)
-            xyz[k, 0], xyz[k, 1], xyz[k, 2] = a0 + f32 * d0, a1 + f32 * d1, a2 + f32 * d2
-            uv[k, 0], uv[k, 1] = _in_frame(xyz[k, 0], xyz[k, 1], frame)
-            t[k] = t0[m] + f * (t1[m] - t0[m])
-            move[k] = m
-            k += 1
-            if k == size or (m == last and i == c):  # a full buffer, or the last sample
-                for check in range(2):
-                    if check == 0 and body:
-                        hits = body_hits(body_state[0], body_state[1], body_state[2], uv[:k], t[:k])
-                    elif check == 1 and head:
-                        hits = head_hits(*head_state, uv[:k], xyz[:k, 2], t[:k])
-                    else:
-                        continue
-                    for h in hits:
-                        ch = chunk[move[h]]
-                        count[check, ch] += 1
-                        if count[check, ch] == 1:
-                            when[check, ch] = t[h]
-                            for a in range(3):
-                                where[check, ch, a] = xyz[h, a]
-                k = 0
+    no_values = np.zeros(0)
+    m0 = 0
+    while m0 < len(t0):  # the moves whose samples fit in the buffer, then the checks on them
+        start = first and m0 == 0
+        m1, k = m0, int(start)
+        while m1 < len(t0) and k + n[m1] <= size:
+            k += n[m1]
+            m1 += 1
+        k = sample_moves(p0, p1, t0, t1, np.arange(m0, m1), n[m0:m1], start, xyz, t, move, no_values, no_values, 0)
+        for j in range(k):
+            uv[j, 0], uv[j, 1] = _in_frame(xyz[j, 0], xyz[j, 1], frame)
+        for check in range(2):
+            if check == 0 and body:
+                hits = body_hits(body_state[0], body_state[1], body_state[2], uv[:k], t[:k])
+            elif check == 1 and head:
+                hits = head_hits(*head_state, uv[:k], xyz[:k, 2], t[:k])
+            else:
+                continue
+            for h in hits:
+                ch = chunk[move[h]]
+                count[check, ch] += 1
+                if count[check, ch] == 1:
+                    when[check, ch] = t[h]
+                    for a in range(3):
+                        where[check, ch, a] = xyz[h, a]
+        m0 = m1
 
 
 @_inline
