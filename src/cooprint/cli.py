@@ -362,6 +362,17 @@ def _heap_malloc() -> None:
         pass
 
 
+def one_line(message: str, limit: int = 300) -> str:
+    """A message as one line of at most ``limit`` characters: whitespace runs (newlines
+    included) become one space, and a long message keeps its start and end (a 10 MB token in
+    an input is never echoed whole)."""
+    text = " ".join(message.split())
+    if len(text) <= limit:
+        return text
+    half = (limit - 5) // 2
+    return f"{text[:half]} ... {text[-half:]}"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: runs the CLI and maps errors to exit codes."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -375,13 +386,15 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as exc:
         if verbose:
             raise
-        click.echo(f"cooprint: error: {exc}", err=True)
+        click.echo(f"cooprint: error: {one_line(str(exc))}", err=True)
         return exc.exit_code
     except click.exceptions.Abort:
         click.echo("cooprint: interrupted", err=True)
         return 130
-    except click.ClickException as exc:
-        exc.show()
+    except click.ClickException as exc:  # a bad option or argument: one line too, no usage block
+        if verbose:
+            raise
+        click.echo(f"cooprint: error: {one_line(exc.format_message())}", err=True)
         return 2
     except KeyboardInterrupt:
         click.echo("cooprint: interrupted", err=True)
