@@ -202,8 +202,8 @@ class Feasibility:
 
     def message(self) -> str:
         """The refusal line: reason, largest printable height, hints."""
-        text = f"{self.reason}; largest printable height for this robot and part: {self.max_height:.1f} mm"
-        return text + (f"; to print it: {'; or '.join(self.hints)}" if self.hints else "")
+        text = f"{self.reason}; largest printable height {self.max_height:.1f} mm (part {self.height:.1f})"
+        return text + (f"; fix: {' or '.join(self.hints)}" if self.hints else "")
 
 
 def _axis(settings: ChunkingSettings) -> np.ndarray:
@@ -260,14 +260,13 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
     formula = (f"theta_min = atan(h/bd) = atan({h:.1f}/{bd:g}) = {lim.theta_min_deg:.2f} deg, "
                f"theta_max = atan(nh/nd) = atan({nh:g}/{nd:g}) = {theta_max:.2f} deg")
     fits = extent <= bd * (1 + 1e-9)
-    drop = ("unset chunking.theta_deg and chunking.shift (no --theta/--shift): the part fits the build depth "
-            f"({extent:.1f} <= {bd:g} mm) and prints as one chunk",) if fits else ()
+    drop = (f"no --theta/--shift (the part is {extent:.1f} mm deep, within the build depth: one chunk)",) if fits else ()
     need_bd = 2 * h / tan_max + tw
     need_nh = 2 * h * nd / (bd - tw) if bd > tw else math.inf
-    robot_hints = (f"robot.build_depth >= {need_bd:.1f} mm (now {bd:g})",) + (
-        (f"robot.nozzle_height >= {need_nh:.1f} mm (now {nh:g}) or robot.nozzle_depth <= "
-         f"{nh * (bd - tw) / (2 * h):.1f} mm (now {nd:g})",) if math.isfinite(need_nh) else ()) + (
-        (f"a part at most {cut_height:.1f} mm tall (e.g. --scale {cut_height / h:.3g})",) if cut_height > 0 else ())
+    robot_hints = (f"robot.build_depth >= {need_bd:.1f} (now {bd:g})",) + (
+        (f"robot.nozzle_height >= {need_nh:.1f} (now {nh:g})",
+         f"robot.nozzle_depth <= {nh * (bd - tw) / (2 * h):.1f} (now {nd:g})") if math.isfinite(need_nh) else ()) + (
+        (f"--scale {math.floor(cut_height / h * 1000) / 1000:g}",) if 0 < cut_height < h else ())
     if not lim.feasible:
         return result(False, "cut", f"robot '{robot.name}' cannot print this part: {formula}; theta_min > theta_max",
                       max_h, theta=theta, hints=drop + robot_hints), None
@@ -280,15 +279,14 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
     if 2 * a > bd * (1 + 1e-9):
         hints = list(drop)
         if theta < theta_max - 1e-9 and 2 * h / tan_max + tw <= bd:
-            hints.append(f"a steeper slope: chunking.theta_deg >= {math.degrees(math.atan2(2 * h, bd - tw)):.2f} "
-                         f"(up to theta_max {theta_max:.2f})")
+            hints.append(f"chunking.theta_deg >= {math.degrees(math.atan2(2 * h, bd - tw)):.2f} "
+                         f"(theta_max {theta_max:.2f})")
         if tw > 0 and 2 * run < bd:
-            hints.append(f"chunking.top_width <= {bd - 2 * run:.1f} mm (now {tw:g})")
+            hints.append(f"chunking.top_width <= {bd - 2 * run:.1f} (now {tw:g})")
         hints += robot_hints
-        return result(False, "cut", f"centre chunk base width 2*h/tan(theta) + top_width = 2*{run:.1f} + {tw:g} = "
-                      f"{2 * a:.1f} mm exceeds build depth {bd:g} mm (theta {theta:.2f} deg"
-                      + (", already theta_max" if theta >= theta_max - 1e-9 else "") + ")", max_h, theta=theta,
-                      hints=tuple(hints)), None
+        at = f"theta_max {theta:.2f}" if theta >= theta_max - 1e-9 else f"theta {theta:.2f}"
+        return result(False, "cut", f"centre chunk base 2h/tan(theta) + top_width = {2 * a:.1f} mm > build depth "
+                      f"{bd:g} mm at {at} deg", max_h, theta=theta, hints=tuple(hints)), None
     s = bd - run if settings.shift is None else settings.shift
     if s + run > bd * (1 + 1e-9):
         return result(False, "cut", f"chunking.shift = {s:g} mm: a side chunk would need reach s + h/tan(theta) = "

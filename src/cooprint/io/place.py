@@ -71,6 +71,12 @@ class Placement:
         return {"units": self.units, "scale": self.scale, "mode": self.mode, "moved_mm": list(self.moved),
                 "size_mm": list(self.size), "warnings": list(self.warnings)}
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "Placement":
+        """The record of :meth:`to_dict` (job.json's ``mesh.placement``)."""
+        return cls(d["units"], d["scale"], d["mode"], tuple(d["moved_mm"]), tuple(d["size_mm"]),  # type: ignore[arg-type]
+                   tuple(d.get("warnings", ())))
+
     def describe(self) -> str:
         """One line: ``placed on the floor: moved by (0, 0, +50) mm``."""
         parts = []
