@@ -248,13 +248,10 @@ def _field_for(section: str, key: str, where: str) -> Any:
         raise ConfigError(f"{where}unknown section [{section}]" + _did_you_mean(section, _SECTIONS))
     known = {f.name: f for f in fields(_SECTIONS[section])}
     if key not in known:
-        alts = list(known)
-        close = difflib.get_close_matches(key, alts, n=1, cutoff=0.6)
-        if not close:  # a field of another section? (``layer_height`` under [robot])
-            for other, cls in _SECTIONS.items():
-                if key in {f.name for f in fields(cls)}:
-                    raise ConfigError(f"{where}unknown field {section}.{key}; did you mean {other}.{key}?")
-        raise ConfigError(f"{where}unknown field {section}.{key}" + _did_you_mean(key, sorted(alts)))
+        for other, cls in _SECTIONS.items():  # a field of another section? (``layer_height`` under [robot])
+            if key in {f.name for f in fields(cls)}:
+                raise ConfigError(f"{where}unknown field {section}.{key}; did you mean {other}.{key}?")
+        raise ConfigError(f"{where}unknown field {section}.{key}" + _did_you_mean(key, sorted(known)))
     return known[key]
 
 

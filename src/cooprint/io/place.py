@@ -151,7 +151,7 @@ def place(solid: Solid, mesh: MeshSettings, slicing: SlicingSettings, *, bed: bo
             moved[:2] = np.asarray(c, dtype=np.float64) - (lo[:2] + hi[:2]) / 2
             mode = "bed"
         moved[np.abs(moved) < 1e-12] = 0.0
-    if bed:
+    if bed and size[0] <= slicing.build_x and size[1] <= slicing.build_y:  # larger: the build volume check says so
         plo, phi = lo + moved, hi + moved
         if plo[0] < -1e-6 or plo[1] < -1e-6 or phi[0] > slicing.build_x + 1e-6 or phi[1] > slicing.build_y + 1e-6:
             raise MeshError(f"{path}: placed at x {plo[0]:.1f}..{phi[0]:.1f}, y {plo[1]:.1f}..{phi[1]:.1f} mm the part "
