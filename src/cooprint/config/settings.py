@@ -281,19 +281,27 @@ def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> An
     return cls(**out)
 
 
-def check_slicing(s: SlicingSettings, where: str = "") -> None:
+def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -> None:
     """The rules between slicing fields (module docstring): layer heights within the nozzle,
     the extrusion width from 1 to 3 nozzle diameters. Each failure names both fields, their
-    values and the bound, on one line."""
+    values and the bound, on one line, after where the first field was set (``origin``:
+    ``{"layer_height": "bad.toml: "}``)."""
+    given = {k: w for k, w in (origin or {}).items() if w != "defaults.toml: "}
+
+    def where_of(*names: str) -> str:  # where the user set the first of these fields
+        return next((given[n] for n in names if n in given), "")
+
     d = s.nozzle_diameter
     for name, h in (("layer_height", s.layer_height), ("first_layer_height", s.first_layer_height)):
         if h > MAX_LAYER_PER_NOZZLE * d + 1e-12:
+            where = where_of(name, "nozzle_diameter")
             raise ConfigError(f"{where}slicing.{name} = {h:g} mm is thicker than slicing.nozzle_diameter = "
                               f"{d:g} mm allows (at most {MAX_LAYER_PER_NOZZLE:g} x nozzle = "
                               f"{MAX_LAYER_PER_NOZZLE * d:g} mm); use a thinner layer or a larger nozzle")
     w = s.extrusion_width
     lo, hi = MIN_WIDTH_PER_NOZZLE * d, MAX_WIDTH_PER_NOZZLE * d
     if not lo - 1e-12 <= w <= hi + 1e-12:
+        where = where_of("extrusion_width", "nozzle_diameter")
         raise ConfigError(f"{where}slicing.extrusion_width = {w:g} mm: expected {MIN_WIDTH_PER_NOZZLE:g} to "
                           f"{MAX_WIDTH_PER_NOZZLE:g} x slicing.nozzle_diameter = {lo:g} to {hi:g} mm")
 
@@ -414,6 +422,7 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
         Naming the file, the field, the value given and what was expected.
     """
     merged: dict[str, dict[str, Any]] = {s: {} for s in _SECTIONS}
+    origin: dict[str, str] = {}  # "section.field": where its value was set
     layers: list[tuple[str, Mapping[str, Any]]] = [("defaults.toml: ", _defaults())]
     layers += [(f"{p}: ", _read_toml(Path(p))) for p in paths]
     for where, data in layers:
@@ -424,6 +433,7 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
                 raise ConfigError(f"{where}{section} must be a table [{section}]")
             _build(section, _SECTIONS[section], values, where)  # validate with its own file name
             merged[section].update(values)
+            origin.update({f"{section}.{k}": where for k in values})
     for key, value in (overrides or {}).items():
         if value is None:
             continue
@@ -431,6 +441,7 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
         _field_for(section, name, "option: ")
         _build(section, _SECTIONS[section], {name: value}, "option: ")
         merged[section][name] = value
+        origin[key] = "option: "
     settings = JobSettings(**{s: _build(s, cls, merged[s], "") for s, cls in _SECTIONS.items()})
-    check_slicing(settings.slicing)
+    check_slicing(settings.slicing, {k.partition(".")[2]: w for k, w in origin.items() if k.startswith("slicing.")})
     return settings
