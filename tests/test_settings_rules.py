@@ -101,7 +101,8 @@ def test_slice_centres_the_part_on_the_bed(tmp_path, capsys):
     centre = (printed[:, :2].min(axis=0) + printed[:, :2].max(axis=0)) / 2
     assert centre == pytest.approx([125, 105], abs=0.5)
     out2 = tmp_path / "c2.gcode"
-    assert cli(["slice", mesh, "--out", out2, "--center", "40,30"], capsys)[0] == 0
+    code, stdout, _ = cli(["slice", mesh, "--out", out2, "--center", "40,30"], capsys)
+    assert code == 0 and "placed on the floor and centred on the bed: moved by (+40.000, +30.000, +2.000) mm" in stdout
     printed = gcode_moves(out2)
     printed = printed[printed[:, 3] > 0]
     assert (printed[:, :2].min(axis=0) + printed[:, :2].max(axis=0)) / 2 == pytest.approx([40, 30], abs=0.5)

@@ -261,10 +261,11 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str,
     settings = _settings(config, overrides)
     xy = None if center is None else parse_center(center)
     check_file_destination(Path(out), force)  # before the work, not after
+    where: list[Any] = []
     with stage_progress(not quiet) as progress:
-        n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True, center=xy)
+        n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True, center=xy, placed=where.append)
     if not quiet:
-        click.echo(f"{n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
+        click.echo(f"{where[0].describe()}; {n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
 
 
 @cli.command(name="run")

@@ -48,8 +48,9 @@ def load_placed(mesh: str | Path | Solid, settings: JobSettings, *, bed: bool = 
                 center: Sequence[float] | None = None) -> tuple[Solid, Placement]:
     """Load (unless given a Solid), scale and place the part (:mod:`cooprint.io.place`): on the
     floor, and with ``bed`` centred on the bed (``cooprint slice``)."""
-    solid = mesh if isinstance(mesh, Solid) else load_mesh(mesh, settings.mesh)
-    return place(solid, settings.mesh, settings.slicing, bed=bed, center=center)
+    if isinstance(mesh, Solid):
+        return place(mesh, settings.mesh, settings.slicing, bed=bed, center=center)
+    return place(load_mesh(mesh, settings.mesh), settings.mesh, settings.slicing, bed=bed, center=center, own=True)
 
 
 def chunk_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robots: int = 2,
@@ -166,10 +167,12 @@ def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
 
 def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | None = None,
                    progress: Progress | None = None, force: bool = False,
-                   center: Sequence[float] | None = None) -> tuple[int, float]:
+                   center: Sequence[float] | None = None,
+                   placed: Callable[[Placement], None] | None = None) -> tuple[int, float]:
     """Load, place on the bed (at ``center``, default the bed centre: PrusaSlicer's
     ``--center``), slice and write G-code to ``out`` atomically, layer block by layer block (the
-    model is never held whole); return the number of layers and the filament used, mm."""
+    model is never held whole); return the number of layers and the filament used, mm.
+    ``placed(placement)`` is told where the part was put before the slicing starts."""
     from cooprint.config.settings import work_estimate
     from cooprint.io.bundle import atomic_file
     from cooprint.program.build import layer_pieces
@@ -177,9 +180,11 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     from cooprint.slicing import iter_layers
 
     settings = settings or load_settings()
-    solid, _ = load_placed(mesh, settings, bed=True, center=center)
+    solid, placement = load_placed(mesh, settings, bed=True, center=center)
     check_build_volume(solid, settings.slicing)
     work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, settings.slicing)
+    if placed:
+        placed(placement)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     counted = _Counted(iter_layers(solid, settings.slicing, layer_progress))
     del solid  # iter_layers keeps only what slicing needs, not the whole Solid

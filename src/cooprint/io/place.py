@@ -104,7 +104,7 @@ def _units_hint(size: np.ndarray, units: str) -> str:
 
 
 def place(solid: Solid, mesh: MeshSettings, slicing: SlicingSettings, *, bed: bool = False,
-          center: Sequence[float] | None = None) -> tuple[Solid, Placement]:
+          center: Sequence[float] | None = None, own: bool = False) -> tuple[Solid, Placement]:
     """Scale and place ``solid`` (module rules); return the placed solid and what was done.
 
     Parameters
@@ -112,6 +112,8 @@ def place(solid: Solid, mesh: MeshSettings, slicing: SlicingSettings, *, bed: bo
     bed
         Centre the part on the bed (``cooprint slice``): at ``center`` (X, Y mm) or the bed
         centre ``build_x / 2, build_y / 2``, and refuse a part that does not lie on the bed.
+    own
+        The caller hands ``solid`` over: its vertices are moved in place (no copy of a large mesh).
 
     Raises
     ------
@@ -163,7 +165,10 @@ def place(solid: Solid, mesh: MeshSettings, slicing: SlicingSettings, *, bed: bo
                        tuple(float(x) for x in size), tuple(warnings))  # type: ignore[arg-type]
     if factor == 1.0 and not moved.any():
         return solid, record
-    verts = solid.vertices * factor + moved if factor != 1.0 else solid.vertices + moved
+    verts = solid.vertices if own and solid.vertices.dtype == np.float64 else solid.vertices.astype(np.float64)
+    if factor != 1.0:
+        verts *= factor
+    verts += moved
     report = replace(solid.report, bbox_min=tuple(float(x) for x in lo + moved),
                      bbox_max=tuple(float(x) for x in hi + moved), volume_mm3=solid.report.volume_mm3 * factor ** 3)
     return Solid(verts, solid.faces, report), record
