@@ -47,7 +47,11 @@ class ChunkJob:
 def load_placed(mesh: str | Path | Solid, settings: JobSettings, *, bed: bool = False,
                 center: Sequence[float] | None = None) -> tuple[Solid, Placement]:
     """Load (unless given a Solid), scale and place the part (:mod:`cooprint.io.place`): on the
-    floor, and with ``bed`` centred on the bed (``cooprint slice``)."""
+    floor, and with ``bed`` centred on the bed (``cooprint slice``). The slicing settings are
+    checked against each other here too (settings made in Python skip :func:`load_settings`)."""
+    from cooprint.config.settings import check_slicing
+
+    check_slicing(settings.slicing)
     if isinstance(mesh, Solid):
         return place(mesh, settings.mesh, settings.slicing, bed=bed, center=center)
     return place(load_mesh(mesh, settings.mesh), settings.mesh, settings.slicing, bed=bed, center=center, own=True)

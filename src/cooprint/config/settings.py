@@ -222,15 +222,14 @@ def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> 
         if not value.is_integer():
             raise bad
         value = int(value)
-    v: float | int = value if meta["integer"] else value
     ok = True
     if lo is not None:
-        ok = v > lo if meta["lo_open"] else v >= lo
+        ok = value > lo if meta["lo_open"] else value >= lo
     if ok and hi is not None:
-        ok = v <= hi
+        ok = value <= hi
     if not ok:
         raise bad
-    return int(v) if meta["integer"] else float(v)
+    return int(value) if meta["integer"] else float(value)
 
 
 def _did_you_mean(word: str, options: Iterable[str]) -> str:
@@ -332,9 +331,11 @@ def work_estimate(size: Any, volume: float, s: SlicingSettings) -> dict[str, flo
 def parse_value(text: str) -> Any:
     """A command-line value as TOML reads it (``0.3``, ``true``, ``"grid"``); anything TOML
     does not read as a value is the string itself (``grid``, ``my robot``)."""
+    if not text.isprintable():  # a newline would let one value set other keys
+        return text
     try:
         return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
+    except (tomllib.TOMLDecodeError, RecursionError):
         return text
 
 
