@@ -22,6 +22,12 @@ Reach: a robot prints a chunk from its unprinted (outer) side, its body's front 
 chunk's outer base edge, so everything it deposits lies within ``build_depth`` of that edge:
 ``2a <= bd`` for the centre chunk and ``s + h cot <= bd`` for a side chunk (hence the default
 ``s = bd - h cot``).
+
+Feasibility (:func:`feasibility`, the one rule of ``info``, ``chunk`` and ``run``): a part whose
+extent along ``c`` fits the build depth is one chunk, no cut, printable up to ``robot.max_z``
+(unless a slope or shift is set); otherwise the limits above, which bound the part's height by
+``(bd - top_width) tan(theta_max) / 2``. The record states that largest printable height and the
+changes that would make a refused part printable.
 """
 
 from __future__ import annotations
