@@ -202,6 +202,15 @@ def test_a_nut_is_one_chunk_and_the_idle_robot_parks_off_it(tmp_path, capsys):
     assert "robot B (right side): (idle)" in stdout
 
 
+def test_info_states_the_number_of_chunks_that_chunk_makes(tmp_path, capsys):
+    slab = stl(tmp_path / "slab.stl", cube(40, 900, 30))
+    code, stdout, _ = cli(["info", slab], capsys)
+    n = int(re.search(r"feasible: (\d+) chunks", stdout).group(1))
+    assert code == 0 and n > 1
+    code, _, _ = cli(["chunk", slab, "--out", tmp_path / "job", "-q", "--no-picture"], capsys)
+    assert code == 0 and len(json.loads((tmp_path / "job" / "job.json").read_text())["chunks"]) == n
+
+
 def test_explicit_planes_still_cut_a_part_that_fits():
     v = np.array([[0, 0, 0], [40, 300, 30.0]])
     assert feasibility(v, RobotProfile(), ChunkingSettings()).chunks == 1
