@@ -55,8 +55,8 @@ def test_theta_outside_range_is_refused_with_range(theta):
 
 
 def test_centre_chunk_wider_than_build_depth_is_refused():
-    with pytest.raises(InfeasibleError, match="centre chunk base width .* exceeds build depth 300 mm"):
-        chunked(box(z=30), top_width=290.0)
+    with pytest.raises(InfeasibleError, match=r"centre chunk base .* = 305.0 mm > build depth 300 mm.*chunking.top_width <= 285.0"):
+        chunked(box(y=400, z=30), top_width=290.0)  # 400 mm deep: it does not fit the build depth whole
 
 
 def test_shift_beyond_reach_is_refused():

@@ -80,7 +80,7 @@ def test_existing_output_is_kept_unless_force(tmp_path, car_stl, capsys):
 
 @pytest.mark.parametrize("args, needle", [
     (["--theta", "89"], "outside the printable range"),
-    (["--shift", "-5"], "option: chunking.shift = -5.0: expected a number > 0"),
+    (["--shift", "-5"], "option: chunking.shift = -5.0: expected a number >= 5"),
     (["--robot", "missing.toml"], "missing.toml: no such settings file"),
 ])
 def test_user_errors_exit_2_with_one_line_and_write_nothing(tmp_path, car_stl, capsys, args, needle):

@@ -6,6 +6,7 @@ Exit codes: 0 success, 2 bad input (one line on stderr, no traceback unless ``--
 
 from __future__ import annotations
 
+import functools
 import os
 import sys
 from contextlib import contextmanager
@@ -66,38 +67,120 @@ config_option = click.option(
     help="TOML file with [robot], [chunking], [mesh], [slicing], [program] sections (repeatable; later "
          "files win).")
 
+#: Command-line flags that set one settings field: (flag, destination, field, click type, help).
+SETTING_FLAGS: tuple[tuple[str, str, str, Any, str], ...] = (
+    ("--layer-height", "layer_height", "slicing.layer_height", float, "Layer height, mm [0.2; 0.05 to nozzle]."),
+    ("--first-layer-height", "first_layer_height", "slicing.first_layer_height", float,
+     "First layer height, mm [0.2; 0.05 to nozzle]."),
+    ("--nozzle", "nozzle", "slicing.nozzle_diameter", float, "Nozzle diameter, mm [0.4]."),
+    ("--extrusion-width", "extrusion_width", "slicing.extrusion_width", float,
+     "Line width, mm [0.45; 1 to 3 x nozzle]."),
+    ("--infill", "infill", "slicing.infill_density", str, "Sparse infill density: 0.2 or 20% [20%]."),
+    ("--infill-pattern", "infill_pattern", "slicing.infill_pattern",
+     click.Choice(["rectilinear", "grid", "triangles"]), "Infill pattern [rectilinear]."),
+    ("--perimeters", "perimeters", "slicing.perimeters", int, "Perimeters [2]."),
+    ("--top-layers", "top_layers", "slicing.top_layers", int, "Solid top layers [4]."),
+    ("--bottom-layers", "bottom_layers", "slicing.bottom_layers", int, "Solid bottom layers [4]."),
+    ("--units", "units", "mesh.units", click.Choice(["mm", "cm", "m", "in"]), "Unit of the mesh file [mm]."),
+    ("--scale", "scale", "mesh.scale", float, "Scale the mesh by FACTOR (after --units) [1]."),
+)
+#: The chunking flags of ``info``, ``chunk`` and ``run``.
+CHUNK_FLAGS: tuple[tuple[str, str, str, Any, str], ...] = (
+    ("--theta", "theta", "chunking.theta_deg", float, "Slope of the chunk interfaces, degrees [theta_max]."),
+    ("--shift", "shift", "chunking.shift", float, "Distance between cutting planes, mm [bd - h/tan(theta)]."),
+    ("--top-width", "top_width", "chunking.top_width", float, "Width of the centre chunk at the top, mm [0]."),
+    ("--centre-angle", "centre_angle", "chunking.centre_angle_deg", float,
+     "Direction of the centre line, degrees from +X [0]."),
+)
+
+
+def _with_flags(flags: tuple[tuple[str, str, str, Any, str], ...], extra: list[Any], collect: Any) -> Any:
+    """A decorator adding ``flags`` and ``extra`` options to a command; ``collect(kw, overrides)``
+    moves their values out of the keyword arguments into ``kw["overrides"]``."""
+    def decorate(command: Any) -> Any:
+        @functools.wraps(command)
+        def wrapper(*args: Any, **kw: Any) -> Any:
+            overrides = kw.setdefault("overrides", {})
+            collect(kw, overrides)
+            for _, dest, field, _, _ in flags:
+                value = kw.pop(dest)
+                if value is not None:
+                    overrides[field] = parse_fraction(value, "--infill") if dest == "infill" else value
+            return command(*args, **kw)
+
+        for flag, dest, _, kind, text in reversed(flags):
+            wrapper = click.option(flag, dest, type=kind, default=None, help=text)(wrapper)
+        for option in reversed(extra):
+            wrapper = option(wrapper)
+        return wrapper
+    return decorate
+
+
+def _collect_settings(kw: dict[str, Any], overrides: dict[str, Any]) -> None:
+    from cooprint.config.settings import parse_assignment
+
+    for text in kw.pop("set_values"):  # first: the named flags win over --set
+        key, value = parse_assignment(text)
+        overrides[key] = value
+    if kw.pop("no_place"):
+        overrides["mesh.place"] = False
+
+
+def parse_fraction(text: str, option: str) -> float:
+    from cooprint.config.settings import parse_fraction as parse
+
+    return parse(text, option)
+
+
+#: ``--robot/--config``, every slicing and mesh flag, ``--set`` and ``--no-place``: the settings of
+#: ``info``, ``chunk``, ``run`` and ``slice``, defined once. The command receives ``config`` and
+#: ``overrides`` (``{"section.field": value}``).
+settings_options = _with_flags(SETTING_FLAGS, [
+    config_option,
+    click.option("--set", "set_values", multiple=True, metavar="SECTION.KEY=VALUE",
+                 help="Set any field (VALUE read as TOML: 0.3, true, grid, \"my robot\"); repeatable."),
+    click.option("--no-place", is_flag=True, help="Keep the mesh's own frame (no move to the floor / bed)."),
+], _collect_settings)
+chunking_options = _with_flags(CHUNK_FLAGS, [], lambda kw, overrides: None)
+
 
 @cli.command()
 @click.argument("mesh", type=click.Path(dir_okay=False))
-@config_option
-def info(mesh: str, config: tuple[str, ...]) -> None:
-    """Report a mesh (triangles, size, volume, repairs) and the robot's slope limits for it."""
-    from cooprint.chunking import slope_limits
-    from cooprint.io.mesh import fmt_report, load_mesh
+@chunking_options
+@settings_options
+@click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
+              help="Number of robots (seed strategy).")
+def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: int) -> None:
+    """Report a mesh (triangles, size, volume, repairs, placement) and whether the robot can print it:
+    the feasibility rule of `chunk` and `run`, the largest printable height, the number of chunks."""
+    from cooprint.chunking import feasibility
+    from cooprint.io.mesh import fmt_report
+    from cooprint.jobs import load_placed
 
-    settings = _settings(config, {})
-    solid = load_mesh(mesh, settings.mesh)
+    settings = _settings(config, overrides)
+    solid, placement = load_placed(mesh, settings)
     click.echo(fmt_report(solid.report))
-    h = solid.bounds[1, 2] - solid.bounds[0, 2]
-    lim = slope_limits(settings.robot, h)
-    click.echo(f"  robot '{settings.robot.name}': theta_min {lim.theta_min_deg:.2f} deg, "
-               f"theta_max {lim.theta_max_deg:.2f} deg" + ("" if lim.feasible else "  (infeasible)"))
+    click.echo(f"  {placement.describe()}")
+    f = feasibility(solid.vertices, settings.robot, settings.chunking)
+    click.echo(f"  robot '{settings.robot.name}': theta_min {f.theta_min_deg:.2f} deg, theta_max {f.theta_max_deg:.2f} "
+               f"deg, largest printable height {f.max_height:.1f} mm ({'one chunk' if f.mode == 'whole' else 'cut'})")
+    if f.feasible:
+        idle = f" ({robots - 1} robot idle)" if f.chunks == 1 and robots > 1 else ""
+        click.echo(f"  feasible: {f.chunks} chunk{'s' if f.chunks != 1 else ''} for {robots} robot{'s' if robots > 1 else ''}{idle}; {f.reason}")
+    else:
+        click.echo(f"  not feasible: {f.message()}")
 
 
 def plan_options(command: Any) -> Any:
     """The options of the commands that plan a job (``chunk``, ``run``): output folder, chunking
-    overrides, robots, settings files, --force, --no-picture, --quiet."""
+    and settings flags, robots, --force, --no-picture, --quiet."""
     options = [
         click.argument("mesh", type=click.Path(dir_okay=False)),
         click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder."),
-        click.option("--theta", type=float, help="Slope of the chunk interfaces, degrees [default: theta_max]."),
-        click.option("--shift", type=float, help="Distance between cutting planes, mm [default: bd - h/tan(theta)]."),
-        click.option("--top-width", type=float, help="Width of the centre chunk at the top, mm [default: 0]."),
-        click.option("--centre-angle", type=float,
-                     help="Direction of the centre line, degrees from +X [default: 0]."),
+        chunking_options,
+        settings_options,
         click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
                      help="Number of robots (seed strategy)."),
-        config_option,
         click.option("--force", is_flag=True, help="Replace OUT if it exists."),
         click.option("--no-picture", is_flag=True, help="Skip chunks.png."),
         click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary."),
@@ -107,33 +190,37 @@ def plan_options(command: Any) -> Any:
     return command
 
 
-def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], theta: float | None,
-          shift: float | None, top_width: float | None, centre_angle: float | None, robots: int, force: bool,
-          no_picture: bool, quiet: bool) -> dict[str, Any] | None:
+def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], overrides: dict[str, Any],
+          robots: int, force: bool, no_picture: bool, quiet: bool) -> dict[str, Any] | None:
     """Make a job (``make(mesh, settings, robots, progress)``) and write its bundle
     (``write(job, out, force, picture, progress)``) with progress bars; print the plan unless
     ``quiet`` (then return ``None``), else return the record."""
     from cooprint.io.bundle import check_destination
 
     _lean_malloc()
-    settings = _settings(config, {"chunking.theta_deg": theta, "chunking.shift": shift,
-                                  "chunking.top_width": top_width, "chunking.centre_angle_deg": centre_angle})
+    settings = _settings(config, overrides)
     check_destination(Path(out), force)  # before the work, not after
     with stage_progress(not quiet) as progress:
         record = write(make(mesh, settings, robots, progress), out, force, not no_picture, progress)
     if quiet:
         return None
     st, plan = record["stats"], record["plan"]
-    click.echo(f"{len(record['chunks'])} chunks, theta {plan['theta_deg']:.2f} deg "
-               f"(limits {plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), shift {plan['shift_mm']:.1f} mm, "
-               f"volume error {st['volume_rel_error']:.1e}")
+    if record["mesh"].get("placement"):
+        from cooprint.io.place import Placement
+
+        click.echo(Placement.from_dict(record["mesh"]["placement"]).describe())
+    if plan.get("mode") == "whole":
+        click.echo(f"1 chunk: the part is within the build depth {plan['build_depth_mm']:g} mm (no cut)")
+    else:
+        click.echo(f"{len(record['chunks'])} chunks, theta {plan['theta_deg']:.2f} deg (limits "
+                   f"{plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), shift {plan['shift_mm']:.1f} mm, "
+                   f"volume error {st['volume_rel_error']:.1e}")
     return record
 
 
 @cli.command()
 @plan_options
-def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_width: float | None,
-          centre_angle: float | None, robots: int, config: tuple[str, ...], force: bool,
+def chunk(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: dict[str, Any], force: bool,
           no_picture: bool, quiet: bool) -> None:
     """Cut MESH into watertight sloped chunks (seed §3) and write them to OUT.
 
@@ -142,8 +229,7 @@ def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_wid
     """
     from cooprint.jobs import chunk_job, write_chunk_bundle
 
-    record = _plan(chunk_job, write_chunk_bundle, mesh, out, config, theta, shift, top_width, centre_angle,
-                   robots, force, no_picture, quiet)
+    record = _plan(chunk_job, write_chunk_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
     if record is None:
         return
     for r in record["robots"]:
@@ -154,35 +240,39 @@ def chunk(mesh: str, out: str, theta: float | None, shift: float | None, top_wid
 @cli.command(name="slice")
 @click.argument("mesh", type=click.Path(dir_okay=False))
 @click.option("--out", "-o", required=True, type=click.Path(dir_okay=False), help="G-code file to write.")
-@config_option
-@click.option("--layer-height", type=float, help="Layer height, mm [default: 0.2].")
-@click.option("--infill", type=float, help="Sparse infill density, 0..1 [default: 0.2].")
+@settings_options
+@click.option("--center", "center", metavar="X,Y", help="Put the centre of the part's bounding box at X,Y mm "
+              "[the bed centre: build_x/2, build_y/2].")
 @click.option("--force", is_flag=True, help="Replace OUT if it exists.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary.")
-def slice_cmd(mesh: str, out: str, config: tuple[str, ...], layer_height: float | None,
-              infill: float | None, force: bool, quiet: bool) -> None:
+def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str, Any], center: str | None,
+              force: bool, quiet: bool) -> None:
     """Slice MESH for one printer and write Marlin G-code to OUT (a plain slicer run).
 
-    The same slicer turns every chunk of a cooperative job into tool paths.
+    The part is put on the bed: on the floor, centred at the bed centre or --center (PrusaSlicer's
+    --center); --no-place keeps its own frame. The same slicer turns every chunk of a cooperative
+    job into tool paths.
     """
     from cooprint.io.bundle import check_file_destination
+    from cooprint.io.place import parse_center
     from cooprint.jobs import slice_to_gcode
 
     _lean_malloc()
-    settings = _settings(config, {"slicing.layer_height": layer_height, "slicing.infill_density": infill})
+    settings = _settings(config, overrides)
+    xy = None if center is None else parse_center(center)
     check_file_destination(Path(out), force)  # before the work, not after
+    where: list[Any] = []
     with stage_progress(not quiet) as progress:
-        n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True)
+        n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True, center=xy, placed=where.append)
     if not quiet:
-        click.echo(f"{n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
+        click.echo(f"{where[0].describe()}; {n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
 
 
 @cli.command(name="run")
 @plan_options
 @click.option("--simulate", "then_simulate", is_flag=True,
               help="Then simulate the plan: OUT/sim/summary.json, gantt.png and snapshot.png.")
-def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_width: float | None,
-            centre_angle: float | None, robots: int, config: tuple[str, ...], force: bool,
+def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: dict[str, Any], force: bool,
             no_picture: bool, quiet: bool, then_simulate: bool) -> None:
     """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
 
@@ -191,8 +281,7 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
     """
     from cooprint.jobs import coop_job, write_coop_bundle
 
-    record = _plan(coop_job, write_coop_bundle, mesh, out, config, theta, shift, top_width, centre_angle,
-                   robots, force, no_picture, quiet)
+    record = _plan(coop_job, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
     if then_simulate:
         from cooprint.jobs import simulate_bundle
 

@@ -23,3 +23,12 @@ class MeshError(UserError):
 
 class InfeasibleError(UserError):
     """The job cannot be printed by the given robots (slope or reach limits)."""
+
+
+def warn(message: str) -> None:
+    """A warning the user must see: one line ``cooprint: warning: ...`` on stderr (the command
+    goes on). Used where a result is valid but probably not what was meant (a part in metres)."""
+    import sys
+
+    text = " ".join(str(message).split())
+    print(f"cooprint: warning: {text}", file=sys.stderr, flush=True)

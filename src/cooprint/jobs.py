@@ -18,6 +18,7 @@ from cooprint.config import JobSettings, SlicingSettings, load_settings
 from cooprint.errors import UserError
 from cooprint.io.bundle import atomic_dir, write_json, write_stl
 from cooprint.io.mesh import Solid, load_mesh
+from cooprint.io.place import Placement, place
 from cooprint.scheduling import Assignment, assign
 
 if TYPE_CHECKING:
@@ -40,6 +41,20 @@ class ChunkJob:
     settings: JobSettings
     chunks: ChunkSet
     assignment: Assignment
+    placement: Placement | None = None
+
+
+def load_placed(mesh: str | Path | Solid, settings: JobSettings, *, bed: bool = False,
+                center: Sequence[float] | None = None) -> tuple[Solid, Placement]:
+    """Load (unless given a Solid), scale and place the part (:mod:`cooprint.io.place`): on the
+    floor, and with ``bed`` centred on the bed (``cooprint slice``). The slicing settings are
+    checked against each other here too (settings made in Python skip :func:`load_settings`)."""
+    from cooprint.config.settings import check_slicing
+
+    check_slicing(settings.slicing)
+    if isinstance(mesh, Solid):
+        return place(mesh, settings.mesh, settings.slicing, bed=bed, center=center)
+    return place(load_mesh(mesh, settings.mesh), settings.mesh, settings.slicing, bed=bed, center=center, own=True)
 
 
 def chunk_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robots: int = 2,
@@ -56,18 +71,21 @@ def chunk_job(mesh: str | Path | Solid, settings: JobSettings | None = None, rob
         Number of robots (the seed strategy: 1 or 2).
     """
     settings = settings or load_settings()
-    if isinstance(mesh, Solid):
-        solid = mesh
-    else:
-        if progress:
-            progress("load", 0, 1)
-        solid = load_mesh(mesh, settings.mesh)
-        if progress:
-            progress("load", 1, 1)
+    if progress:
+        progress("load", 0, 1)
+    solid, placement = load_placed(mesh, settings)
+    if progress:
+        progress("load", 1, 1)
+    return _chunk_placed(solid, placement, settings, robots, progress)
+
+
+def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, robots: int,
+                  progress: Progress | None) -> ChunkJob:
+    """Plan, cut and assign a placed solid."""
     plan = plan_chunks(solid.vertices, settings.robot, settings.chunking)
     cut_progress = (lambda d, t: progress("cut", d, t)) if progress else None
     chunks = cut_chunks(solid, plan, cut_progress)
-    return ChunkJob(solid, settings, chunks, assign(chunks, robot_names(robots)))
+    return ChunkJob(solid, settings, chunks, assign(chunks, robot_names(robots)), placement)
 
 
 def job_record(job: ChunkJob) -> dict[str, Any]:
@@ -87,7 +105,7 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
     rel = abs(ch.volume - ch.solid_volume) / ch.solid_volume
     return {
         "format": "cooprint-job/1",
-        "mesh": job.solid.report.to_dict(),
+        "mesh": job.solid.report.to_dict() | ({"placement": job.placement.to_dict()} if job.placement else {}),
         "settings": job.settings.to_dict(),
         "plan": ch.plan.to_dict(),
         "robots": [{"name": r, "profile": job.settings.robot.name, "chunks": list(seq)}
@@ -137,29 +155,40 @@ def check_build_volume(solid: Solid, s: SlicingSettings) -> None:
 
 
 def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
-              progress: Progress | None = None) -> tuple[Solid, "SlicedModel"]:
-    """Load (unless given a Solid) and slice a whole model for one robot."""
+              progress: Progress | None = None, center: Sequence[float] | None = None) -> tuple[Solid, "SlicedModel"]:
+    """Load (unless given a Solid), place on the bed (at ``center``, default the bed centre) and
+    slice a whole model for one printer."""
+    from cooprint.config.settings import work_estimate
     from cooprint.slicing import slice_solid
 
     settings = settings or load_settings()
-    solid = mesh if isinstance(mesh, Solid) else load_mesh(mesh, settings.mesh)
+    solid, _ = load_placed(mesh, settings, bed=True, center=center)
     check_build_volume(solid, settings.slicing)
+    work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, settings.slicing)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     return solid, slice_solid(solid, settings.slicing, layer_progress)
 
 
 def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | None = None,
-                   progress: Progress | None = None, force: bool = False) -> tuple[int, float]:
-    """Load, slice and write G-code to ``out`` atomically, layer block by layer block (the model
-    is never held whole); return the number of layers and the filament used, mm."""
+                   progress: Progress | None = None, force: bool = False,
+                   center: Sequence[float] | None = None,
+                   placed: Callable[[Placement], None] | None = None) -> tuple[int, float]:
+    """Load, place on the bed (at ``center``, default the bed centre: PrusaSlicer's
+    ``--center``), slice and write G-code to ``out`` atomically, layer block by layer block (the
+    model is never held whole); return the number of layers and the filament used, mm.
+    ``placed(placement)`` is told where the part was put before the slicing starts."""
+    from cooprint.config.settings import work_estimate
     from cooprint.io.bundle import atomic_file
     from cooprint.program.build import layer_pieces
     from cooprint.program.gcode import Feeds, write_gcode
     from cooprint.slicing import iter_layers
 
     settings = settings or load_settings()
-    solid = load_mesh(mesh, settings.mesh)
+    solid, placement = load_placed(mesh, settings, bed=True, center=center)
     check_build_volume(solid, settings.slicing)
+    work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, settings.slicing)
+    if placed:
+        placed(placement)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     counted = _Counted(iter_layers(solid, settings.slicing, layer_progress))
     del solid  # iter_layers keeps only what slicing needs, not the whole Solid
@@ -233,8 +262,16 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     from cooprint.slicing import iter_layers
     from cooprint.slicing.slicer import layer_range
 
+    from cooprint.config.settings import work_estimate
+
     settings = settings or load_settings()
-    chunked = chunk_job(mesh, settings, robots, progress)
+    if progress:
+        progress("load", 0, 1)
+    solid, placement = load_placed(mesh, settings)
+    if progress:
+        progress("load", 1, 1)
+    work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, settings.slicing)  # before the cuts
+    chunked = _chunk_placed(solid, placement, settings, robots, progress)
     s = settings.slicing
     base = float(chunked.solid.bounds[0, 2])
     layers: dict[str, list] = {}

@@ -5,7 +5,7 @@
 """
 
 from cooprint.chunking.cut import Chunk, ChunkSet, cut_chunks, dependencies
-from cooprint.chunking.planes import ChunkPlan, Plane, SlopeLimits, plan_chunks, slope_limits
+from cooprint.chunking.planes import ChunkPlan, Feasibility, Plane, SlopeLimits, feasibility, plan_chunks, slope_limits
 
-__all__ = ["Chunk", "ChunkPlan", "ChunkSet", "Plane", "SlopeLimits", "cut_chunks", "dependencies",
-           "plan_chunks", "slope_limits"]
+__all__ = ["Chunk", "ChunkPlan", "ChunkSet", "Feasibility", "Plane", "SlopeLimits", "cut_chunks", "dependencies",
+           "feasibility", "plan_chunks", "slope_limits"]

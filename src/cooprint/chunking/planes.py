@@ -22,6 +22,12 @@ Reach: a robot prints a chunk from its unprinted (outer) side, its body's front 
 chunk's outer base edge, so everything it deposits lies within ``build_depth`` of that edge:
 ``2a <= bd`` for the centre chunk and ``s + h cot <= bd`` for a side chunk (hence the default
 ``s = bd - h cot``).
+
+Feasibility (:func:`feasibility`, the one rule of ``info``, ``chunk`` and ``run``): a part whose
+extent along ``c`` fits the build depth is one chunk, no cut, printable up to ``robot.max_z``
+(unless a slope or shift is set); otherwise the limits above, which bound the part's height by
+``(bd - top_width) tan(theta_max) / 2``. The record states that largest printable height and the
+changes that would make a refused part printable.
 """
 
 from __future__ import annotations
@@ -100,6 +106,9 @@ class ChunkPlan:
         ``a = h cot(theta) + top_width / 2``.
     n_right, n_left : int
         Number of side chunks on each side (0 when the object does not reach past the centre chunk).
+    mode : str
+        ``cut`` (the seed's planes) or ``whole`` (the part fits the build depth: one chunk C, no
+        cut; ``theta_deg`` is then theta_max and ``shift`` the build depth, for the record only).
     """
 
     theta_deg: float
@@ -113,6 +122,7 @@ class ChunkPlan:
     n_right: int
     n_left: int
     build_depth: float
+    mode: str = "cut"
 
     @property
     def run(self) -> float:
@@ -143,7 +153,172 @@ class ChunkPlan:
             "axis": list(self.axis), "half_base_mm": self.half_base,
             "centre_base_width_mm": 2 * self.half_base, "side_reach_mm": self.shift + self.run,
             "build_depth_mm": self.build_depth, "n_left": self.n_left, "n_right": self.n_right,
+            "mode": self.mode,
         }
+
+
+#: Most chunks a plan may have (the shift is at least 5 mm, so a part 5 m across stays below).
+MAX_CHUNKS = 1000
+
+
+@dataclass(frozen=True)
+class Feasibility:
+    """Whether and how a robot can print a part: the one rule ``info``, ``chunk`` and ``run``
+    share (:func:`feasibility`).
+
+    Attributes
+    ----------
+    feasible
+        The part can be planned with these settings.
+    mode
+        ``whole`` (one chunk, no cut: the part fits the build depth) or ``cut`` (the seed's
+        sloped planes).
+    reason
+        One sentence with the numbers: why it is (not) feasible.
+    height, extent
+        The part's height and its extent along the chunking axis, mm.
+    max_height
+        The largest part height this robot can print in this mode with these settings, mm.
+    chunks
+        Number of chunks the plan gives (0 when infeasible).
+    theta_deg, theta_min_deg, theta_max_deg
+        The slope used and the seed's limits (eq. 1-2) for this part.
+    hints
+        Changes that would make it feasible, each actually possible (the robot field or setting
+        and the value it needs).
+    """
+
+    feasible: bool
+    mode: str
+    reason: str
+    height: float
+    extent: float
+    max_height: float
+    chunks: int
+    theta_deg: float
+    theta_min_deg: float
+    theta_max_deg: float
+    hints: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, object]:
+        return {"feasible": self.feasible, "mode": self.mode, "reason": self.reason, "height_mm": self.height,
+                "extent_mm": self.extent, "max_height_mm": self.max_height, "chunks": self.chunks,
+                "theta_deg": self.theta_deg, "theta_min_deg": self.theta_min_deg,
+                "theta_max_deg": self.theta_max_deg, "hints": list(self.hints)}
+
+    def message(self) -> str:
+        """The refusal line: reason, largest printable height, hints."""
+        text = f"{self.reason}; largest printable height {self.max_height:.1f} mm (part {self.height:.1f})"
+        return text + (f"; fix: {' or '.join(self.hints)}" if self.hints else "")
+
+
+def _axis(settings: ChunkingSettings) -> np.ndarray:
+    ang = math.radians(settings.centre_angle_deg)
+    return np.array([-math.sin(ang), math.cos(ang), 0.0])
+
+
+def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings) -> tuple[Feasibility, ChunkPlan | None]:
+    """The rule behind :func:`feasibility` and :func:`plan_chunks`.
+
+    1. A part taller than ``robot.max_z`` cannot be printed.
+    2. A part whose extent along the chunking axis fits the build depth is one chunk, printed by
+       one robot from one side (its body never reaches the part; everything already printed is
+       below the nozzle), at any height up to ``max_z``, unless a slope or a shift is set, which
+       asks for the seed's cut.
+    3. Otherwise the seed's planes: ``theta_min < theta <= theta_max`` (eq. 1-2), the centre chunk's
+       base ``2 h / tan(theta) + top_width <= bd``, so ``h <= (bd - top_width) tan(theta) / 2``,
+       largest at ``theta_max``; and ``theta_min <= theta_max`` gives ``h <= bd nh / nd`` (never the
+       tighter bound when ``top_width >= 0``, kept for the record); the side chunks' reach
+       ``s + h / tan(theta) <= bd``; at most ``MAX_CHUNKS`` chunks.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    h = float(hi[2] - lo[2])
+    bd, nh, nd, tw = robot.build_depth, robot.nozzle_height, robot.nozzle_depth, settings.top_width
+    lim = slope_limits(robot, max(h, 0.0))
+    axis = _axis(settings)
+    extent = float(np.ptp(v @ axis))
+    theta_max = lim.theta_max_deg
+    tan_max = nh / nd
+    cut_height = min(max(bd - tw, 0.0) * tan_max / 2, bd * tan_max, robot.max_z)
+
+    def result(ok: bool, mode: str, reason: str, max_h: float, n: int = 0, theta: float = theta_max,
+               hints: tuple[str, ...] = ()) -> Feasibility:
+        return Feasibility(ok, mode, reason, h, extent, max_h, n, theta, lim.theta_min_deg, theta_max, hints)
+
+    if h <= 0:
+        return result(False, "whole", "the object has no height (all vertices at one z)", robot.max_z), None
+    if h > robot.max_z * (1 + 1e-9):
+        return result(False, "whole", f"the part is {h:.1f} mm tall, higher than robot '{robot.name}' prints "
+                      f"(robot.max_z = {robot.max_z:g} mm)", robot.max_z,
+                      hints=(f"robot.max_z >= {h:.1f} mm", f"a part at most {robot.max_z:g} mm tall")), None
+    centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) + settings.centre_offset * axis
+    whole = settings.theta_deg is None and settings.shift is None
+    if whole and extent <= bd * (1 + 1e-9):
+        plan = ChunkPlan(theta_max, bd, 0.0, h, lim, tuple(float(x) for x in centre),  # type: ignore[arg-type]
+                         tuple(float(x) for x in axis), extent / 2, 0, 0, bd, "whole")  # type: ignore[arg-type]
+        return result(True, "whole", f"the part is {extent:.1f} mm deep along the chunking axis, within the build "
+                      f"depth {bd:g} mm: one chunk, no cut", robot.max_z, 1), plan
+
+    theta = theta_max if settings.theta_deg is None else settings.theta_deg
+    tan_t = math.tan(math.radians(theta))
+    max_h = min(cut_height, max(bd - tw, 0.0) * tan_t / 2) if theta <= theta_max + 1e-9 else cut_height
+    formula = (f"theta_min = atan(h/bd) = atan({h:.1f}/{bd:g}) = {lim.theta_min_deg:.2f} deg, "
+               f"theta_max = atan(nh/nd) = atan({nh:g}/{nd:g}) = {theta_max:.2f} deg")
+    fits = extent <= bd * (1 + 1e-9)
+    drop = (f"no --theta/--shift (the part is {extent:.1f} mm deep, within the build depth: one chunk)",) if fits else ()
+    need_bd = 2 * h / tan_max + tw
+    need_nh = 2 * h * nd / (bd - tw) if bd > tw else math.inf
+    robot_hints = (f"robot.build_depth >= {need_bd:.1f} (now {bd:g})",) + (
+        (f"robot.nozzle_height >= {need_nh:.1f} (now {nh:g})",
+         f"robot.nozzle_depth <= {nh * (bd - tw) / (2 * h):.1f} (now {nd:g})") if math.isfinite(need_nh) else ()) + (
+        (f"--scale {math.floor(cut_height / h * 1000) / 1000:g}",) if 0 < cut_height < h else ())
+    if not lim.feasible:
+        return result(False, "cut", f"robot '{robot.name}' cannot print this part: {formula}; theta_min > theta_max",
+                      max_h, theta=theta, hints=drop + robot_hints), None
+    if not lim.theta_min_deg < theta <= theta_max + 1e-9:
+        return result(False, "cut", f"chunking.theta_deg = {theta:g} is outside the printable range "
+                      f"({lim.theta_min_deg:.2f}, {theta_max:.2f}] deg: {formula}", max_h, theta=theta,
+                      hints=drop + (f"chunking.theta_deg in ({lim.theta_min_deg:.2f}, {theta_max:.2f}]",)), None
+    run = h / tan_t
+    a = run + tw / 2
+    if 2 * a > bd * (1 + 1e-9):
+        hints = list(drop)
+        if theta < theta_max - 1e-9 and 2 * h / tan_max + tw <= bd:
+            hints.append(f"chunking.theta_deg >= {math.degrees(math.atan2(2 * h, bd - tw)):.2f} "
+                         f"(theta_max {theta_max:.2f})")
+        if tw > 0 and 2 * run < bd:
+            hints.append(f"chunking.top_width <= {bd - 2 * run:.1f} (now {tw:g})")
+        hints += robot_hints
+        at = f"theta_max {theta:.2f}" if theta >= theta_max - 1e-9 else f"theta {theta:.2f}"
+        return result(False, "cut", f"centre chunk base 2h/tan(theta) + top_width = {2 * a:.1f} mm > build depth "
+                      f"{bd:g} mm at {at} deg", max_h, theta=theta, hints=tuple(hints)), None
+    s = bd - run if settings.shift is None else settings.shift
+    if s + run > bd * (1 + 1e-9):
+        return result(False, "cut", f"chunking.shift = {s:g} mm: a side chunk would need reach s + h/tan(theta) = "
+                      f"{s + run:.1f} mm > build depth {bd:g} mm", max_h, theta=theta,
+                      hints=drop + (f"chunking.shift <= {bd - run:.1f} mm",)), None
+    plan = ChunkPlan(theta, s, tw, h, lim, tuple(float(x) for x in centre),  # type: ignore[arg-type]
+                     tuple(float(x) for x in axis), a, 0, 0, bd)  # type: ignore[arg-type]
+    counts = {}
+    for side in ("R", "L"):
+        reach = float(plan.side_coordinate(side, v).max()) - a
+        counts[side] = max(0, math.ceil(reach / s - PLANE_EPS)) if reach > PLANE_EPS * s else 0
+    n = 1 + counts["R"] + counts["L"]
+    if n > MAX_CHUNKS:
+        return result(False, "cut", f"a shift of {s:g} mm over {extent:.1f} mm gives {n:,} chunks, more than "
+                      f"{MAX_CHUNKS:,}", max_h, theta=theta,
+                      hints=(f"chunking.shift >= {extent / MAX_CHUNKS:.1f} mm",)), None
+    plan = replace(plan, n_right=counts["R"], n_left=counts["L"])
+    return result(True, "cut", f"cut at theta {theta:.2f} deg into {n} chunks: centre chunk base {2 * a:.1f} mm and "
+                  f"side reach {s + run:.1f} mm within the build depth {bd:g} mm", max_h, n, theta), plan
+
+
+def feasibility(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings) -> Feasibility:
+    """Whether ``robot`` can print the part with ``vertices`` (only their extent matters) under
+    ``settings``, why, the largest printable height and the number of chunks (rules:
+    :func:`_plan`). The one rule of ``info``, ``chunk`` and ``run``."""
+    return _plan(vertices, robot, settings)[0]
 
 
 def plan_chunks(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings) -> ChunkPlan:
@@ -157,49 +332,10 @@ def plan_chunks(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSet
     Raises
     ------
     InfeasibleError
-        With the numbers: slope outside [theta_min, theta_max], a robot for which
-        theta_min > theta_max, a centre chunk wider than the build depth, or a shift that does
-        not fit the build depth.
+        :meth:`Feasibility.message`: why (with the numbers), the largest printable height and
+        the changes that would make it printable.
     """
-    v = np.asarray(vertices, dtype=np.float64)
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    h = float(hi[2] - lo[2])
-    if h <= 0:
-        raise InfeasibleError("the object has no height (all vertices at one z)")
-    lim = slope_limits(robot, h)
-    bd = robot.build_depth
-    formula = (f"theta_min = atan(h/bd) = atan({h:.1f}/{bd:g}) = {lim.theta_min_deg:.2f} deg, "
-               f"theta_max = atan(nh/nd) = atan({robot.nozzle_height:g}/{robot.nozzle_depth:g}) = "
-               f"{lim.theta_max_deg:.2f} deg")
-    if not lim.feasible:
-        raise InfeasibleError(f"robot '{robot.name}' cannot print this object: {formula}; "
-                              "theta_min > theta_max (a deeper build depth or a taller nozzle is needed)")
-    theta = lim.theta_max_deg if settings.theta_deg is None else settings.theta_deg
-    if not lim.theta_min_deg < theta <= lim.theta_max_deg + 1e-9:
-        raise InfeasibleError(f"chunking.theta_deg = {theta:g} is outside the printable range "
-                              f"({lim.theta_min_deg:.2f}, {lim.theta_max_deg:.2f}] deg: {formula}")
-    run = h / math.tan(math.radians(theta))
-    a = run + settings.top_width / 2
-    if 2 * a > bd * (1 + 1e-9):
-        raise InfeasibleError(
-            f"centre chunk base width 2*h/tan(theta) + top_width = 2*{run:.1f} + {settings.top_width:g} "
-            f"= {2 * a:.1f} mm exceeds build depth {bd:g} mm; use a steeper slope (theta up to "
-            f"{lim.theta_max_deg:.2f} deg), a smaller top_width, or a robot with a deeper build depth")
-    s = bd - run if settings.shift is None else settings.shift
-    if s <= 0:
-        raise InfeasibleError(f"shift s = bd - h/tan(theta) = {bd:g} - {run:.1f} = {s:.2f} mm: no room "
-                              f"for side chunks; use a steeper slope (up to {lim.theta_max_deg:.2f} deg)")
-    if s + run > bd * (1 + 1e-9):
-        raise InfeasibleError(f"chunking.shift = {s:g} mm: a side chunk would need reach s + h/tan(theta) "
-                              f"= {s + run:.1f} mm > build depth {bd:g} mm; use shift <= {bd - run:.1f}")
-
-    ang = math.radians(settings.centre_angle_deg)
-    axis = np.array([-math.sin(ang), math.cos(ang), 0.0])
-    centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) + settings.centre_offset * axis
-    plan = ChunkPlan(theta, s, settings.top_width, h, lim, tuple(float(x) for x in centre),  # type: ignore[arg-type]
-                     tuple(float(x) for x in axis), a, 0, 0, bd)  # type: ignore[arg-type]
-    counts = {}
-    for side in ("R", "L"):
-        reach = float(plan.side_coordinate(side, v).max()) - a
-        counts[side] = max(0, math.ceil(reach / s - PLANE_EPS)) if reach > PLANE_EPS * s else 0
-    return replace(plan, n_right=counts["R"], n_left=counts["L"])
+    record, plan = _plan(vertices, robot, settings)
+    if plan is None:
+        raise InfeasibleError(record.message())
+    return plan

@@ -7,23 +7,64 @@ and unit in its metadata, so one validator gives every field the same clear mess
 
 Defaults live in ``defaults.toml`` next to this module. Files given by the user are merged over
 them field by field, then command-line overrides (``{"chunking.theta_deg": 60}``) over those.
+
+Rules between fields (checked on the merged result, :func:`check_slicing`), so that no accepted
+combination can make nonsense:
+
+* ``layer_height`` and ``first_layer_height`` are at least ``MIN_LAYER_HEIGHT`` (0.05 mm) and at
+  most ``nozzle_diameter`` (PrusaSlicer's own hard limit, "layer height can't be greater than
+  nozzle diameter"; its variable-layer-height default of 0.75 x nozzle is a quality guide, not a
+  limit);
+* ``extrusion_width`` is from ``nozzle_diameter`` to ``3 x nozzle_diameter`` (PrusaSlicer refuses
+  3 x nozzle and more; a line narrower than its nozzle is not a line it can lay).
+
+Hence ``width >= nozzle >= height``, and the bead's cross-section
+``(w - h) h + pi (h / 2)^2 >= pi h^2 / 4 > 0`` (:func:`cooprint.slicing.paths.extrusion_area`): E is
+never negative, nor the line spacing ``w - h (1 - pi / 4)``. ``chunking.shift`` is at least
+``MIN_SHIFT`` (5 mm). :func:`work_estimate` bounds what a part asks for (layers, path length).
 """
 
 from __future__ import annotations
 
+import difflib
 import math
+import os
+import stat
 import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Iterable, Mapping
 
 from cooprint.errors import ConfigError
+
+#: Thinnest layer accepted, mm: below it the number of layers (the work) is unbounded and no
+#: FDM nozzle lays a meaningful bead (PrusaSlicer's min_layer_height default is 0.07).
+MIN_LAYER_HEIGHT = 0.05
+#: Smallest distance between parallel cutting planes, mm: the number of chunks stays bounded.
+MIN_SHIFT = 5.0
+#: Layer heights at most this many nozzle diameters (PrusaSlicer's hard limit).
+MAX_LAYER_PER_NOZZLE = 1.0
+#: Extrusion width from this many nozzle diameters ...
+MIN_WIDTH_PER_NOZZLE = 1.0
+#: ... to this many (PrusaSlicer refuses 3 x nozzle and more).
+MAX_WIDTH_PER_NOZZLE = 3.0
+#: Most layers a part may ask for (1.5 m at 0.05 mm is 30,000).
+MAX_LAYERS = 200_000
+#: Longest total tool path a part may ask for, mm (its upper bound volume / (width x height)):
+#: 20,000 km, weeks of printing for a robot.
+MAX_PATH_MM = 2e10
+#: Largest settings file read, bytes.
+MAX_SETTINGS_BYTES = 1 << 20
 
 
 def _num(lo: float | None = None, hi: float | None = None, *, unit: str = "", lo_open: bool = False,
          optional: bool = False, integer: bool = False, doc: str = "") -> dict[str, Any]:
     return {"lo": lo, "hi": hi, "unit": unit, "lo_open": lo_open, "optional": optional,
             "integer": integer, "doc": doc}
+
+
+def _choice(*options: str, doc: str = "") -> dict[str, Any]:
+    return {"choices": options, "doc": doc}
 
 
 @dataclass(frozen=True)
@@ -45,6 +86,8 @@ class RobotProfile:
                                 doc="for the simulator's acceleration model (simulate --accel)"))
     jerk: float = field(default=10.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True,
                         doc="largest instant change of speed at a corner, per axis"))
+    max_z: float = field(default=2000.0, metadata=_num(0, 1e5, unit="mm", lo_open=True,
+                         doc="highest the nozzle can print above the floor: the tallest part"))
 
 
 @dataclass(frozen=True)
@@ -53,7 +96,7 @@ class ChunkingSettings:
 
     theta_deg: float | None = field(default=None, metadata=_num(0, 90, unit="deg", lo_open=True,
                                     optional=True, doc="slope of the chunk interfaces"))
-    shift: float | None = field(default=None, metadata=_num(0, 1e6, unit="mm", lo_open=True,
+    shift: float | None = field(default=None, metadata=_num(MIN_SHIFT, 1e6, unit="mm",
                                 optional=True, doc="distance between parallel cutting planes (s)"))
     top_width: float = field(default=0.0, metadata=_num(0, 1e6, unit="mm"))
     centre_angle_deg: float = field(default=0.0, metadata=_num(-360, 360, unit="deg"))
@@ -66,10 +109,10 @@ class MeshSettings:
 
     max_hole_fraction: float = field(default=0.15, metadata=_num(0, 1, doc="largest hole closed "
                                      "silently, as perimeter / bounding-box diagonal"))
-
-
-def _choice(*options: str, doc: str = "") -> dict[str, Any]:
-    return {"choices": options, "doc": doc}
+    units: str = field(default="mm", metadata=_choice("mm", "cm", "m", "in", doc="unit of the file's coordinates"))
+    scale: float = field(default=1.0, metadata=_num(0, 1e6, lo_open=True, doc="factor applied after units"))
+    place: bool = field(default=True, metadata={"boolean": True, "doc": "put the part on the floor "
+                        "(min z = 0) and, for `slice`, centre it on the bed; false keeps the file's frame"})
 
 
 @dataclass(frozen=True)
@@ -80,10 +123,13 @@ class SlicingSettings:
     4 top / 4 bottom solid layers, 20% rectilinear infill, 1.75 mm filament.
     """
 
-    layer_height: float = field(default=0.2, metadata=_num(0, 10, unit="mm", lo_open=True))
-    first_layer_height: float = field(default=0.2, metadata=_num(0, 10, unit="mm", lo_open=True))
-    nozzle_diameter: float = field(default=0.4, metadata=_num(0, 10, unit="mm", lo_open=True))
-    extrusion_width: float = field(default=0.45, metadata=_num(0, 20, unit="mm", lo_open=True))
+    layer_height: float = field(default=0.2, metadata=_num(MIN_LAYER_HEIGHT, 10, unit="mm",
+                                doc="at most nozzle_diameter"))
+    first_layer_height: float = field(default=0.2, metadata=_num(MIN_LAYER_HEIGHT, 10, unit="mm",
+                                      doc="at most nozzle_diameter"))
+    nozzle_diameter: float = field(default=0.4, metadata=_num(0.1, 10, unit="mm"))
+    extrusion_width: float = field(default=0.45, metadata=_num(0, 30, unit="mm", lo_open=True,
+                                   doc="1 to 3 x nozzle_diameter"))
     perimeters: int = field(default=2, metadata=_num(0, 100, integer=True))
     top_layers: int = field(default=4, metadata=_num(0, 1000, integer=True))
     bottom_layers: int = field(default=4, metadata=_num(0, 1000, integer=True))
@@ -140,7 +186,7 @@ _SECTIONS: dict[str, type] = {"robot": RobotProfile, "chunking": ChunkingSetting
                               "slicing": SlicingSettings, "program": ProgramSettings}
 
 
-def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> float | None:
+def _expectation(meta: Mapping[str, Any]) -> str:
     lo, hi, unit = meta["lo"], meta["hi"], meta["unit"]
     rng = []
     if lo is not None:
@@ -148,63 +194,209 @@ def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> 
     if hi is not None:
         rng.append(f"<= {hi:g}")
     kind = "a whole number " if meta["integer"] else "a number "
-    expect = kind + " and ".join(rng) + (f" ({unit})" if unit else "")
+    return kind + " and ".join(rng) + (f" ({unit})" if unit else "")
+
+
+def _shown(value: Any) -> str:
+    """``repr`` of a value for an error line, a huge integer shortened (``10**18`` stays
+    readable, ``10**4000`` does not flood the line and does not trip Python's digit limit)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10**15:
+        return f"{float(value):.3g}" if abs(value) < 10**300 else "an integer of more than 300 digits"
+    return repr(value)
+
+
+def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> float | int | None:
+    """One numeric field: type, whole number where required, finite, within its range.
+
+    The range is checked for integer fields too, on the exact integer (``10**18`` is compared as
+    itself, never through a float that could overflow)."""
+    lo, hi = meta["lo"], meta["hi"]
     if value is None and meta["optional"]:
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or (
-            meta["integer"] and not float(value).is_integer()):
-        raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
-    if meta["integer"]:
-        return int(value)  # type: ignore[return-value]
-    v = float(value)
-    ok = math.isfinite(v)
-    if ok and lo is not None:
-        ok = v > lo if meta["lo_open"] else v >= lo
+    bad = ConfigError(f"{where}{name} = {_shown(value)}: expected {_expectation(meta)}")
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise bad
+    if isinstance(value, float) and not math.isfinite(value):
+        raise bad
+    if meta["integer"] and isinstance(value, float):
+        if not value.is_integer():
+            raise bad
+        value = int(value)
+    ok = True
+    if lo is not None:
+        ok = value > lo if meta["lo_open"] else value >= lo
     if ok and hi is not None:
-        ok = v <= hi
+        ok = value <= hi
     if not ok:
-        raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
-    return v
+        raise bad
+    return int(value) if meta["integer"] else float(value)
+
+
+def _did_you_mean(word: str, options: Iterable[str]) -> str:
+    """``; did you mean 'x'?`` for the closest option (difflib), else the list of options."""
+    options = list(options)
+    close = difflib.get_close_matches(word, options, n=1, cutoff=0.6)
+    if close:
+        return f"; did you mean {close[0]!r}?"
+    return "; expected one of: " + ", ".join(options)
+
+
+def _field_for(section: str, key: str, where: str) -> Any:
+    """The dataclass field ``section.key``; unknown names get a did-you-mean."""
+    if section not in _SECTIONS:
+        raise ConfigError(f"{where}unknown section [{section}]" + _did_you_mean(section, _SECTIONS))
+    known = {f.name: f for f in fields(_SECTIONS[section])}
+    if key not in known:
+        for other, cls in _SECTIONS.items():  # a field of another section? (``layer_height`` under [robot])
+            if key in {f.name for f in fields(cls)}:
+                raise ConfigError(f"{where}unknown field {section}.{key}; did you mean {other}.{key}?")
+        raise ConfigError(f"{where}unknown field {section}.{key}" + _did_you_mean(key, sorted(known)))
+    return known[key]
 
 
 def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> Any:
-    known = {f.name: f for f in fields(cls)}
     out: dict[str, Any] = {}
     for key, value in values.items():
-        if key not in known:
-            raise ConfigError(f"{where}unknown field {section}.{key}; expected one of: "
-                              + ", ".join(sorted(known)))
-        f = known[key]
+        f = _field_for(section, str(key), where)
         name = f"{section}.{key}"
         if "choices" in f.metadata:
-            if value not in f.metadata["choices"]:
-                raise ConfigError(f"{where}{name} = {value!r}: expected one of "
-                                  + ", ".join(repr(c) for c in f.metadata["choices"]))
+            if not isinstance(value, str) or value not in f.metadata["choices"]:
+                close = difflib.get_close_matches(value, f.metadata["choices"], n=1) if isinstance(value, str) else []
+                raise ConfigError(f"{where}{name} = {_shown(value)}: expected one of "
+                                  + ", ".join(repr(c) for c in f.metadata["choices"])
+                                  + (f" (did you mean {close[0]!r}?)" if close else ""))
             out[key] = value
         elif f.metadata.get("boolean"):
             if not isinstance(value, bool):
-                raise ConfigError(f"{where}{name} = {value!r}: expected true or false")
+                raise ConfigError(f"{where}{name} = {_shown(value)}: expected true or false")
             out[key] = value
         elif f.metadata:
             out[key] = _check_value(where, name, value, f.metadata)
-        elif not isinstance(value, str) or not value.strip():
-            raise ConfigError(f"{where}{name} = {value!r}: expected a non-empty string")
+        elif not isinstance(value, str) or not value.strip() or len(value) > 200 or not value.isprintable():
+            raise ConfigError(f"{where}{name} = {_shown(value)[:60]}: expected a non-empty string of at most "
+                              "200 printable characters")
         else:
             out[key] = value
     return cls(**out)
 
 
-def _read_toml(path: Path) -> dict[str, Any]:
+def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -> None:
+    """The rules between slicing fields (module docstring): layer heights within the nozzle,
+    the extrusion width from 1 to 3 nozzle diameters. Each failure names both fields, their
+    values and the bound, on one line, after where the first field was set (``origin``:
+    ``{"layer_height": "bad.toml: "}``)."""
+    given = {k: w for k, w in (origin or {}).items() if w != "defaults.toml: "}
+
+    def where_of(*names: str) -> str:  # where the user set the first of these fields
+        return next((given[n] for n in names if n in given), "")
+
+    d = s.nozzle_diameter
+    for name, h in (("layer_height", s.layer_height), ("first_layer_height", s.first_layer_height)):
+        if h > MAX_LAYER_PER_NOZZLE * d + 1e-12:
+            where = where_of(name, "nozzle_diameter")
+            raise ConfigError(f"{where}slicing.{name} = {h:g} mm is thicker than slicing.nozzle_diameter = "
+                              f"{d:g} mm allows (at most {MAX_LAYER_PER_NOZZLE:g} x nozzle = "
+                              f"{MAX_LAYER_PER_NOZZLE * d:g} mm); use a thinner layer or a larger nozzle")
+    w = s.extrusion_width
+    lo, hi = MIN_WIDTH_PER_NOZZLE * d, MAX_WIDTH_PER_NOZZLE * d
+    if not lo - 1e-12 <= w <= hi + 1e-12:
+        where = where_of("extrusion_width", "nozzle_diameter")
+        raise ConfigError(f"{where}slicing.extrusion_width = {w:g} mm: expected {MIN_WIDTH_PER_NOZZLE:g} to "
+                          f"{MAX_WIDTH_PER_NOZZLE:g} x slicing.nozzle_diameter = {lo:g} to {hi:g} mm")
+
+
+def work_estimate(size: Any, volume: float, s: SlicingSettings) -> dict[str, float]:
+    """What slicing a part of ``size`` (x, y, z mm) and ``volume`` (mm^3) asks for: the number of
+    layers (height / layer height) and an upper bound of the tool path length (the volume laid
+    as solid lines, volume / (width x layer height)), mm.
+
+    Raises
+    ------
+    ConfigError
+        Past ``MAX_LAYERS`` or ``MAX_PATH_MM``, with the numbers and the fields to change.
+    """
+    height = float(size[2])
+    layers = 1 + max(0, math.ceil((height - s.first_layer_height) / s.layer_height))
+    path = float(volume) / (s.extrusion_width * s.layer_height)
+    if layers > MAX_LAYERS:
+        raise ConfigError(f"a part {height:.6g} mm tall in layers of {s.layer_height:g} mm is {layers:,} layers, "
+                          f"more than the {MAX_LAYERS:,} accepted; raise slicing.layer_height (or check --units)")
+    if path > MAX_PATH_MM:
+        raise ConfigError(f"a part of {volume / 1e9:.3g} m3 in {s.extrusion_width:g} x {s.layer_height:g} mm lines "
+                          f"is up to {path / 1e6:,.0f} km of tool path, more than the {MAX_PATH_MM / 1e6:,.0f} km "
+                          "accepted; use wider lines or thicker layers (or check --units)")
+    return {"layers": layers, "path_mm_max": path}
+
+
+def parse_value(text: str) -> Any:
+    """A command-line value as TOML reads it (``0.3``, ``true``, ``"grid"``); anything TOML
+    does not read as a value is the string itself (``grid``, ``my robot``)."""
+    if not text.isprintable():  # a newline would let one value set other keys
+        return text
     try:
-        text = path.read_text(encoding="utf-8")
+        return tomllib.loads(f"v = {text}")["v"]
+    except (tomllib.TOMLDecodeError, RecursionError):
+        return text
+
+
+def parse_assignment(text: str) -> tuple[str, Any]:
+    """``section.key=value`` (``--set``) into ``("section.key", value)``; the key is checked
+    (unknown section or field: did you mean), the value later with its field."""
+    key, eq, value = text.partition("=")
+    key = key.strip()
+    section, dot, name = key.partition(".")
+    if not eq or not dot or not section or not name:
+        raise ConfigError(f"--set {text[:80]!r}: expected SECTION.KEY=VALUE, e.g. slicing.infill_pattern=grid")
+    _field_for(section, name, "--set: ")
+    return key, parse_value(value.strip())
+
+
+def parse_fraction(text: str, option: str = "--infill") -> float:
+    """A density as PrusaSlicer writes it (``20%``) or as a fraction (``0.2``).
+
+    A bare number above 1 (``20``) is refused: PrusaSlicer reads its percent options' bare numbers
+    as percentages, cooprint's fields are fractions, and guessing either way could print 20x
+    more or less material than meant."""
+    t = text.strip()
+    try:
+        value = float(t[:-1]) / 100 if t.endswith("%") else float(t)
+    except ValueError:
+        raise ConfigError(f"{option} {text[:40]!r}: expected a fraction from 0 to 1 (0.2) or a percentage "
+                          "(20%)") from None
+    if not math.isfinite(value) or not 0 <= value <= 1:
+        hint = f" (for {t}% write {t}%)" if not t.endswith("%") and math.isfinite(value) and 1 < value <= 100 else ""
+        raise ConfigError(f"{option} {text[:40]}: expected a fraction from 0 to 1 (0.2) or a percentage "
+                          f"from 0% to 100% (20%){hint}")
+    return value
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    """A settings file, which must be a regular file (a FIFO or a device would block the read or
+    never end) of at most ``MAX_SETTINGS_BYTES``."""
+    try:
+        st = os.stat(path)
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such settings file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read settings file ({exc.strerror})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a plain file")
+        raise ConfigError(f"{path}: is {kind}; expected a TOML settings file")
+    if st.st_size > MAX_SETTINGS_BYTES:
+        raise ConfigError(f"{path}: {st.st_size:,} bytes; a settings file is at most {MAX_SETTINGS_BYTES:,}")
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_SETTINGS_BYTES + 1)
+        text = data.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read settings file ({exc})") from None
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: invalid TOML: {exc}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: invalid TOML: nested too deeply") from None
 
 
 def _defaults() -> dict[str, Any]:
@@ -231,21 +423,26 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
         Naming the file, the field, the value given and what was expected.
     """
     merged: dict[str, dict[str, Any]] = {s: {} for s in _SECTIONS}
+    origin: dict[str, str] = {}  # "section.field": where its value was set
     layers: list[tuple[str, Mapping[str, Any]]] = [("defaults.toml: ", _defaults())]
     layers += [(f"{p}: ", _read_toml(Path(p))) for p in paths]
     for where, data in layers:
         for section, values in data.items():
             if section not in _SECTIONS:
-                raise ConfigError(f"{where}unknown section [{section}]; expected one of: "
-                                  + ", ".join(f"[{s}]" for s in _SECTIONS))
+                raise ConfigError(f"{where}unknown section [{section}]" + _did_you_mean(section, _SECTIONS))
             if not isinstance(values, dict):
                 raise ConfigError(f"{where}{section} must be a table [{section}]")
             _build(section, _SECTIONS[section], values, where)  # validate with its own file name
             merged[section].update(values)
+            origin.update({f"{section}.{k}": where for k in values})
     for key, value in (overrides or {}).items():
         if value is None:
             continue
         section, _, name = key.partition(".")
+        _field_for(section, name, "option: ")
         _build(section, _SECTIONS[section], {name: value}, "option: ")
         merged[section][name] = value
-    return JobSettings(**{s: _build(s, cls, merged[s], "") for s, cls in _SECTIONS.items()})
+        origin[key] = "option: "
+    settings = JobSettings(**{s: _build(s, cls, merged[s], "") for s, cls in _SECTIONS.items()})
+    check_slicing(settings.slicing, {k.partition(".")[2]: w for k, w in origin.items() if k.startswith("slicing.")})
+    return settings

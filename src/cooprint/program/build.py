@@ -195,9 +195,10 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         side = "both" if len(sides) != 1 else sides.pop()
         facing = tuple(float(x) for x in (ax if side != "right" else -ax))
         first_point = _first_point(layers, seq)
-        if first_point is None:  # a robot with nothing to print stays where it is
+        if first_point is None:  # a robot with nothing to print parks off the part, on the +axis side
             programs[robot] = Program.empty(robot)
-            placements[robot] = RobotPlacement(robot, side, facing, (0.0, 0.0, 0.0))  # type: ignore[arg-type]
+            placements[robot] = RobotPlacement(robot, "right", tuple(float(x) for x in -ax),  # type: ignore[arg-type]
+                                               _parking(layers, ax, clearance))
             continue
         printed_before = [c for r, s in sequences.items() if r != robot for c in s]
         start = quantize(first_point + [0.0, 0.0, clearance])
@@ -223,6 +224,22 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         programs[robot] = Program.concat(robot, pieces)
         placements[robot] = RobotPlacement(robot, side, facing, tuple(float(x) for x in start))  # type: ignore[arg-type]
     return programs, placements
+
+
+def _parking(layers: dict, ax: np.ndarray, clearance: float) -> tuple[float, float, float]:
+    """Where an idle robot stands (a part that is one chunk leaves the second robot without
+    work): facing the part from the +axis side, its nozzle ``clearance`` beyond the farthest
+    printed point along ``ax``, level with the middle of the part across it, so that its body
+    (behind the nozzle) is clear of the part and of the robot that prints it."""
+    pts = [layer.points for chunk in layers.values() for _, layer in chunk if len(layer)]
+    if not pts:
+        return (0.0, 0.0, 0.0)
+    allp = np.concatenate(pts)
+    along = allp @ ax
+    across = np.array([-ax[1], ax[0]])
+    side = allp @ across
+    p = ax * (float(along.max()) + clearance) + across * (float(side.min() + side.max()) / 2)
+    return (float(p[0]), float(p[1]), float(clearance))
 
 
 def _first_point(layers: dict, seq: Iterable[str]) -> np.ndarray | None:
