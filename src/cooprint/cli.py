@@ -278,6 +278,8 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
             click.echo(f"  robot {r['name']}: printing {r['printing_s']:.0f} s, travelling {r['travelling_s']:.0f} s, "
                        f"waiting {r['waiting_s']:.0f} s, idle {r['idle_s']:.0f} s, {r['material_mm3'] / 1000:.1f} cm3")
         click.echo("findings: " + findings_line(record["finding_counts"]))
+        for note in result.notes:
+            click.echo(f"note: {note}")
         for f in result.findings[:10]:
             click.echo(f"  {f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
                        f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "

@@ -45,6 +45,9 @@ class RobotProfile:
                                 doc="for the simulator's acceleration model (simulate --accel)"))
     jerk: float = field(default=10.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True,
                         doc="largest instant change of speed at a corner, per axis"))
+    # a mobile robot prints on the floor: no bed to heat unless its profile says it carries one
+    heated_bed: bool = field(default=False, metadata={"boolean": True,
+                             "doc": "the robot prints on a heated bed (G-code heats it to slicing.bed_temperature)"})
 
 
 @dataclass(frozen=True)
@@ -119,6 +122,9 @@ class ProgramSettings:
 
     clearance: float = field(default=5.0, metadata=_num(0, 1e4, unit="mm", lo_open=True,
                              doc="lift above the highest printed material nearby on a move between chunks"))
+    heater_idle_limit_s: float = field(default=600.0, metadata=_num(0, 1e6, unit="s",
+                                       doc="a robot's hot nozzle is turned off before a WAIT expected to "
+                                           "last longer than this, and reheated after it"))
 
 
 @dataclass(frozen=True)

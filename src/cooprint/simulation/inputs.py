@@ -34,6 +34,7 @@ class SimInput:
     source: str  # what was read, for messages and the summary
     limits: MachineLimits | None = None  # for the acceleration model; None: the robot profile's
     placed: bool = True  # the robots' starts and facings are known: the body checks apply
+    notes: tuple[str, ...] = ()  # what was read and not acted on (for the summary)
 
 
 def _facing(deg: float) -> np.ndarray:
@@ -128,7 +129,7 @@ def load_gcode_files(paths: list[str | Path], profile: RobotProfile | None = Non
         raise SimInputError(f"two G-code files with the same name: {', '.join(names)}")
     # a printer's G-code: PrusaSlicer's machine limits; no robot body stands anywhere known
     return SimInput(robots, profile or RobotProfile(), slicing or SlicingSettings(), ", ".join(map(str, paths)),
-                    MachineLimits(), placed=False)
+                    MachineLimits(), placed=False, notes=tuple(n for r in robots for n in r.notes))
 
 
 def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
@@ -136,6 +137,10 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     ``M82``/``M83``, ``G92``), moves that push filament become moves with the tool on (width
     from the filament pushed, height from the layer), ``F`` gives each move's speed, and each
     move keeps its E (a move that only moves the filament, a retraction, takes ``|E| / F``).
+
+    Host lines (docs/program.md): ``M118 NOTIFY e`` is a NOTIFY of event ``e`` and ``M0 WAIT e, f``
+    a WAIT for ``e`` and ``f``, as in a ``.coop`` file, so that the robots' own G-code files
+    simulate together; any other ``M0``/``M1`` (a pause for an operator) is ignored and noted.
 
     A compiled sweep (:mod:`cooprint.simulation.gcode`) reads files whose lines are all in the
     plain form (a slicer's output); any other file is read line by line (``_read_gcode_lines``,
@@ -147,13 +152,24 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
         data = p.read_bytes()
     except FileNotFoundError:
         raise SimInputError(f"{p}: no such G-code file") from None
-    rows = gcode_rows(data, filament_diameter)
+    except IsADirectoryError:
+        raise SimInputError(f"{p}: a folder, not a G-code file") from None
+    except OSError as exc:
+        raise SimInputError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    rows = gcode_rows(data, filament_diameter, str(p))
     if rows is None:
         return _read_gcode_lines(p, _gcode_text(data), filament_diameter)
     prog = make_program(p.stem, rows.kind, rows.xyz if len(rows.kind) else None,
-                        role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height)
+                        role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height,
+                        events=rows.events)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
-    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de)
+    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de, _notes(p, rows.pauses))
+
+
+def _notes(p: Path, pauses: list[int]) -> tuple[str, ...]:
+    from cooprint.simulation.gcode import pause_note
+
+    return (pause_note(str(p), pauses),) if pauses else ()
 
 
 def _gcode_text(data: bytes) -> str:
@@ -165,11 +181,14 @@ def _gcode_text(data: bytes) -> str:
 def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> SimRobot:
     """:func:`read_gcode` of the text of G-code file ``p``, line by line: the reference of the
     compiled sweep, and the reader of the files it does not take (and of their errors)."""
+    from cooprint.simulation.gcode import HOST_WORDS, host_line
+
     fil_area = math.pi * (filament_diameter / 2) ** 2
     pos = np.zeros(3)
     rel_xyz, rel_e, e = False, False, 0.0  # Marlin's defaults: absolute XYZ and E
     feed = 1500.0 / 60.0
     kinds, xyz, speeds, widths, heights, pushed = [], [], [], [], [], []
+    events, pauses = [], []
     tool = False
     layer_z, layer_h = 0.0, 0.2  # the height of the last layer that deposited, and its thickness
     for lineno, raw in enumerate(text.splitlines(), start=1):
@@ -227,13 +246,25 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
             rel_xyz = code == "G91"
         elif code in ("M82", "M83"):
             rel_e = code == "M83"
+        elif code in HOST_WORDS:
+            got = host_line(line, f"{p}:{lineno}")
+            if isinstance(got, str):
+                pauses.append(lineno)
+            elif got is not None:
+                kinds.append(got[0])
+                events.append(got[1])
+                xyz.append((np.nan,) * 3)
+                speeds.append(0.0)
+                widths.append(0.0)
+                heights.append(0.0)
+                pushed.append(0.0)
     kind = np.array(kinds, dtype=np.uint8)
     prog = make_program(p.stem, kind, np.array(xyz).reshape(-1, 3) if xyz else None,
                         role=np.where(kind == MOVE, INFILL, TRAVEL), width=np.array(widths),
-                        height=np.array(heights))
+                        height=np.array(heights), events=tuple(events))
     speed = np.array(speeds)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
-    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), speed, np.array(pushed))
+    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), speed, np.array(pushed), _notes(p, pauses))
 
 
 def load_inputs(paths: list[str], manifest: str | None = None) -> SimInput:
