@@ -15,7 +15,7 @@ import math
 import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from cooprint.errors import ConfigError
 
@@ -220,14 +220,20 @@ def _defaults() -> dict[str, Any]:
     return tomllib.loads(text)
 
 
-def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None) -> JobSettings:
-    """Read the shipped defaults, then each TOML file in ``paths``, then ``overrides``.
+def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None,
+                  tables: Sequence[tuple[str, Mapping[str, Any]]] = ()) -> JobSettings:
+    """Read the shipped defaults, then each TOML file in ``paths``, then each of ``tables``, then
+    ``overrides``.
 
     Parameters
     ----------
     paths
         TOML files with any of the sections ``[robot]``, ``[chunking]``, ``[mesh]``, ``[slicing]``,
         ``[program]``.
+    tables
+        ``(where, {section: {field: value}})``: settings read from another file (a bundle's
+        job.json, a simulator manifest), validated as a TOML file's and named ``where`` (a prefix
+        of each message, e.g. ``"job/job.json: settings."``).
     overrides
         ``{"section.field": value}``, e.g. from command-line flags; ``None`` values are ignored.
 
@@ -239,6 +245,7 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
     merged: dict[str, dict[str, Any]] = {s: {} for s in _SECTIONS}
     layers: list[tuple[str, Mapping[str, Any]]] = [("defaults.toml: ", _defaults())]
     layers += [(f"{p}: ", _read_toml(Path(p))) for p in paths]
+    layers += list(tables)
     for where, data in layers:
         for section, values in data.items():
             if section not in _SECTIONS:
