@@ -15,8 +15,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings
-from cooprint.errors import UserError
-from cooprint.io.schema import (check_list, check_number, check_object, check_string, check_vector, fail,
+from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path)
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
@@ -24,8 +23,9 @@ from cooprint.simulation.timeline import SimRobot
 from cooprint.slicing.paths import INFILL, TRAVEL, extrusion_width
 
 
-class SimInputError(UserError):
-    """A bundle, manifest or G-code file the simulator cannot use."""
+class SimInputError(SchemaError):
+    """A bundle, manifest or G-code file the simulator cannot use (the field checks of
+    :mod:`cooprint.io.schema` raise its base, :class:`~cooprint.io.schema.SchemaError`)."""
 
 
 @dataclass(frozen=True)
