@@ -205,8 +205,8 @@ class GcodeWriter:
                     out.write(_G1 * (j - i) % tuple(xye[3 * r0:3 * r1]))
             elif k == MOVE:
                 r = int(row_of[i])
-                if length[r] > 0 and not on[i] and self.retract and not self.retracted \
-                        and run_len[r] >= s.retract_before_travel:
+                if length[r] > 0 and not on[i] and self.retract and not self.retracted and self.hot \
+                        and run_len[r] >= s.retract_before_travel:  # (firmware refuses cold E moves)
                     out.write(self.retract)
                     self.retracted = True
                 if not length[r] <= 0:  # a travel, or the first move (from nowhere): go there
@@ -226,6 +226,9 @@ class GcodeWriter:
                 out.write(f"; {word} {ev}\nM400\n")
                 if k == WAIT and self.heating is not None:
                     if self.hot and self.heating.wait_is_long(self.waits):
+                        if self.retract and not self.retracted:  # no ooze while it cools and heats again
+                            out.write(self.retract)
+                            self.retracted = True
                         out.write(f"M104 S0 ; idle: a wait longer than {self.heating.idle_limit:g} s\n")
                         self.hot = False
                     self.waits += 1
