@@ -83,7 +83,8 @@ def _line(draw, odd=False):
              " hello", " NOTIFY L1 ; after"]))
     else:  # the sweep leaves these to the line reader
         text = draw(st.sampled_from(["G1 X1e1", "G1 X5 \x0b G1 Y3", "; a\x1cG1 X3 E2", "G1\xa0X5 E1",
-                                     "G1 X1_0 E1", "\ufeffG1 X5", "G1 X0.1234567890123456 E1", "G1 X5 *12"]))
+                                     "G1 X1_0 E1", "\ufeffG1 X5", "G1 X0.1234567890123456 E1", "G1 X5 *12",
+                                     "G1 X1000000.5 E1", "G91", "G1 Z-999999.9", "M118 NOTIFY", "M0 WAIT a b"]))
     if kind in ("move", "mode", "g92") and draw(st.booleans()):
         text += draw(st.sampled_from(["", " ", "\t"])) + "; " + draw(st.sampled_from(["c", "é", "X9"]))
     return draw(st.sampled_from(["", " ", "\t"])) + text if kind != "blank" else text

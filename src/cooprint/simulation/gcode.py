@@ -36,15 +36,18 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from cooprint.errors import UserError
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT
 from cooprint.program.scan import POW10, decimal
+from cooprint.simulation.inputs import SimInputError
 from cooprint.slicing.paths import extrusion_width
 
 # the first word of a line, as the sweep tells them apart
 _OTHER, _G0, _G1, _G92, _G90, _G91, _M82, _M83, _HOST = range(9)
 #: Most host lines (M0, M1, M118) the sweep notes; a file with more is read by the line reader.
 HOST_CAP = 4096
+#: Largest position and E step of a G-code file, mm (a 1 km floor; a larger one is an error, not a
+#: plan: 1e308 would overflow every extent computed from it).
+COORD_LIMIT = 1e6  # = cooprint.simulation.inputs.COORD_LIMIT (a start)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -132,11 +135,12 @@ def _number(buf, i, pow10):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sweep(buf, pow10, host):
+def _sweep(buf, pow10, host, limit):
     """Every ``G0``/``G1`` move of the G-code in ``buf``: ``(bad, count, xyz, feed, de, deposit,
     layer_h, hosts)``, where ``bad`` is 0 or the number of the first line not in the plain form (the
     rows are then incomplete). ``host`` (``(HOST_CAP, 4)`` int64) receives a row per host line:
-    line number, start and end byte, moves before it; ``hosts`` is how many."""
+    line number, start and end byte, moves before it; ``hosts`` is how many. A position or an E
+    step beyond ``+-limit`` mm is a line not taken (the line reader words the error)."""
     n = len(buf)
     cap = 1
     for i in range(n):
@@ -218,6 +222,8 @@ def _sweep(buf, pow10, host):
                 if have_e:
                     de = ve if (rel_xyz or rel_e) else ve - e
                     e += de
+                if abs(tx) > limit or abs(ty) > limit or abs(tz) > limit or abs(de) > limit:
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh  # the line reader's error
                 dep = de > 0 and (tx != px or ty != py or tz != pz)
                 if dep and tz != layer_z:
                     if tz > layer_z:
@@ -263,7 +269,7 @@ HOST_WORDS = frozenset({"M0", "M00", "M1", "M01", "M118"})
 EVENT_NAME = re.compile(r"[A-Za-z0-9_:.\-]{1,100}")
 
 
-class HostLineError(UserError):
+class HostLineError(SimInputError):
     """A NOTIFY or WAIT host line that does not name its events properly."""
 
 
@@ -354,7 +360,7 @@ def gcode_rows(data: bytes, filament_diameter: float, where: str = "G-code") -> 
     not in the plain form (the line reader is then the one to read the file)."""
     buf = np.frombuffer(data, dtype=np.uint8)
     hosts = np.empty((HOST_CAP, 4), np.int64)
-    bad, m, xyz, feed, de, dep, layer_h, nh = _sweep(buf, POW10, hosts)
+    bad, m, xyz, feed, de, dep, layer_h, nh = _sweep(buf, POW10, hosts, COORD_LIMIT)
     if bad:
         return None
     rows = _move_rows(m, xyz[:m], feed[:m], de[:m], dep[:m], layer_h[:m], filament_diameter)

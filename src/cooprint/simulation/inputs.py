@@ -339,6 +339,9 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
             if "E" in vals:
                 de = vals["E"] if (rel_xyz or rel_e) else vals["E"] - e
                 e += de
+            if max(abs(float(target.max())), abs(float(target.min())), abs(de)) > COORD_LIMIT:
+                raise SimInputError(f"{p}:{lineno}: a position or E step beyond +-{COORD_LIMIT:g} mm "
+                                    f"(X{target[0]:g} Y{target[1]:g} Z{target[2]:g}, E step {de:g})")
             length = float(np.linalg.norm(target - pos))
             deposit = de > 0 and length > 0
             if deposit != tool:
