@@ -160,9 +160,10 @@ def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> 
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (
             meta["integer"] and not float(value).is_integer()):
         raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
-    if meta["integer"]:
-        return int(value)  # type: ignore[return-value]
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond float's range
+        raise ConfigError(f"{where}{name} = {value!r:.40}: expected {expect}") from None
     ok = math.isfinite(v)
     if ok and lo is not None:
         ok = v > lo if meta["lo_open"] else v >= lo
@@ -170,7 +171,7 @@ def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> 
         ok = v <= hi
     if not ok:
         raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
-    return v
+    return int(value) if meta["integer"] else v  # type: ignore[return-value]
 
 
 def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> Any:
