@@ -295,6 +295,7 @@ def _files(tmp_path):
     (tmp_path / "notes.txt").write_text("hello\n")
     (tmp_path / "empty").mkdir()
     (tmp_path / "m.toml").write_text(ROBOT)
+    (tmp_path / "slow.toml").write_text("[robot]\nprint_speed = 20\n")
 
 
 MIX_CASES = [
@@ -309,6 +310,9 @@ MIX_CASES = [
     ("missing-file", ["nope.gcode"], "nope.gcode: no such file or folder"),
     ("folder-not-a-bundle", ["empty"], "no job.json"),
     ("nothing", [], "nothing to simulate"),
+    ("bundle-with-a-profile", ["BUNDLE", "--robot", "slow.toml"], "a bundle or a manifest carries its own settings"),
+    ("manifest-with-a-profile", ["--manifest", "m.toml", "--robot", "slow.toml"], "carries its own settings"),
+    ("profile-not-settings", ["A.coop", "--robot", "m.toml"], "unknown section [robots]"),
 ]
 
 

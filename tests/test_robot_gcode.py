@@ -184,6 +184,12 @@ def test_the_seeds_sample_program_simulates_as_written(tmp_path, capsys):
     tl = res.timelines["sample"]
     assert np.array_equal(tl.p1, [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
     assert tl.on.tolist() == [False, True, True, True] and tl.t0[0] == 0 and tl.t1[0] == 0
+    # with a profile of its own (--robot): 3 mm at 20 mm/s
+    (tmp_path / "slow.toml").write_text("[robot]\nprint_speed = 20\n")
+    assert main(["simulate", str(tmp_path / "sample.coop"), "--robot", str(tmp_path / "slow.toml"),
+                 "--out", str(tmp_path / "o2")]) == 0
+    (robot,) = json.loads((tmp_path / "o2" / "sim" / "summary.json").read_text())["robots"]
+    assert robot["printing_s"] == pytest.approx(3 / 20.0)
 
 
 def test_coop_files_of_a_bundle_simulate_as_the_bundle_without_a_manifest(bundle):

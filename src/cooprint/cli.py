@@ -215,7 +215,8 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
 
 def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
     if not inputs and not manifest:
-        raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, or --manifest FILE.toml")
+        raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, .coop files, "
+                        "or --manifest FILE.toml")
 
 
 def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
@@ -238,10 +239,13 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
               help="Also write sim/frames.npz: every robot's position and material every SECONDS (seed Fig. 15).")
 @click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json (and frames.npz).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary on stdout.")
+@config_option
 def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, accel: bool,
-             frame_step: float | None, force: bool, quiet: bool) -> None:
+             frame_step: float | None, force: bool, quiet: bool, config: tuple[str, ...]) -> None:
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
-    robot each), or .coop files with --manifest. Writes sim/summary.json."""
+    robot each, M118 NOTIFY / M0 WAIT host lines honoured), or .coop files (one robot each, named by
+    the file, the default or --robot profile; or named, placed and profiled by --manifest). Writes
+    sim/summary.json."""
     import math
 
     import numpy as np
@@ -259,7 +263,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
             raise UserError(f"{target}: exists; use --force to replace it")
     target = targets[0]
     _heap_malloc()
-    result = run_sim(load_inputs(list(inputs), manifest), accel=accel)
+    result = run_sim(load_inputs(list(inputs), manifest, _settings(config, {}) if config else None), accel=accel)
     record = summary(result)
     folder.mkdir(parents=True, exist_ok=True)
     if frame_step is not None:

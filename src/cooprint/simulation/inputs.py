@@ -395,7 +395,11 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     """A bundle folder (alone), ``.coop`` files with or without a manifest, or G-code files.
     ``.coop`` and G-code files are not mixed: a G-code file's robot stands nowhere known and
     moves at its file's feed rates, a ``.coop`` robot at the profile's speeds where it is placed;
-    simulating both kinds together would compare two different time and body models."""
+    simulating both kinds together would compare two different time and body models. ``settings``
+    (``--robot``/``--config``) give the profile of ``.coop`` and G-code robots."""
+    if settings is not None and (manifest or any(Path(x).is_dir() for x in paths)):
+        raise SimInputError("--robot/--config apply to .coop and G-code files; a bundle or a manifest "
+                            "carries its own settings")
     if manifest:
         if paths:
             raise SimInputError(f"--manifest {manifest} names the programs; give no input files with it "
@@ -420,7 +424,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     if len({str(Path(x).resolve()) for x in paths}) != len(paths):
         raise SimInputError("the same file given twice: each file is one robot")
     if set(kinds.values()) == {"gcode"}:
-        return load_gcode_files(list(paths))
+        return load_gcode_files(list(paths), *((settings.robot, settings.slicing) if settings else ()))
     return load_coop_files(list(paths), settings)
 
 
