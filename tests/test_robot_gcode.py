@@ -216,3 +216,17 @@ def test_a_bundle_robot_may_carry_keys_a_newer_cooprint_writes(bundle, tmp_path)
     (job / "job.json").write_text(json.dumps(record))
     assert [r.name for r in load_inputs([str(job)]).robots] == ["A", "B"]
 
+
+
+def test_more_host_lines_than_the_sweep_notes_go_to_the_line_reader(tmp_path):
+    from cooprint.simulation.gcode import HOST_CAP
+    from cooprint.simulation.inputs import _read_gcode_lines, read_gcode
+
+    g = tmp_path / "many.gcode"
+    g.write_text("".join(f"G1 X{i} Y0 E0.1\nM400\nM118 NOTIFY e{i}\n" for i in range(HOST_CAP + 1)))
+    assert gcode_rows(g.read_bytes(), 1.75) is None
+    r = read_gcode(g)
+    assert r.program == _read_gcode_lines(g, g.read_text()).program
+    assert len(r.program.events) == HOST_CAP + 1 and r.program.events[-1] == (f"e{HOST_CAP}",)
+    g.write_text("".join(f"G1 X{i} Y0 E0.1\nM400\nM118 NOTIFY e{i}\n" for i in range(HOST_CAP)))
+    assert gcode_rows(g.read_bytes(), 1.75).events == read_gcode(g).program.events
