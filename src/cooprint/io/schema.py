@@ -6,7 +6,8 @@ the path of the value inside it (``robots[1].start``), and either return the val
 caller needs or raise :class:`SchemaError`::
 
     job.json: robots[1].start: expected 3 finite numbers within +-1e+06, got [0, "a"]
-    m.toml: robots[1].facing: unknown key (did you mean 'facing_deg'?); expected one of: name, program, ...
+    m.toml: robots[1].facing: unknown key (did you mean 'facing_deg'?)
+    m.toml: robots[1].colour: unknown key; expected one of: name, program, start, facing_deg
 
 Values are shown short (:func:`show`: at most a few items and levels, long strings clipped), so a
 10 MB string or a list nested 10,000 deep never ends up whole in a message.
@@ -92,9 +93,10 @@ def check_object(value: Any, where: str, path: str, *, required: Iterable[str] =
             if k in known:
                 continue
             hint = did_you_mean(str(k), known)
-            if unknown == "error" or hint:
-                raise fail(where, key_path(path, str(k)),
-                           f"unknown key{hint}; expected one of: {', '.join(known)}")
+            if unknown == "error" or hint:  # the key meant, or (none close) the keys known
+                listed = ", ".join(known[:12]) + (", ..." if len(known) > 12 else "")
+                raise fail(where, key_path(path, show(k, chars=40)[1:-1]),
+                           f"unknown key{hint}" if hint else f"unknown key; expected one of: {listed}")
     for k in required:
         if k not in value:
             raise fail(where, key_path(path, k), "missing")
