@@ -4,6 +4,7 @@ manifest (the seed's own sample program)."""
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import re
@@ -116,9 +117,16 @@ def test_a_printer_still_heats_bed_and_nozzle_in_its_start_code():
 def test_wait_estimates_are_the_constant_speed_schedule(bundle):
     inp = load_inputs([str(bundle)])
     est = wait_estimates(inp.robots, inp.profile.print_speed, inp.profile.travel_speed)
-    res = simulate(inp, checks=False)
-    (w,) = res.timelines["B"].waits
+    (w,) = simulate(inp, checks=False).timelines["B"].waits
     assert est == {"A": [], "B": [pytest.approx(w[1] - w[0])]} and w[1] - w[0] > 10
+    # at the G-code's feed rates (slower first layer): the wait of the G-code files simulated
+    s = load_settings(overrides=COARSE)
+    feeds = Feeds.of_robot(s.robot, s.slicing)
+    robots = [dataclasses.replace(r, speed=feeds.speeds(r.program)) for r in inp.robots]
+    est = wait_estimates(robots, inp.profile.print_speed, inp.profile.travel_speed)
+    files = [str(bundle / "robots" / f"{r}.gcode") for r in "AB"]
+    (g,) = simulate(load_inputs(files), checks=False).timelines["B"].waits
+    assert est["B"] == [pytest.approx(g[1] - g[0], rel=0.01)] and g[1] - g[0] > w[1] - w[0]
 
 
 def _events(result):

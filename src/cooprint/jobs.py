@@ -309,8 +309,10 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
     out = Path(out)
     settings = job.chunked.settings
     s = settings.slicing
-    # how long each WAIT is expected to last: the G-code keeps a nozzle hot only across short ones
-    waits = wait_estimates([SimRobot(r, p, np.asarray(job.placements[r].start, float), np.zeros(2))
+    # how long each WAIT is expected to last, every move at the G-code's feed rate: the G-code
+    # keeps a nozzle hot only across short ones
+    feeds = Feeds.of_robot(settings.robot, s)
+    waits = wait_estimates([SimRobot(r, p, np.asarray(job.placements[r].start, float), np.zeros(2), feeds.speeds(p))
                             for r, p in job.programs.items()], settings.robot.print_speed, settings.robot.travel_speed)
     with atomic_dir(out, force) as tmp:
         (tmp / "chunks").mkdir()

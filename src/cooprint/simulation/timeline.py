@@ -242,9 +242,10 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, li
 
 def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: float) -> dict[str, list[float]]:
     """How long each WAIT of each robot is expected to block, s, in program order: the
-    constant-speed schedule of the plan (every move at the profile's print or travel speed, as
-    ``cooprint simulate`` without ``--accel``). A WAIT that never ends is ``inf``. The G-code
-    writer turns a robot's nozzle off across the waits longer than its idle limit."""
+    constant-speed schedule of the plan (every move at its robot's ``speed``, the G-code's feed
+    rates, or the profile's print or travel speed; ``cooprint simulate`` without ``--accel``). A
+    WAIT that never ends is ``inf``. The G-code writer turns a robot's nozzle off across the waits
+    longer than its idle limit."""
     timelines, _ = schedule(robots, print_speed, travel_speed)
     out = {}
     for r in robots:
