@@ -324,3 +324,47 @@ def test_inputs_mixed_wrongly(bundle, tmp_path, capsys, monkeypatch, args, needl
     monkeypatch.chdir(tmp_path)
     args = [str(bundle) if a == "BUNDLE" else a for a in args]
     assert_rejected(["simulate", *args, "--out", tmp_path / "o"], capsys, watch=[tmp_path, bundle], contains=needle)
+
+
+# ------------------------------------------------------------------------------------------------
+# any value anywhere in job.json: loaded, or one UserError; never another exception
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_json = st.recursive(
+    st.none() | st.booleans() | st.integers(-(10 ** 30), 10 ** 30) | st.sampled_from([10 ** 400, -(10 ** 400)])
+    | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=20),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=12), inner, max_size=4),
+    max_leaves=12)
+_PATHS = [(), ("format",), ("settings",), ("settings", "robot"), ("settings", "robot", "print_speed"),
+          ("settings", "slicing", "perimeters"), ("settings", "slicing", "layer_height"), ("robots",), R0, R1,
+          R0 + ("name",), R1 + ("name",), R0 + ("program",), R1 + ("start",), R0 + ("start", 1),
+          R0 + ("facing_deg",), R1 + ("facings",), R0 + ("stats",), R0 + ("facing",), ("settings", "robt"),
+          R0 + ("facng_deg",)]
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(path=st.sampled_from(_PATHS), value=_json)
+def test_any_value_anywhere_in_job_json_loads_or_is_a_user_error(bundle, tmp_path_factory, path, value):
+    from cooprint.errors import UserError
+    from cooprint.simulation import load_inputs
+
+    job = tmp_path_factory.getbasetemp() / "fuzzjob"
+    if not job.exists():
+        shutil.copytree(bundle, job)
+    record = json.loads((bundle / "job.json").read_text())
+    if path:
+        d = record
+        for k in path[:-1]:
+            d = d[k]
+        d[path[-1]] = value
+    else:
+        record = value
+    (job / "job.json").write_text(json.dumps(record))
+    try:
+        inp = load_inputs([str(job)])
+    except UserError as exc:
+        assert "\n" not in str(exc) and len(str(exc)) < 600 and "job.json" in str(exc)
+    else:
+        assert [r.name for r in inp.robots] == [r["name"] for r in record["robots"]]
