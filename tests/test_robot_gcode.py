@@ -238,3 +238,53 @@ def test_more_host_lines_than_the_sweep_notes_go_to_the_line_reader(tmp_path):
     assert len(r.program.events) == HOST_CAP + 1 and r.program.events[-1] == (f"e{HOST_CAP}",)
     g.write_text("".join(f"G1 X{i} Y0 E0.1\nM400\nM118 NOTIFY e{i}\n" for i in range(HOST_CAP)))
     assert gcode_rows(g.read_bytes(), 1.75).events == read_gcode(g).program.events
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_step = st.one_of(st.tuples(st.just("print"), st.integers(1, 4)), st.tuples(st.just("travel"), st.integers(1, 60)),
+                  st.tuples(st.just("wait"), st.floats(0, 2000)))
+
+
+@settings(max_examples=80, deadline=None)
+@given(steps=st.lists(_step, max_size=12), limit=st.floats(0, 1500))
+def test_no_filament_moves_while_cold_and_waits_keep_heat_only_up_to_the_limit(steps, limit):
+    kind, xyz, waits, x = [MOVE], [[0.0, 0.0, 0.2]], [], 0.0
+    for what, v in steps:
+        if what == "wait":
+            kind.append(WAIT)
+            xyz.append([np.nan] * 3)
+            waits.append(v)
+            continue
+        if what == "print":
+            kind.append(TOOL_ON)
+            xyz.append([np.nan] * 3)
+        for _ in range(v if what == "print" else 1):
+            x += 3.0 if what == "print" else float(v)
+            kind.append(MOVE)
+            xyz.append([x, 0.0, 0.2])
+        if what == "print":
+            kind.append(TOOL_OFF)
+            xyz.append([np.nan] * 3)
+    p = make_program("R", np.array(kind), np.array(xyz), width=0.45, height=0.2, layer=1,
+                     events=tuple(("X",) for _ in waits))
+    s = load_settings().slicing
+    buf = io.StringIO()
+    write_gcode(buf, [p], s, Feeds.of_slicer(s), "t", home=False, heating=Heating(210.0, None, limit, tuple(waits)))
+    hot, hot_before, k = False, False, 0
+    for line in buf.getvalue().splitlines():
+        if line.startswith("M109 S210"):
+            hot = True
+        elif line.startswith("M104 S0"):
+            hot = False
+        elif line.startswith("G1") and " E" in line:
+            assert hot, line  # extrusion, retraction or its undoing: only with a hot nozzle
+        elif line.startswith("; WAIT"):
+            hot_before = hot
+        elif line.startswith("M0 WAIT"):
+            assert not (hot and waits[k] > limit)  # hot across a long wait: never
+            assert hot == hot_before or waits[k] > limit  # across a short one: as it was
+            k += 1
+        assert not line.startswith(("M140", "M190"))
+    assert k == len(waits)
