@@ -146,6 +146,15 @@ _SECTIONS: dict[str, type] = {"robot": RobotProfile, "chunking": ChunkingSetting
                               "slicing": SlicingSettings, "program": ProgramSettings}
 
 
+def _shown(value: Any, limit: int = 60) -> str:
+    """``repr(value)``, clipped: a huge list or string is not echoed whole in a message."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer of more digits than Python converts
+        return "a very large number"
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> float | None:
     lo, hi, unit = meta["lo"], meta["hi"], meta["unit"]
     rng = []
@@ -159,18 +168,18 @@ def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> 
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or (
             meta["integer"] and not float(value).is_integer()):
-        raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
+        raise ConfigError(f"{where}{name} = {_shown(value)}: expected {expect}")
     try:
         v = float(value)
     except OverflowError:  # an integer beyond float's range
-        raise ConfigError(f"{where}{name} = {value!r:.40}: expected {expect}") from None
+        raise ConfigError(f"{where}{name} = {_shown(value)}: expected {expect}") from None
     ok = math.isfinite(v)
     if ok and lo is not None:
         ok = v > lo if meta["lo_open"] else v >= lo
     if ok and hi is not None:
         ok = v <= hi
     if not ok:
-        raise ConfigError(f"{where}{name} = {value!r}: expected {expect}")
+        raise ConfigError(f"{where}{name} = {_shown(value)}: expected {expect}")
     return int(value) if meta["integer"] else v  # type: ignore[return-value]
 
 
@@ -185,17 +194,17 @@ def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> An
         name = f"{section}.{key}"
         if "choices" in f.metadata:
             if value not in f.metadata["choices"]:
-                raise ConfigError(f"{where}{name} = {value!r}: expected one of "
+                raise ConfigError(f"{where}{name} = {_shown(value)}: expected one of "
                                   + ", ".join(repr(c) for c in f.metadata["choices"]))
             out[key] = value
         elif f.metadata.get("boolean"):
             if not isinstance(value, bool):
-                raise ConfigError(f"{where}{name} = {value!r}: expected true or false")
+                raise ConfigError(f"{where}{name} = {_shown(value)}: expected true or false")
             out[key] = value
         elif f.metadata:
             out[key] = _check_value(where, name, value, f.metadata)
         elif not isinstance(value, str) or not value.strip():
-            raise ConfigError(f"{where}{name} = {value!r}: expected a non-empty string")
+            raise ConfigError(f"{where}{name} = {_shown(value)}: expected a non-empty string")
         else:
             out[key] = value
     return cls(**out)

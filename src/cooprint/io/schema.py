@@ -26,9 +26,15 @@ class SchemaError(UserError):
     """A value in a JSON or TOML file that is not what its field needs."""
 
 
-def show(value: Any, depth: int = 2, items: int = 4, chars: int = 40) -> str:
+def show(value: Any, depth: int = 2, items: int = 4, chars: int = 40, total: int = 120) -> str:
     """``value`` as short JSON-like text: strings quoted and clipped, at most ``items`` items per
-    list or object and ``depth`` levels, ``NaN``/``Infinity`` as JSON writes them."""
+    list or object and ``depth`` levels, ``NaN``/``Infinity`` as JSON writes them; at most
+    ``total`` characters in all."""
+    text = _show(value, depth, items, chars)
+    return text if len(text) <= total else text[:total] + "..."
+
+
+def _show(value: Any, depth: int, items: int, chars: int) -> str:
     if isinstance(value, bool) or value is None:
         return {True: "true", False: "false", None: "null"}[value]
     if isinstance(value, str):
@@ -44,13 +50,13 @@ def show(value: Any, depth: int = 2, items: int = 4, chars: int = 40) -> str:
     if isinstance(value, (list, tuple)):
         if depth <= 0:
             return "[...]" if value else "[]"
-        inner = [show(v, depth - 1, items, chars) for v in value[:items]]
+        inner = [_show(v, depth - 1, items, chars) for v in value[:items]]
         return "[" + ", ".join(inner + (["..."] if len(value) > items else [])) + "]"
     if isinstance(value, Mapping):
         if depth <= 0:
             return "{...}" if value else "{}"
         keys = list(value)[:items]
-        inner = [f"{show(str(k), 0, items, chars)}: {show(value[k], depth - 1, items, chars)}" for k in keys]
+        inner = [f"{_show(str(k), 0, items, chars)}: {_show(value[k], depth - 1, items, chars)}" for k in keys]
         return "{" + ", ".join(inner + (["..."] if len(value) > items else [])) + "}"
     return type(value).__name__
 
@@ -61,6 +67,12 @@ def key_path(path: str, key: str | int) -> str:
     if isinstance(key, int):
         return f"{path}[{key}]"
     return f"{path}.{key}" if path else key
+
+
+def _key(key: str, chars: int = 40) -> str:
+    """A key as a message shows it: control and non-ASCII characters escaped, clipped."""
+    text = key[:chars].encode("unicode_escape").decode("ascii")
+    return text + ("..." if len(key) > chars else "")
 
 
 def did_you_mean(key: str, known: Iterable[str]) -> str:
@@ -95,7 +107,7 @@ def check_object(value: Any, where: str, path: str, *, required: Iterable[str] =
             hint = did_you_mean(str(k), known)
             if unknown == "error" or hint:  # the key meant, or (none close) the keys known
                 listed = ", ".join(known[:12]) + (", ..." if len(known) > 12 else "")
-                raise fail(where, key_path(path, show(k, chars=40)[1:-1]),
+                raise fail(where, key_path(path, _key(str(k))),
                            f"unknown key{hint}" if hint else f"unknown key; expected one of: {listed}")
     for k in required:
         if k not in value:
