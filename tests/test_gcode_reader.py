@@ -31,7 +31,7 @@ def _same(path):
         assert fast == ref
         return
     assert not isinstance(fast, str), fast
-    assert fast.name == ref.name and fast.program == ref.program
+    assert fast.name == ref.name and fast.program == ref.program and fast.notes == ref.notes
     for f in ("start", "facing", "speed", "de"):
         assert np.array_equal(getattr(fast, f), getattr(ref, f)), f
 
@@ -61,7 +61,7 @@ def _case(draw, word):
 
 @st.composite
 def _line(draw, odd=False):
-    kind = draw(st.sampled_from(["move"] * 8 + ["mode", "g92", "comment", "blank", "other"]
+    kind = draw(st.sampled_from(["move"] * 8 + ["mode", "g92", "comment", "blank", "other", "host"]
                                 + (["odd"] * 2 if odd else [])))
     if kind == "move":
         axes = draw(st.lists(st.sampled_from("XYZEF"), max_size=5))
@@ -77,9 +77,14 @@ def _line(draw, odd=False):
         text = draw(st.sampled_from(["", " ", "\t"]))
     elif kind == "other":
         text = draw(st.sampled_from(["M104 S200", "T0", "G28", "G1X5 E3", "G21", "M117 Héllo", "G01 X5"]))
+    elif kind == "host":  # a fleet host's NOTIFY / WAIT, operator pauses, echoes (noted by the sweep)
+        text = _case(draw, draw(st.sampled_from(["M118", "M0", "M1", "M00", "M01"]))) + draw(st.sampled_from(
+            [" NOTIFY C", " notify e:1", " WAIT C", " WAIT C, D", " wait a.b,c-d", "", " S5", " Press resume",
+             " hello", " NOTIFY L1 ; after"]))
     else:  # the sweep leaves these to the line reader
         text = draw(st.sampled_from(["G1 X1e1", "G1 X5 \x0b G1 Y3", "; a\x1cG1 X3 E2", "G1\xa0X5 E1",
-                                     "G1 X1_0 E1", "\ufeffG1 X5", "G1 X0.1234567890123456 E1", "G1 X5 *12"]))
+                                     "G1 X1_0 E1", "\ufeffG1 X5", "G1 X0.1234567890123456 E1", "G1 X5 *12",
+                                     "G1 X1000000.5 E1", "G91", "G1 Z-999999.9", "M118 NOTIFY", "M0 WAIT a b"]))
     if kind in ("move", "mode", "g92") and draw(st.booleans()):
         text += draw(st.sampled_from(["", " ", "\t"])) + "; " + draw(st.sampled_from(["c", "é", "X9"]))
     return draw(st.sampled_from(["", " ", "\t"])) + text if kind != "blank" else text

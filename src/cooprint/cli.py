@@ -304,7 +304,8 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
 
 def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
     if not inputs and not manifest:
-        raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, or --manifest FILE.toml")
+        raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, .coop files, "
+                        "or --manifest FILE.toml")
 
 
 def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
@@ -327,10 +328,13 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
               help="Also write sim/frames.npz: every robot's position and material every SECONDS (seed Fig. 15).")
 @click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json (and frames.npz).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary on stdout.")
+@config_option
 def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, accel: bool,
-             frame_step: float | None, force: bool, quiet: bool) -> None:
+             frame_step: float | None, force: bool, quiet: bool, config: tuple[str, ...]) -> None:
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
-    robot each), or .coop files with --manifest. Writes sim/summary.json."""
+    robot each, M118 NOTIFY / M0 WAIT host lines honoured), or .coop files (one robot each, named by
+    the file, the default or --robot profile; or named, placed and profiled by --manifest). Writes
+    sim/summary.json."""
     import math
 
     import numpy as np
@@ -348,7 +352,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
             raise UserError(f"{target}: exists; use --force to replace it")
     target = targets[0]
     _heap_malloc()
-    result = run_sim(load_inputs(list(inputs), manifest), accel=accel)
+    result = run_sim(load_inputs(list(inputs), manifest, _settings(config, {}) if config else None), accel=accel)
     record = summary(result)
     folder.mkdir(parents=True, exist_ok=True)
     if frame_step is not None:
@@ -367,6 +371,8 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
             click.echo(f"  robot {r['name']}: printing {r['printing_s']:.0f} s, travelling {r['travelling_s']:.0f} s, "
                        f"waiting {r['waiting_s']:.0f} s, idle {r['idle_s']:.0f} s, {r['material_mm3'] / 1000:.1f} cm3")
         click.echo("findings: " + findings_line(record["finding_counts"]))
+        for note in result.notes:
+            click.echo(f"note: {note}")
         for f in result.findings[:10]:
             click.echo(f"  {f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
                        f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "

@@ -340,11 +340,17 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
     """Write the whole bundle (job.json, chunks/, robots/<name>.coop and .gcode, chunks.png)
     atomically; returns the job record."""
     from cooprint.program.commands import write_coop
-    from cooprint.program.gcode import Feeds, write_gcode
+    from cooprint.program.gcode import Feeds, Heating, write_gcode
+    from cooprint.simulation.timeline import SimRobot, wait_estimates
 
     out = Path(out)
     settings = job.chunked.settings
     s = settings.slicing
+    # how long each WAIT is expected to last, every move at the G-code's feed rate: the G-code
+    # keeps a nozzle hot only across short ones
+    feeds = Feeds.of_robot(settings.robot, s)
+    waits = wait_estimates([SimRobot(r, p, np.asarray(job.placements[r].start, float), np.zeros(2), feeds.speeds(p))
+                            for r, p in job.programs.items()], settings.robot.print_speed, settings.robot.travel_speed)
     with atomic_dir(out, force) as tmp:
         (tmp / "chunks").mkdir()
         (tmp / "robots").mkdir()
@@ -366,7 +372,9 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
                 progress("write", n + 2 * k + 1, n + 2 * len(job.programs))
             with open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as fh:
                 write_gcode(fh, [program], s, Feeds.of_robot(settings.robot, s), f"{name}, robot {robot}",
-                            notes=header[:2], home=False)
+                            notes=header[:2], home=False,
+                            heating=Heating.of_robot(settings.robot, s, settings.program.heater_idle_limit_s,
+                                                     waits[robot]))
             if progress:
                 progress("write", n + 2 * k + 2, n + 2 * len(job.programs))
         record = coop_record(job)

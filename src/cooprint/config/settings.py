@@ -33,7 +33,7 @@ import stat
 import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, Sequence
 
 from cooprint.errors import ConfigError
 
@@ -88,6 +88,9 @@ class RobotProfile:
                         doc="largest instant change of speed at a corner, per axis"))
     max_z: float = field(default=2000.0, metadata=_num(0, 1e5, unit="mm", lo_open=True,
                          doc="highest the nozzle can print above the floor: the tallest part"))
+    # a mobile robot prints on the floor: no bed to heat unless its profile says it carries one
+    heated_bed: bool = field(default=False, metadata={"boolean": True,
+                             "doc": "the robot prints on a heated bed (G-code heats it to slicing.bed_temperature)"})
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,9 @@ class ProgramSettings:
 
     clearance: float = field(default=5.0, metadata=_num(0, 1e4, unit="mm", lo_open=True,
                              doc="lift above the highest printed material nearby on a move between chunks"))
+    heater_idle_limit_s: float = field(default=600.0, metadata=_num(0, 1e6, unit="s",
+                                       doc="a robot's hot nozzle is turned off before a WAIT expected to "
+                                           "last longer than this, and reheated after it"))
 
 
 @dataclass(frozen=True)
@@ -197,12 +203,13 @@ def _expectation(meta: Mapping[str, Any]) -> str:
     return kind + " and ".join(rng) + (f" ({unit})" if unit else "")
 
 
-def _shown(value: Any) -> str:
+def _shown(value: Any, limit: int = 60) -> str:
     """``repr`` of a value for an error line, a huge integer shortened (``10**18`` stays
     readable, ``10**4000`` does not flood the line and does not trip Python's digit limit)."""
     if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10**15:
         return f"{float(value):.3g}" if abs(value) < 10**300 else "an integer of more than 300 digits"
-    return repr(value)
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."  # a huge list or string is not echoed whole
 
 
 def _check_value(where: str, name: str, value: Any, meta: Mapping[str, Any]) -> float | int | None:
@@ -406,14 +413,20 @@ def _defaults() -> dict[str, Any]:
     return tomllib.loads(text)
 
 
-def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None) -> JobSettings:
-    """Read the shipped defaults, then each TOML file in ``paths``, then ``overrides``.
+def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None,
+                  tables: Sequence[tuple[str, Mapping[str, Any]]] = ()) -> JobSettings:
+    """Read the shipped defaults, then each TOML file in ``paths``, then each of ``tables``, then
+    ``overrides``.
 
     Parameters
     ----------
     paths
         TOML files with any of the sections ``[robot]``, ``[chunking]``, ``[mesh]``, ``[slicing]``,
         ``[program]``.
+    tables
+        ``(where, {section: {field: value}})``: settings read from another file (a bundle's
+        job.json, a simulator manifest), validated as a TOML file's and named ``where`` (a prefix
+        of each message, e.g. ``"job/job.json: settings."``).
     overrides
         ``{"section.field": value}``, e.g. from command-line flags; ``None`` values are ignored.
 
@@ -426,6 +439,7 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
     origin: dict[str, str] = {}  # "section.field": where its value was set
     layers: list[tuple[str, Mapping[str, Any]]] = [("defaults.toml: ", _defaults())]
     layers += [(f"{p}: ", _read_toml(Path(p))) for p in paths]
+    layers += list(tables)
     for where, data in layers:
         for section, values in data.items():
             if section not in _SECTIONS:

@@ -35,6 +35,7 @@ class SimResult:
     source: str
     accel: bool = False
     checked: tuple[str, ...] = ()  # the finding kinds that were looked for
+    notes: tuple[str, ...] = ()  # what the input held and the simulation did not act on
 
     @property
     def makespan(self) -> float:
@@ -63,7 +64,7 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
         checked += ["printhead-hits-material", "overhang"]
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source, accel,
-                     tuple(k for k in KINDS if k in checked))
+                     tuple(k for k in KINDS if k in checked), inp.notes)
 
 
 def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings) -> np.ndarray:
@@ -164,7 +165,7 @@ def summary(result: SimResult) -> dict[str, object]:
             "time_model": ("trapezoidal acceleration, jerk-limited corners" if result.accel else
                            "length / speed (print_speed with the tool on, travel_speed off, or the G-code's F)"),
             "checked": list(result.checked), "robots": robots, "events": events, "finding_counts": counts,
-            "findings": [f.to_dict() for f in result.findings]}
+            "findings": [f.to_dict() for f in result.findings], "notes": list(result.notes)}
 
 
 __all__ = ["KINDS", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "findings_line", "frames",

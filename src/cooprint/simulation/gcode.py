@@ -18,22 +18,36 @@ as Python counts them (``str.splitlines`` breaks lines at a few more characters 
 ``\\r``; a file with any of those falls back). Any line not taken (an error, an exponent, a
 number word like ``Xabc``, a feed rate that is not positive) sends the whole file back to the
 line reader, which reads it, or raises its error, exactly as before.
+
+Host lines (``M0``/``M00``/``M1``/``M01`` and ``M118``: a fleet host's WAIT and NOTIFY, and plain
+pauses and echoes) are not read by the sweep: it notes where each one is (its line number, its
+bytes and how many moves came before it) and :func:`gcode_rows` reads those few lines with the
+line reader's own :func:`~cooprint.simulation.inputs.host_line`, so that a robot's G-code, which
+holds a few host lines among millions of moves, keeps the sweep's speed. A file with more than
+``HOST_CAP`` host lines goes to the line reader.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
 
-from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON
+from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT
 from cooprint.program.scan import POW10, decimal
+from cooprint.simulation.inputs import SimInputError
 from cooprint.slicing.paths import extrusion_width
 
 # the first word of a line, as the sweep tells them apart
-_OTHER, _G0, _G1, _G92, _G90, _G91, _M82, _M83 = range(8)
+_OTHER, _G0, _G1, _G92, _G90, _G91, _M82, _M83, _HOST = range(9)
+#: Most host lines (M0, M1, M118) the sweep notes; a file with more is read by the line reader.
+HOST_CAP = 4096
+#: Largest position and E step of a G-code file, mm (a 1 km floor; a larger one is an error, not a
+#: plan: 1e308 would overflow every extent computed from it).
+COORD_LIMIT = 1e6  # = cooprint.simulation.inputs.COORD_LIMIT (a start)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -67,19 +81,28 @@ def _rest_of_line(buf, i):
 
 @numba.njit(cache=True, nogil=True)
 def _code(buf, a, b):
-    """Which of the words the reader acts on ``buf[a:b]`` is (any case), or ``_OTHER``."""
+    """Which of the words the reader acts on ``buf[a:b]`` is (any case), or ``_OTHER``; the host
+    words M0, M00, M1, M01 and M118 are ``_HOST``."""
     size = b - a
-    if size < 2 or size > 3:
+    if size < 2 or size > 4:
         return _OTHER
     c0 = buf[a] | 32  # lower case
     c1 = buf[a + 1]
+    if size == 4:
+        if c0 == 109 and c1 == 49 and buf[a + 2] == 49 and buf[a + 3] == 56:  # m118
+            return _HOST
+        return _OTHER
     if size == 2:
         if c0 == 103 and c1 == 48:  # g0
             return _G0
         if c0 == 103 and c1 == 49:  # g1
             return _G1
+        if c0 == 109 and (c1 == 48 or c1 == 49):  # m0, m1
+            return _HOST
         return _OTHER
     c2 = buf[a + 2]
+    if c0 == 109 and c1 == 48 and (c2 == 48 or c2 == 49):  # m00, m01
+        return _HOST
     if c0 == 103 and c1 == 57:  # g9.
         if c2 == 50:
             return _G92
@@ -112,10 +135,12 @@ def _number(buf, i, pow10):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sweep(buf, pow10):
+def _sweep(buf, pow10, host, limit):
     """Every ``G0``/``G1`` move of the G-code in ``buf``: ``(bad, count, xyz, feed, de, deposit,
-    layer_h)``, where ``bad`` is 0 or the number of the first line not in the plain form (the
-    rows are then incomplete)."""
+    layer_h, hosts)``, where ``bad`` is 0 or the number of the first line not in the plain form (the
+    rows are then incomplete). ``host`` (``(HOST_CAP, 4)`` int64) receives a row per host line:
+    line number, start and end byte, moves before it; ``hosts`` is how many. A position or an E
+    step beyond ``+-limit`` mm is a line not taken (the line reader words the error)."""
     n = len(buf)
     cap = 1
     for i in range(n):
@@ -132,6 +157,7 @@ def _sweep(buf, pow10):
     feed = 1500.0 / 60.0
     layer_z, layer_h = 0.0, 0.2  # the height of the last layer that deposited, and its thickness
     m = 0
+    nh = 0
     line = 0
     i = 0
     while i < n:
@@ -145,7 +171,7 @@ def _sweep(buf, pow10):
         if i < n and not _word_end(buf[i]):
             # a byte that may be Unicode white space or part of the word (or a control)
             if i == a or code != _OTHER:
-                return line, m, xyz, feeds, pushed, deposit, heights
+                return line, m, xyz, feeds, pushed, deposit, heights, nh
         if code == _G0 or code == _G1 or code == _G92:
             have_x, have_y, have_z, have_e, have_f = False, False, False, False, False
             vx, vy, vz, ve, vf = 0.0, 0.0, 0.0, 0.0, 0.0
@@ -158,15 +184,15 @@ def _sweep(buf, pow10):
                 if k == 59:  # ';'
                     i = _rest_of_line(buf, i)
                     if i < 0:
-                        return line, m, xyz, feeds, pushed, deposit, heights
+                        return line, m, xyz, feeds, pushed, deposit, heights, nh
                     break
                 if 97 <= k <= 122:  # lower case
                     k -= 32
                 if not (65 <= k <= 90 or 48 <= k <= 57 or k == 43 or k == 45 or k == 46):
-                    return line, m, xyz, feeds, pushed, deposit, heights
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh
                 v, i, size = _number(buf, i + 1, pow10)
                 if i < 0 or (size == 0 and code != _G92):  # G92 E: E0
-                    return line, m, xyz, feeds, pushed, deposit, heights
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh
                 if k == 88:
                     have_x, vx = True, v
                 elif k == 89:
@@ -183,7 +209,7 @@ def _sweep(buf, pow10):
             else:
                 if have_f:
                     if not vf > 0:
-                        return line, m, xyz, feeds, pushed, deposit, heights
+                        return line, m, xyz, feeds, pushed, deposit, heights, nh
                     feed = vf / 60.0
                 tx, ty, tz = px, py, pz
                 if have_x:
@@ -196,6 +222,8 @@ def _sweep(buf, pow10):
                 if have_e:
                     de = ve if (rel_xyz or rel_e) else ve - e
                     e += de
+                if abs(tx) > limit or abs(ty) > limit or abs(tz) > limit or abs(de) > limit:
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh  # the line reader's error
                 dep = de > 0 and (tx != px or ty != py or tz != pz)
                 if dep and tz != layer_z:
                     if tz > layer_z:
@@ -217,14 +245,80 @@ def _sweep(buf, pow10):
                 rel_e = code == _M83
             i = _rest_of_line(buf, i)
             if i < 0:
-                return line, m, xyz, feeds, pushed, deposit, heights
+                return line, m, xyz, feeds, pushed, deposit, heights, nh
+            if code == _HOST:
+                if nh == len(host):
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh
+                host[nh, 0], host[nh, 1], host[nh, 2], host[nh, 3] = line, a, i, m
+                nh += 1
         # at the line break: CR LF, CR or LF ends the line
         if i < n:
             if buf[i] == 13 and i + 1 < n and buf[i + 1] == 10:
                 i += 2
             else:
                 i += 1
-    return 0, m, xyz, feeds, pushed, deposit, heights
+    return 0, m, xyz, feeds, pushed, deposit, heights, nh
+
+
+# ----------------------------------------------------------------------------------------------
+# host lines: the fleet host's NOTIFY and WAIT (docs/program.md), plain pauses, echoes
+
+#: The words of a host line: M0/M00 (stop, "unconditional"), M1/M01 (stop) and M118 (echo to the host).
+HOST_WORDS = frozenset({"M0", "M00", "M1", "M01", "M118"})
+#: An event name, as in a ``.coop`` file: letters, digits, ``_ : . -`` (ASCII), at most 100 characters.
+EVENT_NAME = re.compile(r"[A-Za-z0-9_:.\-]{1,100}")
+
+
+class HostLineError(SimInputError):
+    """A NOTIFY or WAIT host line that does not name its events properly."""
+
+
+def _clip(text: str, n: int = 40) -> str:
+    return text if len(text) <= n else text[:n] + "..."
+
+
+def host_line(line: str, where: str) -> tuple[int, tuple[str, ...]] | str | None:
+    """What a host line (``M0``, ``M1``, ``M118``; comment removed) means to the simulator.
+
+    * ``M118 NOTIFY e`` announces event ``e``: ``(NOTIFY, (e,))``;
+    * ``M0 WAIT e[, f ...]`` (or ``M1``) blocks until every named event is announced:
+      ``(WAIT, (e, f, ...))``; this is what cooprint writes after ``M400`` (docs/program.md);
+    * any other ``M0``/``M1`` is a pause for an operator, which the simulation cannot honour: the
+      word (``"M0"``) is returned, for a note in the summary;
+    * any other ``M118`` is an echo to the host: ``None``.
+
+    A ``NOTIFY``/``WAIT`` without proper event names raises :class:`HostLineError` naming ``where``.
+    """
+    words = line.split(None, 1)
+    code = words[0].upper()
+    rest = words[1].strip() if len(words) > 1 else ""
+    head = rest.split(None, 1)
+    word = head[0].upper() if head else ""
+    args = head[1].strip() if len(head) > 1 else ""
+    if code == "M118":
+        if word != "NOTIFY":
+            return None
+        names = args.split()
+        if len(names) != 1 or not EVENT_NAME.fullmatch(names[0]):
+            raise HostLineError(f"{where}: '{_clip(line)}': expected M118 NOTIFY and one event name "
+                                "(letters, digits, _ : . -)")
+        return NOTIFY, (names[0],)
+    if word != "WAIT":
+        return code
+    names = [x.strip() for x in args.split(",")]
+    bad = [x for x in names if not EVENT_NAME.fullmatch(x)]
+    if bad:
+        got = f"'{_clip(bad[0])}'" if bad[0] else "an empty name"
+        raise HostLineError(f"{where}: '{_clip(line)}': expected {code} WAIT and event names separated by commas "
+                            f"(letters, digits, _ : . -), got {got}")
+    return WAIT, tuple(names)
+
+
+def pause_note(where: str, lines: list[int]) -> str:
+    """The summary's note on the operator pauses of a G-code file (the simulation goes on)."""
+    first = ", ".join(map(str, lines[:3])) + (", ..." if len(lines) > 3 else "")
+    return (f"{where}: {len(lines)} pause line(s) (M0/M1 without WAIT, line {first}) ignored: "
+            "the simulation does not stop for an operator")
 
 
 @dataclass(frozen=True)
@@ -239,6 +333,8 @@ class GcodeRows:
     width: np.ndarray  # (n,) mm, 0 but on deposit moves
     height: np.ndarray  # (n,) mm, 0 but on deposit moves
     de: np.ndarray  # (n,) filament pushed, mm
+    events: tuple[tuple[str, ...], ...] = ()  # of the NOTIFY / WAIT rows, in order
+    pauses: list[int] = field(default_factory=list)  # line numbers of the operator pauses (M0/M1)
 
 
 def _widths(area: np.ndarray, h: np.ndarray) -> np.ndarray:
@@ -259,14 +355,53 @@ def _widths(area: np.ndarray, h: np.ndarray) -> np.ndarray:
     return w
 
 
-def gcode_rows(data: bytes, filament_diameter: float) -> GcodeRows | None:
-    """The commands of the G-code ``data``, or ``None`` if a line is not in the plain form (the
-    line reader is then the one to read the file)."""
+def gcode_rows(data: bytes, filament_diameter: float, where: str = "G-code") -> GcodeRows | None:
+    """The commands of the G-code ``data`` (file ``where``, for messages), or ``None`` if a line is
+    not in the plain form (the line reader is then the one to read the file)."""
     buf = np.frombuffer(data, dtype=np.uint8)
-    bad, m, xyz, feed, de, dep, layer_h = _sweep(buf, POW10)
+    hosts = np.empty((HOST_CAP, 4), np.int64)
+    bad, m, xyz, feed, de, dep, layer_h, nh = _sweep(buf, POW10, hosts, COORD_LIMIT)
     if bad:
         return None
-    xyz, feed, de, dep, layer_h = xyz[:m], feed[:m], de[:m], dep[:m], layer_h[:m]
+    rows = _move_rows(m, xyz[:m], feed[:m], de[:m], dep[:m], layer_h[:m], filament_diameter)
+    return _with_host_lines(rows, data, hosts[:nh], where)
+
+
+def _with_host_lines(rows: GcodeRows, data: bytes, hosts: np.ndarray, where: str) -> GcodeRows:
+    """``rows`` with a NOTIFY / WAIT row for each host line that is one (before the rows of the
+    move that follows it, as the line reader appends them), and the pauses noted."""
+    if not len(hosts):
+        return rows
+    sync_at, kinds, events, pauses = [], [], [], []
+    # the row of each move: the first row at or after it that is a MOVE
+    move_rows = np.flatnonzero(rows.kind == MOVE)
+    for line, a, b, before in hosts.tolist():
+        text = data[a:b].decode("utf-8", errors="replace").split(";", 1)[0].strip()
+        got = host_line(text, f"{where}:{line}")
+        if isinstance(got, str):
+            pauses.append(line)
+        elif got is not None:
+            # before the move that follows (and its TOOL row, which the line reader adds with it)
+            at = len(rows.kind) if before >= len(move_rows) else int(move_rows[before])
+            if before < len(move_rows) and at > 0 and rows.kind[at - 1] != MOVE:
+                at -= 1
+            sync_at.append(at)
+            kinds.append(got[0])
+            events.append(got[1])
+    if not sync_at:
+        return GcodeRows(rows.kind, rows.xyz, rows.speed, rows.width, rows.height, rows.de, (), pauses)
+    at = np.array(sync_at)
+
+    def put(col: np.ndarray, value) -> np.ndarray:
+        return np.insert(col, at, value, axis=0)
+
+    return GcodeRows(put(rows.kind, np.array(kinds, np.uint8)), put(rows.xyz, np.nan), put(rows.speed, 0.0),
+                     put(rows.width, 0.0), put(rows.height, 0.0), put(rows.de, 0.0), tuple(events), pauses)
+
+
+def _move_rows(m: int, xyz: np.ndarray, feed: np.ndarray, de: np.ndarray, dep: np.ndarray, layer_h: np.ndarray,
+               filament_diameter: float) -> GcodeRows:
+    """The rows of the sweep's ``m`` moves: a TOOL row where the deposit changes, then the move."""
     fil_area = math.pi * (filament_diameter / 2) ** 2  # as the line reader
     # a TOOL ON / TOOL OFF row before each move whose deposit differs from the one before
     change = dep != np.r_[False, dep[:-1]]
@@ -296,4 +431,5 @@ def gcode_rows(data: bytes, filament_diameter: float) -> GcodeRows | None:
     return GcodeRows(kind, out_xyz, speed, width, height, pushed)
 
 
-__all__ = ["GcodeRows", "gcode_rows"]
+__all__ = ["EVENT_NAME", "HOST_CAP", "HOST_WORDS", "GcodeRows", "HostLineError", "gcode_rows", "host_line",
+           "pause_note"]

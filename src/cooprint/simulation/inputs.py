@@ -6,22 +6,26 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 import tomllib
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import dataclass, fields
+from pathlib import Path, PurePosixPath, PureWindowsPath
+from typing import Any, Iterable
 
 import numpy as np
 
-from cooprint.config import RobotProfile, SlicingSettings, load_settings
-from cooprint.errors import UserError
+from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings
+from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
+                                key_path)
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
 from cooprint.slicing.paths import INFILL, TRAVEL, extrusion_width
 
 
-class SimInputError(UserError):
-    """A bundle, manifest or G-code file the simulator cannot use."""
+class SimInputError(SchemaError):
+    """A bundle, manifest or G-code file the simulator cannot use (the field checks of
+    :mod:`cooprint.io.schema` raise its base, :class:`~cooprint.io.schema.SchemaError`)."""
 
 
 @dataclass(frozen=True)
@@ -34,87 +38,202 @@ class SimInput:
     source: str  # what was read, for messages and the summary
     limits: MachineLimits | None = None  # for the acceleration model; None: the robot profile's
     placed: bool = True  # the robots' starts and facings are known: the body checks apply
+    notes: tuple[str, ...] = ()  # what was read and not acted on (for the summary)
 
 
 def _facing(deg: float) -> np.ndarray:
     return np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
 
 
+# ----------------------------------------------------------------------------------------------
+# the schemas of the simulator's inputs (docs/simulator.md): extend them here, in one place
+
+#: A robot's name: it names the robot's bare NOTIFY events (``<robot>:<n>``), so it is an event name.
+ROBOT_NAME = re.compile(r"[A-Za-z0-9_:.\-]{1,64}")
+#: Largest coordinate of a start, mm; largest facing, degrees.
+COORD_LIMIT, FACING_LIMIT = 1e6, 360.0
+#: Most robots in one simulation.
+MAX_ROBOTS = 1000
+#: A bundle's job.json: the keys the simulator reads (format, settings, robots) are checked; the
+#: other top-level keys (mesh, plan, chunks, schedule, stats, picture) are the plan's record.
+BUNDLE_FORMAT = re.compile(r"cooprint-job/([0-9]{1,6})")
+#: Keys of an entry of job.json's ``robots``: those the simulator needs, and those cooprint writes
+#: besides (checked when they matter, ``facings`` for per-chunk facings). A key in neither is
+#: ignored (a newer cooprint may add one) unless it looks like a misspelt known key.
+BUNDLE_ROBOT_REQUIRED = ("name", "program", "start", "facing_deg")
+BUNDLE_ROBOT_OPTIONAL = ("side", "facing", "gcode", "stats", "profile", "chunks", "facings")
+#: A manifest (TOML): its sections and the keys of a ``[[robots]]`` entry; unknown keys are errors.
+MANIFEST_SECTIONS = ("robot", "slicing", "robots")
+MANIFEST_ROBOT_REQUIRED = ("name", "program")
+MANIFEST_ROBOT_OPTIONAL = ("start", "facing_deg")
+
+
+def _settings_fields() -> dict[str, tuple[str, ...]]:
+    """Every settings section and its fields (cooprint.config's records)."""
+    job = JobSettings()
+    return {f.name: tuple(g.name for g in fields(getattr(job, f.name))) for f in fields(job)}
+
+
+def check_settings(data: Any, where: str, path: str, sections: Iterable[str] | None = None) -> JobSettings:
+    """Settings given as ``{section: {field: value}}`` inside a file (job.json's ``settings``, a
+    manifest's ``[robot]`` and ``[slicing]``): known sections and fields (did you mean ...), then
+    each value validated by :func:`cooprint.config.load_settings`, over the defaults."""
+    known = _settings_fields()
+    allowed = list(known if sections is None else sections)
+    check_object(data, where, path, optional=allowed)
+    for sec, values in data.items():
+        check_object(values, where, key_path(path, sec), optional=known[sec])
+    prefix = f"{where}: {path}." if path else f"{where}: "
+    return load_settings(tables=[(prefix, data)])
+
+
+def _read_structured(path: Path, kind: str, parse) -> Any:
+    """The parsed content of a JSON or TOML file, or a one-line error naming it."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SimInputError(f"{path}: no such {kind}") from None
+    except IsADirectoryError:
+        raise SimInputError(f"{path}: a folder, not a {kind}") from None
+    except UnicodeDecodeError as exc:
+        raise SimInputError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise SimInputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    try:
+        return parse(text)
+    except RecursionError:
+        raise SimInputError(f"{path}: nested too deeply to be a {kind}") from None
+    except (ValueError, tomllib.TOMLDecodeError) as exc:  # json.JSONDecodeError is a ValueError
+        raise SimInputError(f"{path}: not a valid {kind} ({str(exc)[:120]})") from None
+
+
+def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
+    """A bundle's program path: relative, inside the bundle (no ``..``, no symlink out), a file."""
+    text = check_string(value, where, path, what="a path relative to the bundle")
+    rel = PurePosixPath(text)
+    if rel.is_absolute() or PureWindowsPath(text).drive or ".." in rel.parts or "\x00" in text or "\\" in text:
+        raise fail(where, path, "expected a path inside the bundle (relative, without '..')", value)
+    full = folder / rel
+    try:
+        inside = full.resolve().is_relative_to(folder.resolve())
+    except (OSError, RuntimeError):  # a symlink loop
+        inside = False
+    if not inside:
+        raise fail(where, path, "expected a path inside the bundle (it leads outside)", value)
+    if not full.is_file():
+        raise fail(where, path, "no such program file in the bundle", value)
+    return full
+
+
 def load_bundle(folder: str | Path) -> SimInput:
-    """A ``cooprint run`` bundle: ``job.json`` and the ``robots/*.coop`` it names."""
+    """A ``cooprint run`` bundle: ``job.json`` and the ``robots/*.coop`` it names, each field
+    checked (docs/simulator.md, "Inputs")."""
     d = Path(folder)
     path = d / "job.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise SimInputError(f"{d}: no job.json (not a cooprint run bundle)") from None
-    except (OSError, ValueError) as exc:
-        raise SimInputError(f"{path}: cannot read ({exc})") from None
-    robots_rec = record.get("robots")
-    if not isinstance(robots_rec, list) or not all("program" in r for r in robots_rec):
-        raise SimInputError(f"{path}: no robots with programs (written by `cooprint chunk`? use `cooprint run`)")
-    settings = record.get("settings", {})
-    try:
-        profile = RobotProfile(**settings.get("robot", {}))
-        slicing = SlicingSettings(**settings.get("slicing", {}))
-    except TypeError as exc:
-        raise SimInputError(f"{path}: settings not understood ({exc})") from None
-    robots = []
-    for r in robots_rec:
-        program = read_coop(d / r["program"], r["name"])
-        robots.append(SimRobot(r["name"], program, np.asarray(r["start"], dtype=np.float64),
-                               _facing(float(r["facing_deg"]))))
-    return SimInput(robots, profile, slicing, str(d))
+    if not path.exists():
+        raise SimInputError(f"{d}: no job.json (not a cooprint run bundle)")
+    where = str(path)
+    record = check_object(_read_structured(path, "job.json", json.loads), where, "",
+                          required=("format",), unknown="ignore")
+    fmt = check_string(record["format"], where, "format", what="a cooprint job format ('cooprint-job/2')")
+    version = BUNDLE_FORMAT.fullmatch(fmt)
+    if version is None:
+        raise fail(where, "format", "expected a cooprint job format ('cooprint-job/2')", fmt)
+    if int(version.group(1)) < 2 or "robots" in record and isinstance(record["robots"], list) and \
+            record["robots"] and all(isinstance(r, dict) and "program" not in r for r in record["robots"]):
+        raise SimInputError(f"{where}: a bundle of `cooprint chunk` (no robot programs); plan it with `cooprint run`")
+    check_object(record, where, "", required=("format", "settings", "robots"), unknown="ignore")
+    settings = check_settings(record["settings"], where, "settings")
+    entries = check_list(record["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="robot objects")
+    robots, names = [], set()
+    for n, e in enumerate(entries):
+        at = key_path("robots", n)
+        check_object(e, where, at, required=BUNDLE_ROBOT_REQUIRED, optional=BUNDLE_ROBOT_OPTIONAL, unknown="typo")
+        name = check_string(e["name"], where, at + ".name", pattern=ROBOT_NAME,
+                            what="a robot name (letters, digits, _ : . -; at most 64)")
+        if name in names:
+            raise fail(where, at + ".name", "a second robot of that name", name)
+        names.add(name)
+        program_path = _program_in(d, e["program"], where, at + ".program")
+        start = check_vector(e["start"], where, at + ".start", 3, COORD_LIMIT)
+        facing = check_number(e["facing_deg"], where, at + ".facing_deg", lo=-FACING_LIMIT, hi=FACING_LIMIT,
+                              unit="degrees")
+        if "facings" in e:
+            check_list(e["facings"], where, at + ".facings", what="facings")
+        program = read_coop(program_path, name)
+        robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing)))
+    return SimInput(robots, settings.robot, settings.slicing, str(d))
 
 
 def load_manifest(path: str | Path) -> SimInput:
-    """``.coop`` files named by a TOML manifest::
+    """``.coop`` files named by a TOML manifest (every key checked; a misspelt one is an error
+    that names the key meant)::
 
         [robot]                 # the profile (any field of cooprint's [robot] section)
         print_speed = 40.0
         [[robots]]
         name = "A"
         program = "A.coop"      # relative to the manifest
-        start = [0.0, 0.0, 5.0] # nozzle position at the start, mm
-        facing_deg = 90.0       # direction from the body to the nozzle
+        start = [0.0, 0.0, 5.0] # nozzle position at the start, mm (absent: the first MOVE)
+        facing_deg = 90.0       # direction from the body to the nozzle (absent: +Y)
     """
     p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise SimInputError(f"{p}: no such manifest") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise SimInputError(f"{p}: cannot read the manifest ({exc})") from None
-    unknown = set(data) - {"robot", "robots", "slicing"}
-    if unknown:
-        raise SimInputError(f"{p}: unknown section(s) {', '.join(sorted(unknown))}; expected [robot], [slicing], "
-                            "[[robots]]")
-    robot_file = {k: v for k, v in data.items() if k in ("robot", "slicing")}
-    settings = load_settings(overrides={f"{s}.{k}": v for s, sec in robot_file.items() for k, v in sec.items()})
-    entries = data.get("robots")
-    if not isinstance(entries, list) or not entries:
-        raise SimInputError(f"{p}: no [[robots]] entries")
+    where = str(p)
+    data = check_object(_read_structured(p, "manifest", tomllib.loads), where, "", optional=MANIFEST_SECTIONS)
+    settings = check_settings({k: v for k, v in data.items() if k != "robots"}, where, "", ("robot", "slicing"))
+    if "robots" not in data:
+        raise SimInputError(f"{where}: no [[robots]] entries")
+    entries = check_list(data["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="[[robots]] entries")
     robots, names = [], set()
     for n, e in enumerate(entries, start=1):
-        where = f"{p}: robots[{n}]"
-        if not isinstance(e.get("name"), str) or not e["name"]:
-            raise SimInputError(f"{where}.name: expected a robot name")
-        if e["name"] in names:
-            raise SimInputError(f"{where}.name = {e['name']!r}: a second robot of that name")
-        names.add(e["name"])
-        if not isinstance(e.get("program"), str):
-            raise SimInputError(f"{where}.program: expected the path of a .coop file")
-        start = e.get("start")
-        if start is not None and not (isinstance(start, list) and len(start) == 3
-                                      and all(isinstance(x, (int, float)) and math.isfinite(x) for x in start)):
-            raise SimInputError(f"{where}.start = {start!r}: expected [x, y, z] in mm")
-        facing = e.get("facing_deg", 90.0)
-        if isinstance(facing, bool) or not isinstance(facing, (int, float)) or not math.isfinite(facing):
-            raise SimInputError(f"{where}.facing_deg = {facing!r}: expected a number of degrees")
-        program = read_coop(p.parent / e["program"], e["name"])
-        robots.append(SimRobot(e["name"], program, None if start is None else np.asarray(start, float),
-                               _facing(float(facing))))
-    return SimInput(robots, settings.robot, settings.slicing, str(p))
+        at = key_path("robots", n)
+        check_object(e, where, at, required=MANIFEST_ROBOT_REQUIRED, optional=MANIFEST_ROBOT_OPTIONAL)
+        name = check_string(e["name"], where, at + ".name", pattern=ROBOT_NAME,
+                            what="a robot name (letters, digits, _ : . -; at most 64)")
+        if name in names:
+            raise fail(where, at + ".name", "a second robot of that name", name)
+        names.add(name)
+        prog = check_string(e["program"], where, at + ".program", what="the path of a .coop file")
+        start = None if "start" not in e else check_vector(e["start"], where, at + ".start", 3, COORD_LIMIT)
+        facing = check_number(e.get("facing_deg", 90.0), where, at + ".facing_deg", lo=-FACING_LIMIT,
+                              hi=FACING_LIMIT, unit="degrees")
+        file = p.parent / prog
+        if not file.is_file():
+            raise fail(where, at + ".program", f"no such .coop file ({file})", prog)
+        program = read_coop(file, name)
+        robots.append(SimRobot(name, program, None if start is None else np.asarray(start, float), _facing(facing)))
+    return SimInput(robots, settings.robot, settings.slicing, where)
+
+
+def coop_facing(program: Any) -> float:
+    """The facing of a robot whose program comes without a manifest, degrees: as ``cooprint run``
+    places robots with the default chunking axis (+Y), a robot whose first chunk is a right-hand
+    one (``;@chunk R1``, ...) faces -Y and any other (centre ``C``, left ``L1``, ...) +Y; +Y when
+    the program names no chunk."""
+    at = np.flatnonzero(program.chunk >= 0)
+    if len(at) and program.chunks[int(program.chunk[at[0]])].upper().startswith("R"):
+        return -90.0
+    return 90.0
+
+
+def load_coop_files(paths: list[str | Path], settings: JobSettings | None = None) -> SimInput:
+    """``.coop`` files without a manifest (the seed's own sample program simulates as written):
+    each file is a robot named by its file name (``A.coop``: robot A), with the profile of
+    ``settings`` (the defaults), starting at its first MOVE, facing as :func:`coop_facing` says."""
+    settings = settings or load_settings()
+    robots, names = [], {}
+    for x in paths:
+        p = Path(x)
+        name = p.stem
+        if not ROBOT_NAME.fullmatch(name):
+            raise SimInputError(f"{p}: the file name '{name[:40]}' is not a robot name (letters, digits, _ : . -; "
+                                "at most 64); rename the file or use --manifest")
+        if name in names:
+            raise SimInputError(f"{p}: a second robot named '{name}' (also {names[name]}); rename one or use --manifest")
+        names[name] = p
+        program = read_coop(p, name)
+        robots.append(SimRobot(name, program, None, _facing(coop_facing(program))))
+    return SimInput(robots, settings.robot, settings.slicing, ", ".join(map(str, paths)))
 
 
 def load_gcode_files(paths: list[str | Path], profile: RobotProfile | None = None,
@@ -128,7 +247,7 @@ def load_gcode_files(paths: list[str | Path], profile: RobotProfile | None = Non
         raise SimInputError(f"two G-code files with the same name: {', '.join(names)}")
     # a printer's G-code: PrusaSlicer's machine limits; no robot body stands anywhere known
     return SimInput(robots, profile or RobotProfile(), slicing or SlicingSettings(), ", ".join(map(str, paths)),
-                    MachineLimits(), placed=False)
+                    MachineLimits(), placed=False, notes=tuple(n for r in robots for n in r.notes))
 
 
 def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
@@ -136,6 +255,10 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     ``M82``/``M83``, ``G92``), moves that push filament become moves with the tool on (width
     from the filament pushed, height from the layer), ``F`` gives each move's speed, and each
     move keeps its E (a move that only moves the filament, a retraction, takes ``|E| / F``).
+
+    Host lines (docs/program.md): ``M118 NOTIFY e`` is a NOTIFY of event ``e`` and ``M0 WAIT e, f``
+    a WAIT for ``e`` and ``f``, as in a ``.coop`` file, so that the robots' own G-code files
+    simulate together; any other ``M0``/``M1`` (a pause for an operator) is ignored and noted.
 
     A compiled sweep (:mod:`cooprint.simulation.gcode`) reads files whose lines are all in the
     plain form (a slicer's output); any other file is read line by line (``_read_gcode_lines``,
@@ -147,13 +270,24 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
         data = p.read_bytes()
     except FileNotFoundError:
         raise SimInputError(f"{p}: no such G-code file") from None
-    rows = gcode_rows(data, filament_diameter)
+    except IsADirectoryError:
+        raise SimInputError(f"{p}: a folder, not a G-code file") from None
+    except OSError as exc:
+        raise SimInputError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    rows = gcode_rows(data, filament_diameter, str(p))
     if rows is None:
         return _read_gcode_lines(p, _gcode_text(data), filament_diameter)
     prog = make_program(p.stem, rows.kind, rows.xyz if len(rows.kind) else None,
-                        role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height)
+                        role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height,
+                        events=rows.events)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
-    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de)
+    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de, _notes(p, rows.pauses))
+
+
+def _notes(p: Path, pauses: list[int]) -> tuple[str, ...]:
+    from cooprint.simulation.gcode import pause_note
+
+    return (pause_note(str(p), pauses),) if pauses else ()
 
 
 def _gcode_text(data: bytes) -> str:
@@ -165,11 +299,14 @@ def _gcode_text(data: bytes) -> str:
 def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> SimRobot:
     """:func:`read_gcode` of the text of G-code file ``p``, line by line: the reference of the
     compiled sweep, and the reader of the files it does not take (and of their errors)."""
+    from cooprint.simulation.gcode import HOST_WORDS, host_line
+
     fil_area = math.pi * (filament_diameter / 2) ** 2
     pos = np.zeros(3)
     rel_xyz, rel_e, e = False, False, 0.0  # Marlin's defaults: absolute XYZ and E
     feed = 1500.0 / 60.0
     kinds, xyz, speeds, widths, heights, pushed = [], [], [], [], [], []
+    events, pauses = [], []
     tool = False
     layer_z, layer_h = 0.0, 0.2  # the height of the last layer that deposited, and its thickness
     for lineno, raw in enumerate(text.splitlines(), start=1):
@@ -202,6 +339,9 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
             if "E" in vals:
                 de = vals["E"] if (rel_xyz or rel_e) else vals["E"] - e
                 e += de
+            if max(abs(float(target.max())), abs(float(target.min())), abs(de)) > COORD_LIMIT:
+                raise SimInputError(f"{p}:{lineno}: a position or E step beyond +-{COORD_LIMIT:g} mm "
+                                    f"(X{target[0]:g} Y{target[1]:g} Z{target[2]:g}, E step {de:g})")
             length = float(np.linalg.norm(target - pos))
             deposit = de > 0 and length > 0
             if deposit != tool:
@@ -227,31 +367,66 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
             rel_xyz = code == "G91"
         elif code in ("M82", "M83"):
             rel_e = code == "M83"
+        elif code in HOST_WORDS:
+            got = host_line(line, f"{p}:{lineno}")
+            if isinstance(got, str):
+                pauses.append(lineno)
+            elif got is not None:
+                kinds.append(got[0])
+                events.append(got[1])
+                xyz.append((np.nan,) * 3)
+                speeds.append(0.0)
+                widths.append(0.0)
+                heights.append(0.0)
+                pushed.append(0.0)
     kind = np.array(kinds, dtype=np.uint8)
     prog = make_program(p.stem, kind, np.array(xyz).reshape(-1, 3) if xyz else None,
                         role=np.where(kind == MOVE, INFILL, TRAVEL), width=np.array(widths),
-                        height=np.array(heights))
+                        height=np.array(heights), events=tuple(events))
     speed = np.array(speeds)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
-    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), speed, np.array(pushed))
+    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), speed, np.array(pushed), _notes(p, pauses))
 
 
-def load_inputs(paths: list[str], manifest: str | None = None) -> SimInput:
-    """A bundle folder, ``.coop`` files with a manifest, or G-code files."""
+GCODE_SUFFIXES = (".gcode", ".gco", ".g")
+
+
+def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSettings | None = None) -> SimInput:
+    """A bundle folder (alone), ``.coop`` files with or without a manifest, or G-code files.
+    ``.coop`` and G-code files are not mixed: a G-code file's robot stands nowhere known and
+    moves at its file's feed rates, a ``.coop`` robot at the profile's speeds where it is placed;
+    simulating both kinds together would compare two different time and body models. ``settings``
+    (``--robot``/``--config``) give the profile of ``.coop`` and G-code robots."""
+    if settings is not None and (manifest or any(Path(x).is_dir() for x in paths)):
+        raise SimInputError("--robot/--config apply to .coop and G-code files; a bundle or a manifest "
+                            "carries its own settings")
     if manifest:
+        if paths:
+            raise SimInputError(f"--manifest {manifest} names the programs; give no input files with it "
+                                f"(got {paths[0]})")
         return load_manifest(manifest)
-    if len(paths) == 1 and Path(paths[0]).is_dir():
+    dirs = [x for x in paths if Path(x).is_dir()]
+    if dirs:
+        if len(paths) > 1:
+            raise SimInputError(f"{dirs[0]}: a bundle folder is simulated alone, not with other inputs")
         return load_bundle(paths[0])
     missing = [x for x in paths if not Path(x).exists()]
     if missing:
         raise SimInputError(f"{missing[0]}: no such file or folder")
-    if all(Path(x).suffix.lower() in (".gcode", ".gco", ".g") for x in paths):
-        return load_gcode_files(paths)
-    if any(Path(x).suffix.lower() == ".coop" for x in paths):
-        raise SimInputError(".coop files need a manifest (--manifest FILE.toml) naming each robot's start "
-                            "and facing; or simulate the folder `cooprint run` wrote")
-    raise SimInputError(f"{paths[0]}: expected a bundle folder, G-code files or .coop files with --manifest")
+    kinds = {x: ("gcode" if Path(x).suffix.lower() in GCODE_SUFFIXES else
+                 "coop" if Path(x).suffix.lower() == ".coop" else None) for x in paths}
+    other = [x for x, k in kinds.items() if k is None]
+    if other:
+        raise SimInputError(f"{other[0]}: expected a bundle folder, G-code files (.gcode) or .coop files")
+    if len(set(kinds.values())) > 1:
+        raise SimInputError("both .coop and G-code files given: simulate one kind at a time (a G-code robot "
+                            "stands nowhere known and runs at its feed rates, a .coop robot is placed)")
+    if len({str(Path(x).resolve()) for x in paths}) != len(paths):
+        raise SimInputError("the same file given twice: each file is one robot")
+    if set(kinds.values()) == {"gcode"}:
+        return load_gcode_files(list(paths), *((settings.robot, settings.slicing) if settings else ()))
+    return load_coop_files(list(paths), settings)
 
 
-__all__ = ["SimInput", "SimInputError", "load_bundle", "load_gcode_files", "load_inputs", "load_manifest",
-           "read_gcode"]
+__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "SimInput", "SimInputError", "check_settings", "coop_facing",
+           "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_gcode"]

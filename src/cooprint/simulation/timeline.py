@@ -11,6 +11,8 @@ can never go on are a deadlock, found from the commands alone, before any geomet
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +42,8 @@ class SimRobot:
     de : (n,) float or None
         Filament pushed by each command, mm (a G-code file's E): a move of filament alone takes
         ``|E| / speed``, and the acceleration model limits the E axis too.
+    notes : tuple of str
+        What the reader found and did not act on (a G-code file's operator pauses), for the summary.
     """
 
     name: str
@@ -48,6 +52,7 @@ class SimRobot:
     facing: np.ndarray
     speed: np.ndarray | None = None
     de: np.ndarray | None = None
+    notes: tuple[str, ...] = ()
 
     def bead(self, index: np.ndarray, width: float, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Width and height of the material laid by commands ``index``: their annotations, or
@@ -233,6 +238,21 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, li
         out[name] = Timeline(name, t0, t0 + dur[:keep], p0[:keep], p1[:keep], on[:keep], mv[:keep], waits[name],
                              notifies[name], length[:keep])
     return out, findings
+
+
+def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: float) -> dict[str, list[float]]:
+    """How long each WAIT of each robot is expected to block, s, in program order: the
+    constant-speed schedule of the plan (every move at its robot's ``speed``, the G-code's feed
+    rates, or the profile's print or travel speed; ``cooprint simulate`` without ``--accel``). A
+    WAIT that never ends is ``inf``. The G-code writer turns a robot's nozzle off across the waits
+    longer than its idle limit."""
+    timelines, _ = schedule(robots, print_speed, travel_speed)
+    out = {}
+    for r in robots:
+        n = int(np.count_nonzero(r.program.kind == WAIT))
+        got = [float(end - start) for start, end, _ in timelines[r.name].waits]
+        out[r.name] = got + [math.inf] * (n - len(got))
+    return out
 
 
 def _chunk_at(program: Program, i: int) -> str | None:

@@ -1,0 +1,370 @@
+"""A corpus of bad simulator inputs (issue 12, deliverable 8): broken job.json of a real bundle,
+broken manifests, G-code with bad host lines, inputs mixed wrongly. Each must give exit 2, one
+line naming the file and the field, no traceback, and leave the bundle or folder untouched."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from badinput import assert_rejected
+from cooprint.jobs import run
+
+from solids import box, to_trimesh
+
+COARSE = {"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0, "slicing.extrusion_width": 1.6,
+          "slicing.nozzle_diameter": 1.2}
+
+
+@pytest.fixture(scope="module")
+def bundle(tmp_path_factory):
+    """A real two-robot bundle of `cooprint run`, written once for the module."""
+    root = tmp_path_factory.mktemp("badsim")
+    to_trimesh(box(40, 300, 6)).export(root / "bar.stl")
+    run(root / "bar.stl", root / "job", overrides=COARSE, picture=False)
+    return root / "job"
+
+
+def _set(path, value):
+    """A mutation: set the value at ``path`` (keys and indices) of job.json."""
+    def apply(rec):
+        d = rec
+        for k in path[:-1]:
+            d = d[k]
+        d[path[-1]] = value
+    return apply
+
+
+def _drop(path):
+    def apply(rec):
+        d = rec
+        for k in path[:-1]:
+            d = d[k]
+        del d[path[-1]]
+    return apply
+
+
+def _rename(path, new):
+    def apply(rec):
+        d = rec
+        for k in path[:-1]:
+            d = d[k]
+        d[new] = d.pop(path[-1])
+    return apply
+
+
+R0, R1 = ("robots", 0), ("robots", 1)
+HUGE_INT = 10 ** 400
+
+# (id, mutation of the record or raw text of job.json, text the error line must hold)
+JOB_CASES = [
+    ("not-json", "{", "not a valid job.json"),
+    ("empty", "", "not a valid job.json"),
+    ("not-utf8", b"\xff\xfe{}", "not UTF-8"),
+    ("top-list", "[]", "job.json: expected an object, got []"),
+    ("top-null", "null", "expected an object, got null"),
+    ("top-number", "3", "expected an object"),
+    ("deep-nesting", "[" * 100000 + "]" * 100000, "nested too deeply"),
+    ("deep-object", '{"a":' * 50000 + "1" + "}" * 50000, "nested too deeply"),
+    ("no-format", _drop(("format",)), "format: missing"),
+    ("format-other", _set(("format",), "other-tool/2"), "format: expected a cooprint job format"),
+    ("format-number", _set(("format",), 2), "format: expected a cooprint job format"),
+    ("format-null", _set(("format",), None), "format: expected"),
+    ("format-chunk-bundle", _set(("format",), "cooprint-job/1"), "plan it with `cooprint run`"),
+    ("no-settings", _drop(("settings",)), "settings: missing"),
+    ("settings-null", _set(("settings",), None), "settings: expected an object, got null"),
+    ("settings-list", _set(("settings",), []), "settings: expected an object"),
+    ("settings-robot-list", _set(("settings", "robot"), [1, 2]), "settings.robot: expected an object"),
+    ("settings-robot-null", _set(("settings", "robot"), None), "settings.robot: expected an object"),
+    ("section-typo", _rename(("settings", "robot"), "robt"), "did you mean 'robot'"),
+    ("field-typo", _rename(("settings", "robot", "print_speed"), "prnt_speed"), "did you mean 'print_speed'"),
+    ("print-speed-0", _set(("settings", "robot", "print_speed"), 0), "settings.robot.print_speed = 0"),
+    ("print-speed-negative", _set(("settings", "robot", "print_speed"), -40), "robot.print_speed = -40"),
+    ("travel-speed-negative", _set(("settings", "robot", "travel_speed"), -1.5), "robot.travel_speed"),
+    ("print-speed-string", _set(("settings", "robot", "print_speed"), "fast"), "robot.print_speed = 'fast'"),
+    ("print-speed-bool", _set(("settings", "robot", "print_speed"), True), "robot.print_speed = True"),
+    ("print-speed-huge", _set(("settings", "robot", "print_speed"), 1e308), "robot.print_speed"),
+    ("print-speed-huge-int", _set(("settings", "robot", "print_speed"), HUGE_INT), "robot.print_speed"),
+    ("print-speed-nan", _set(("settings", "robot", "print_speed"), float("nan")), "robot.print_speed = nan"),
+    ("print-speed-inf", _set(("settings", "robot", "print_speed"), float("inf")), "robot.print_speed = inf"),
+    ("acceleration-0", _set(("settings", "robot", "acceleration"), 0), "robot.acceleration = 0"),
+    ("jerk-negative", _set(("settings", "robot", "jerk"), -1), "robot.jerk = -1"),
+    ("build-depth-negative", _set(("settings", "robot", "build_depth"), -3), "robot.build_depth"),
+    ("robot-name-empty", _set(("settings", "robot", "name"), ""), "robot.name"),
+    ("heated-bed-string", _set(("settings", "robot", "heated_bed"), "yes"), "robot.heated_bed"),
+    ("layer-height-0", _set(("settings", "slicing", "layer_height"), 0), "slicing.layer_height = 0"),
+    ("perimeters-huge", _set(("settings", "slicing", "perimeters"), 10 ** 18), "slicing.perimeters"),
+    ("perimeters-fraction", _set(("settings", "slicing", "perimeters"), 1.5), "slicing.perimeters = 1.5"),
+    ("infill-pattern", _set(("settings", "slicing", "infill_pattern"), "zigzag"), "slicing.infill_pattern"),
+    ("program-clearance-0", _set(("settings", "program", "clearance"), 0), "program.clearance = 0"),
+    ("no-robots", _drop(("robots",)), "robots: missing"),
+    ("robots-null", _set(("robots",), None), "robots: expected a list"),
+    ("robots-object", _set(("robots",), {"A": {}}), "robots: expected a list"),
+    ("robots-empty", _set(("robots",), []), "robots: expected a list of 1 to 1000 robot objects, got []"),
+    ("robot-null", _set(R0, None), "robots[0]: expected an object, got null"),
+    ("robot-list", _set(R0, []), "robots[0]: expected an object"),
+    ("robot-number", _set(R1, 5), "robots[1]: expected an object, got 5"),
+    ("robot-no-start", _drop(R0 + ("start",)), "robots[0].start: missing"),
+    ("robot-no-name", _drop(R1 + ("name",)), "robots[1].name: missing"),
+    ("robot-no-program", _drop(R0 + ("program",)), "robots[0].program: missing"),
+    ("robot-no-facing", _drop(R0 + ("facing_deg",)), "robots[0].facing_deg: missing"),
+    ("facing-typo", _rename(R0 + ("facing_deg",), "facng_deg"), "did you mean 'facing_deg'"),
+    ("start-typo", _rename(R1 + ("start",), "strt"), "did you mean 'start'"),
+    ("name-empty", _set(R0 + ("name",), ""), "robots[0].name: expected a robot name"),
+    ("name-number", _set(R0 + ("name",), 7), "robots[0].name: expected a robot name (letters, digits, _ : . -; at most 64), got 7"),
+    ("name-blank", _set(R0 + ("name",), "robot A"), "robots[0].name"),
+    ("name-long", _set(R0 + ("name",), "A" * 10000), "robots[0].name"),
+    ("name-duplicate", _set(R1 + ("name",), "A"), "robots[1].name: a second robot of that name"),
+    ("program-absolute", _set(R0 + ("program",), "/etc/passwd"), "robots[0].program: expected a path inside"),
+    ("program-parent", _set(R0 + ("program",), "../job/robots/A.coop"), "robots[0].program: expected a path inside"),
+    ("program-dotdot", _set(R1 + ("program",), "robots/../../x.coop"), "robots[1].program"),
+    ("program-backslash", _set(R1 + ("program",), "robots\\B.coop"), "robots[1].program"),
+    ("program-missing", _set(R0 + ("program",), "robots/nope.coop"), "no such program file"),
+    ("program-folder", _set(R0 + ("program",), "robots"), "no such program file"),
+    ("program-number", _set(R0 + ("program",), 7), "robots[0].program: expected a path"),
+    ("program-empty", _set(R0 + ("program",), ""), "robots[0].program"),
+    ("program-nul", _set(R0 + ("program",), "robots/A.coop\x00"), "robots[0].program"),
+    ("start-string-item", _set(R1 + ("start",), [0, "a", 0]), 'robots[1].start: expected 3 finite numbers'),
+    ("start-short", _set(R1 + ("start",), [0, 0]), "robots[1].start: expected 3 finite numbers"),
+    ("start-long", _set(R1 + ("start",), [0, 0, 0, 0]), "robots[1].start"),
+    ("start-nan", _set(R0 + ("start",), [float("nan"), 0, 0]), "got [NaN, 0, 0]"),
+    ("start-inf", _set(R0 + ("start",), [0, float("-inf"), 0]), "robots[0].start"),
+    ("start-huge", _set(R0 + ("start",), [1e300, 0, 0]), "within +-1e+06"),
+    ("start-huge-int", _set(R0 + ("start",), [HUGE_INT, 0, 0]), "robots[0].start"),
+    ("start-string", _set(R0 + ("start",), "0,0,0"), "robots[0].start"),
+    ("start-null", _set(R0 + ("start",), None), "robots[0].start"),
+    ("start-bool", _set(R0 + ("start",), [True, 0, 0]), "robots[0].start"),
+    ("start-object", _set(R0 + ("start",), {"x": 0}), "robots[0].start"),
+    ("facing-nan", _set(R0 + ("facing_deg",), float("nan")), "robots[0].facing_deg"),
+    ("facing-inf", _set(R1 + ("facing_deg",), float("inf")), "robots[1].facing_deg"),
+    ("facing-string", _set(R0 + ("facing_deg",), "north"), "robots[0].facing_deg"),
+    ("facing-null", _set(R0 + ("facing_deg",), None), "robots[0].facing_deg"),
+    ("facing-huge", _set(R0 + ("facing_deg",), 1e9), "robots[0].facing_deg"),
+    ("facings-number", _set(R0 + ("facings",), 5), "robots[0].facings: expected a list"),
+]
+
+
+def _write_job(job, case):
+    path = job / "job.json"
+    if isinstance(case, (str, bytes)):
+        path.write_bytes(case.encode() if isinstance(case, str) else case)
+        return
+    record = json.loads(path.read_text())
+    case(record)
+    path.write_text(json.dumps(record))  # NaN / Infinity as JSON extensions, as Python writes them
+
+
+@pytest.mark.parametrize("case, needle", [c[1:] for c in JOB_CASES], ids=[c[0] for c in JOB_CASES])
+def test_broken_job_json_is_one_line(bundle, tmp_path, capsys, case, needle):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    _write_job(job, case)
+    line = assert_rejected(["simulate", job], capsys, watch=[job], contains=needle)
+    assert "job.json" in line
+
+
+def test_acceleration_0_with_accel(bundle, tmp_path, capsys):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    _write_job(job, _set(("settings", "robot", "acceleration"), 0))
+    assert_rejected(["simulate", job, "--accel"], capsys, watch=[job], contains="robot.acceleration = 0")
+
+
+def test_a_broken_program_in_the_bundle(bundle, tmp_path, capsys):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    (job / "robots" / "B.coop").write_text("MOVE 1, 2\n")
+    assert_rejected(["simulate", job], capsys, watch=[job], contains="B.coop")
+
+
+# ------------------------------------------------------------------------------------------------
+# manifests
+
+ROBOT = '[[robots]]\nname = "A"\nprogram = "A.coop"\n'
+MANIFEST_CASES = [
+    ("not-toml", "[[robots]\n", "not a valid manifest"),
+    ("deep", "x = " + "[" * 5000 + "]" * 5000 + "\n", "nested too deeply"),
+    ("section-typo", "[robt]\nprint_speed = 40\n" + ROBOT, "robt: unknown key (did you mean 'robot'?)"),
+    ("program-section", "[program]\nclearance = 5\n" + ROBOT, "program: unknown key"),
+    ("robot-not-table", "robot = 5\n" + ROBOT, "robot: expected an object, got 5"),
+    ("print-speed-0", "[robot]\nprint_speed = 0\n" + ROBOT, "robot.print_speed = 0"),
+    ("print-speed-negative", "[robot]\nprint_speed = -1\n" + ROBOT, "robot.print_speed = -1"),
+    ("field-typo", "[robot]\nprint_sped = 40\n" + ROBOT, "did you mean 'print_speed'"),
+    ("layer-height-negative", "[slicing]\nlayer_height = -1\n" + ROBOT, "slicing.layer_height = -1"),
+    ("no-robots", "[robot]\nprint_speed = 40\n", "no [[robots]] entries"),
+    ("robots-empty", "robots = []\n", "robots: expected a list of 1 to 1000 [[robots]] entries"),
+    ("robots-number", "robots = 5\n", "robots: expected a list"),
+    ("robot-item-number", "robots = [5]\n", "robots[1]: expected an object, got 5"),
+    ("no-name", '[[robots]]\nprogram = "A.coop"\n', "robots[1].name: missing"),
+    ("no-program", '[[robots]]\nname = "A"\n', "robots[1].program: missing"),
+    ("facing-typo", ROBOT + "facing = 90\n", "robots[1].facing: unknown key (did you mean 'facing_deg'?)"),
+    ("unknown-key", ROBOT + 'colour = "red"\n', "robots[1].colour: unknown key; expected one of: name, program"),
+    ("unknown-key-1mb", ROBOT + "k" * 1_000_000 + " = 1\n", "robots[1].kkkkkkkk"),
+    ("name-1mb", '[[robots]]\nname = "' + "n" * 1_000_000 + '"\nprogram = "A.coop"\n', "robots[1].name"),
+    ("start-short", ROBOT + "start = [0, 0]\n", "robots[1].start: expected 3 finite numbers"),
+    ("start-huge", ROBOT + "start = [1e300, 0, 0]\n", "robots[1].start"),
+    ("start-nan", ROBOT + "start = [nan, 0, 0]\n", "robots[1].start"),
+    ("start-string", ROBOT + 'start = "0 0 0"\n', "robots[1].start"),
+    ("facing-inf", ROBOT + "facing_deg = inf\n", "robots[1].facing_deg"),
+    ("facing-string", ROBOT + 'facing_deg = "north"\n', "robots[1].facing_deg"),
+    ("name-duplicate", ROBOT + ROBOT, "robots[2].name: a second robot of that name"),
+    ("name-number", '[[robots]]\nname = 1\nprogram = "A.coop"\n', "robots[1].name"),
+    ("name-blank", '[[robots]]\nname = "a b"\nprogram = "A.coop"\n', "robots[1].name"),
+    ("program-missing", '[[robots]]\nname = "A"\nprogram = "B.coop"\n', "robots[1].program: no such .coop file"),
+    ("program-number", '[[robots]]\nname = "A"\nprogram = 3\n', "robots[1].program"),
+    ("program-folder", '[[robots]]\nname = "A"\nprogram = "."\n', "robots[1].program"),
+]
+
+
+@pytest.mark.parametrize("text, needle", [c[1:] for c in MANIFEST_CASES], ids=[c[0] for c in MANIFEST_CASES])
+def test_broken_manifest_is_one_line(tmp_path, capsys, text, needle):
+    (tmp_path / "A.coop").write_text("MOVE 0, 0, 0.2\nTOOL ON\nMOVE 10, 0, 0.2\nTOOL OFF\n")
+    (tmp_path / "m.toml").write_text(text)
+    line = assert_rejected(["simulate", "--manifest", tmp_path / "m.toml", "--out", tmp_path / "o"], capsys,
+                           watch=[tmp_path], contains=needle)
+    assert "m.toml" in line
+
+
+@pytest.mark.parametrize("content, needle", [(None, "no such manifest"), ("dir", "is a directory"),
+                                             (b"\xff[robot]", "not UTF-8")], ids=["missing", "folder", "not-utf8"])
+def test_unreadable_manifest(tmp_path, capsys, content, needle):
+    m = tmp_path / "m.toml"
+    if content == "dir":
+        m.mkdir()
+    elif content is not None:
+        m.write_bytes(content)
+    assert_rejected(["simulate", "--manifest", m, "--out", tmp_path / "o"], capsys, watch=[tmp_path], contains=needle)
+
+
+# ------------------------------------------------------------------------------------------------
+# G-code with bad host lines
+
+MOVES = "G1 X0 Y0 Z0.2 F1200\nG1 X10 E1\n"
+HOST_CASES = [
+    ("notify-no-event", "M118 NOTIFY\n", "expected M118 NOTIFY and one event name"),
+    ("notify-two-events", "M118 NOTIFY C D\n", "expected M118 NOTIFY and one event name"),
+    ("notify-comma", "M118 NOTIFY C,D\n", "expected M118 NOTIFY"),
+    ("notify-bad-char", "M118 NOTIFY C!\n", "expected M118 NOTIFY"),
+    ("notify-unicode", "M118 NOTIFY Ç\n", "expected M118 NOTIFY"),
+    ("notify-long", "M118 NOTIFY " + "x" * 5000 + "\n", "expected M118 NOTIFY"),
+    ("wait-no-event", "M400\nM0 WAIT\n", "got an empty name"),
+    ("wait-empty-item", "M0 WAIT C,,D\n", "got an empty name"),
+    ("wait-trailing-comma", "M0 WAIT C,\n", "got an empty name"),
+    ("wait-space", "M0 WAIT C D\n", "got 'C D'"),
+    ("wait-bad-char", "M1 WAIT C;D\n", None),  # 'C' then a comment: a valid WAIT C; checked below
+    ("wait-m1-unicode", "M1 WAIT é\n", "expected M1 WAIT"),
+    ("wait-lower", "m0 wait c d\n", "expected M0 WAIT"),
+    ("wait-long", "M0 WAIT " + "y" * 300 + "\n", "expected M0 WAIT"),
+    ("coordinate-huge", "G1 X1e308 E1\n", "beyond +-1e+06 mm"),
+    ("coordinate-huge-plain", "G1 X10000000 E1\n", "beyond +-1e+06 mm"),
+    ("relative-walks-away", "G91\n" + "G1 X600000\n" * 3, "beyond +-1e+06 mm"),
+    ("e-huge", "M83\nG1 X20 E1e9\n", "beyond +-1e+06 mm"),
+    ("coordinate-nan", "G1 Xnan E1\n", "not a finite number"),
+    ("feed-zero", "G1 X5 F0\n", "feed rate F0 is not positive"),
+]
+
+
+@pytest.mark.parametrize("text, needle", [c[1:] for c in HOST_CASES if c[2]],
+                         ids=[c[0] for c in HOST_CASES if c[2]])
+def test_gcode_with_a_bad_line_is_one_line(tmp_path, capsys, text, needle):
+    g = tmp_path / "A.gcode"
+    g.write_text(MOVES + text + MOVES, encoding="utf-8")
+    line = assert_rejected(["simulate", g, "--out", tmp_path / "o"], capsys, watch=[tmp_path], contains=needle)
+    assert "A.gcode:" in line and len(line) < 300
+
+
+def test_a_wait_whose_comment_holds_a_semicolon_is_a_wait(tmp_path):
+    from cooprint.simulation import load_inputs
+
+    g = tmp_path / "A.gcode"
+    g.write_text(MOVES + "M1 WAIT C;D\n" + MOVES)
+    (r,) = load_inputs([str(g)]).robots
+    assert r.program.events == (("C",),)
+
+
+# ------------------------------------------------------------------------------------------------
+# inputs mixed wrongly
+
+def _files(tmp_path):
+    (tmp_path / "A.coop").write_text("MOVE 0, 0, 0.2\n")
+    (tmp_path / "B.gcode").write_text(MOVES)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "B.gcode").write_text(MOVES)
+    (tmp_path / "sub" / "A.coop").write_text("MOVE 0, 0, 0.2\n")
+    (tmp_path / "a b.coop").write_text("MOVE 0, 0, 0.2\n")
+    (tmp_path / "notes.txt").write_text("hello\n")
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "m.toml").write_text(ROBOT)
+    (tmp_path / "slow.toml").write_text("[robot]\nprint_speed = 20\n")
+
+
+MIX_CASES = [
+    ("coop-and-gcode", ["A.coop", "B.gcode"], "both .coop and G-code files"),
+    ("bundle-and-file", ["BUNDLE", "B.gcode"], "a bundle folder is simulated alone"),
+    ("manifest-and-file", ["--manifest", "m.toml", "A.coop"], "give no input files with it"),
+    ("text-file", ["notes.txt"], "notes.txt: expected a bundle folder"),
+    ("same-file-twice", ["B.gcode", "B.gcode"], "the same file given twice"),
+    ("same-gcode-name", ["B.gcode", "sub/B.gcode"], "two G-code files with the same name"),
+    ("same-coop-name", ["A.coop", "sub/A.coop"], "a second robot named 'A'"),
+    ("coop-name-not-a-robot-name", ["a b.coop"], "is not a robot name"),
+    ("missing-file", ["nope.gcode"], "nope.gcode: no such file or folder"),
+    ("folder-not-a-bundle", ["empty"], "no job.json"),
+    ("nothing", [], "nothing to simulate"),
+    ("bundle-with-a-profile", ["BUNDLE", "--robot", "slow.toml"], "a bundle or a manifest carries its own settings"),
+    ("manifest-with-a-profile", ["--manifest", "m.toml", "--robot", "slow.toml"], "carries its own settings"),
+    ("profile-not-settings", ["A.coop", "--robot", "m.toml"], "unknown section [robots]"),
+]
+
+
+@pytest.mark.parametrize("args, needle", [c[1:] for c in MIX_CASES], ids=[c[0] for c in MIX_CASES])
+def test_inputs_mixed_wrongly(bundle, tmp_path, capsys, monkeypatch, args, needle):
+    _files(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    args = [str(bundle) if a == "BUNDLE" else a for a in args]
+    assert_rejected(["simulate", *args, "--out", tmp_path / "o"], capsys, watch=[tmp_path, bundle], contains=needle)
+
+
+# ------------------------------------------------------------------------------------------------
+# any value anywhere in job.json: loaded, or one UserError; never another exception
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_json = st.recursive(
+    st.none() | st.booleans() | st.integers(-(10 ** 30), 10 ** 30) | st.sampled_from([10 ** 400, -(10 ** 400)])
+    | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=20),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=12), inner, max_size=4),
+    max_leaves=12)
+_PATHS = [(), ("format",), ("settings",), ("settings", "robot"), ("settings", "robot", "print_speed"),
+          ("settings", "slicing", "perimeters"), ("settings", "slicing", "layer_height"), ("robots",), R0, R1,
+          R0 + ("name",), R1 + ("name",), R0 + ("program",), R1 + ("start",), R0 + ("start", 1),
+          R0 + ("facing_deg",), R1 + ("facings",), R0 + ("stats",), R0 + ("facing",), ("settings", "robt"),
+          R0 + ("facng_deg",)]
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(path=st.sampled_from(_PATHS), value=_json)
+def test_any_value_anywhere_in_job_json_loads_or_is_a_user_error(bundle, tmp_path_factory, path, value):
+    from cooprint.errors import UserError
+    from cooprint.simulation import load_inputs
+
+    job = tmp_path_factory.getbasetemp() / "fuzzjob"
+    if not job.exists():
+        shutil.copytree(bundle, job)
+    record = json.loads((bundle / "job.json").read_text())
+    if path:
+        d = record
+        for k in path[:-1]:
+            d = d[k]
+        d[path[-1]] = value
+    else:
+        record = value
+    (job / "job.json").write_text(json.dumps(record))
+    try:
+        inp = load_inputs([str(job)])
+    except UserError as exc:
+        assert "\n" not in str(exc) and len(str(exc)) < 600 and "job.json" in str(exc)
+    else:
+        assert [r.name for r in inp.robots] == [r["name"] for r in record["robots"]]
