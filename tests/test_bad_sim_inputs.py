@@ -22,7 +22,7 @@ COARSE = {"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0, "slici
 def bundle(tmp_path_factory):
     """A real two-robot bundle of `cooprint run`, written once for the module."""
     root = tmp_path_factory.mktemp("badsim")
-    to_trimesh(box(40, 300, 6)).export(root / "bar.stl")
+    to_trimesh(box(40, 420, 6)).export(root / "bar.stl")
     run(root / "bar.stl", root / "job", overrides=COARSE, picture=False)
     return root / "job"
 

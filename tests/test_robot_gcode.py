@@ -34,7 +34,7 @@ COARSE = {"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0, "slici
 def bundle(tmp_path_factory):
     """A two-robot plan of a 300 mm bar: A prints C then L1, B waits for C, then prints R1."""
     root = tmp_path_factory.mktemp("robotgcode")
-    to_trimesh(box(40, 300, 20)).export(root / "bar.stl")
+    to_trimesh(box(40, 420, 20)).export(root / "bar.stl")
     run(root / "bar.stl", root / "job", overrides=COARSE, picture=False)
     return root / "job"
 
@@ -65,7 +65,7 @@ def test_robot_b_heats_its_nozzle_after_the_wait_and_no_robot_heats_a_bed(bundle
 
 
 def test_a_robot_with_a_heated_bed_heats_it(tmp_path):
-    to_trimesh(box(40, 300, 10)).export(tmp_path / "bar.stl")
+    to_trimesh(box(40, 420, 10)).export(tmp_path / "bar.stl")
     run(tmp_path / "bar.stl", tmp_path / "job", overrides={**COARSE, "robot.heated_bed": True}, picture=False)
     b = _lines(tmp_path / "job" / "robots" / "B.gcode")
     assert _first(b, r"M140 S60") < _first(b, r"M190 S60") < b.index("M0 WAIT C") < _first(b, r"M109 S210")
