@@ -16,7 +16,7 @@ from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation.checks import STEP, Material, footprint_checks, overhangs, robots_collide
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
 from cooprint.simulation.kinematics import MachineLimits
-from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule
+from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
 #: Finding kinds, in the order of the issue's checks (a)-(e).
@@ -141,6 +141,22 @@ def findings_line(counts: dict[str, int]) -> str:
     return ", ".join(found) if found else "none"
 
 
+def failures(record: dict, strict: bool = False) -> dict[str, int]:
+    """The ``finding_counts`` of a summary that make a plan fail: the error-level kinds found
+    (every kind but overhang), and with ``strict`` the warnings too. Empty: the plan passes."""
+    return {k: v for k, v in record["finding_counts"].items() if v and (strict or severity(k) == "error")}
+
+
+def verdict(record: dict, strict: bool = False) -> str | None:
+    """What a plan's checks say against it, in a few words (``errors (body-on-material 12)``,
+    or ``warnings (overhang 3)`` under ``strict`` when there are no errors); ``None``: it passes."""
+    errors = failures(record)
+    if errors:
+        return f"errors ({findings_line(errors)})"
+    warnings = failures(record, strict)
+    return f"warnings ({findings_line(warnings)})" if warnings else None
+
+
 def summary(result: SimResult) -> dict[str, object]:
     """What ``sim/summary.json`` holds: makespan, per robot times and material, the NOTIFY / WAIT
     timeline, every finding."""
@@ -167,5 +183,5 @@ def summary(result: SimResult) -> dict[str, object]:
             "findings": [f.to_dict() for f in result.findings]}
 
 
-__all__ = ["KINDS", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "findings_line", "frames",
-           "load_inputs", "simulate", "summary"]
+__all__ = ["KINDS", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "failures", "findings_line",
+           "frames", "load_inputs", "simulate", "summary", "verdict"]

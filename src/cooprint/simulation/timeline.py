@@ -176,6 +176,15 @@ class Timeline:
         return seg, idx
 
 
+#: Finding kinds that are warnings: the plan can still be printed (every other kind is an error).
+WARNING_KINDS = frozenset({"overhang"})
+
+
+def severity(kind: str) -> str:
+    """``warning`` or ``error``: how bad a finding of ``kind`` is."""
+    return "warning" if kind in WARNING_KINDS else "error"
+
+
 @dataclass(frozen=True)
 class Finding:
     """A physical problem of a plan: what, which robot, when, where, in which chunk."""
@@ -191,7 +200,7 @@ class Finding:
     @property
     def severity(self) -> str:
         """``warning`` for an overhang (the plan can still be printed), else ``error``."""
-        return "warning" if self.kind == "overhang" else "error"
+        return severity(self.kind)
 
     def to_dict(self) -> dict[str, object]:
         return {"kind": self.kind, "severity": self.severity, "robot": self.robot, "time_s": self.time,
@@ -297,4 +306,4 @@ def _chunk_at(program: Program, i: int) -> str | None:
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["FacingSpan", "Finding", "SimRobot", "Timeline", "move_durations", "schedule"]
+__all__ = ["FacingSpan", "Finding", "SimRobot", "Timeline", "WARNING_KINDS", "move_durations", "schedule", "severity"]
