@@ -311,8 +311,9 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         current = faces[printing[0]] if printing else (ax if side != "right" else -ax)
         facing = tuple(float(x) for x in current)
         first_point = _first_point(layers, seq)
-        if first_point is None:  # a robot with nothing to print stays where it is
-            programs[robot] = Program.empty(robot)
+        if first_point is None:  # a robot with nothing to print stays where it is (and keeps its word)
+            programs[robot] = Program.concat(robot, [_sync(robot, k, ev) for k, ev in _syncs(seq, deps, owner, robot,
+                                                                                            notify_after)])
             placements[robot] = RobotPlacement(robot, side, facing, (0.0, 0.0, 0.0))  # type: ignore[arg-type]
             continue
         facings = [(printing[0], facing_deg(current))]
@@ -325,7 +326,9 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
             if waits:
                 pieces.append(_sync(robot, WAIT, waits))
             p4 = _first_point(layers, (cid,))
-            if p4 is None:
+            if p4 is None:  # nothing to print: done at once, and said so if another robot waits for it
+                if cid in notify_after:
+                    pieces.append(_sync(robot, NOTIFY, [cid]))
                 continue
             if j > 0 and not np.array_equal(faces[cid], current):
                 if body is None:
@@ -352,6 +355,20 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         placements[robot] = RobotPlacement(robot, side, facing, tuple(float(x) for x in start),  # type: ignore[arg-type]
                                            tuple(facings))
     return programs, placements
+
+
+def _syncs(seq: Sequence[str], deps: dict[str, tuple[str, ...]], owner: dict[str, str], robot: str,
+           notify_after: set[str]) -> list[tuple[int, list[str]]]:
+    """The WAITs and NOTIFYs of a robot's chunks alone, in order (``(kind, events)``): what a
+    robot with nothing to print still owes the fleet."""
+    out: list[tuple[int, list[str]]] = []
+    for cid in seq:
+        waits = [d for d in deps.get(cid, ()) if owner[d] != robot]
+        if waits:
+            out.append((WAIT, waits))
+        if cid in notify_after:
+            out.append((NOTIFY, [cid]))
+    return out
 
 
 def _distinct(here: np.ndarray, points: np.ndarray) -> np.ndarray:
