@@ -40,6 +40,7 @@ SOLIDS = {
     "plate": (solids.plate, BIG), "slender": (solids.slender, FINE), "islands": (solids.islands, FINE),
     "hollow": (solids.hollow, FINE), "wide": (lambda: solids.box(600.0, 250.0, 25.0), BIG),
     "sheet": (solids.sheet, FINE),
+    "plate turned 30 deg": (solids.plate, {**BIG, "chunking.centre_angle_deg": 30.0}),  # 7 chunks, oblique axis
 }
 
 

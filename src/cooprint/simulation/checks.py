@@ -210,7 +210,7 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
                 p0 = p1 = span.position[None].astype(np.float64)
                 t0 = t1 = np.array([span.time])
                 nn, first_here = np.ones(1, np.int64), False
-                ch = np.array([chunk[min(a, len(chunk) - 1)] if a < len(chunk) else slots - 1], np.int64)
+                ch = np.array([chunk[a] if a < len(chunk) else slots - 1], np.int64)
             kernels.footprint_sweep(p0, p1, t0, t1, nn, first_here, ch, frame, b is not None,
                                     (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state,
                                     count, when, where)
