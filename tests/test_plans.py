@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import solids
 from cooprint.cli import main
@@ -283,3 +285,48 @@ def test_simulate_of_a_tampered_bundle_exits_1(meshes, tmp_path, capsys):
     assert verdict.startswith("cooprint: the plan is INVALID: the simulation found errors (body-on-material ")
     code, stdout, stderr = _run(["simulate", out, "--force"], capsys)  # not quiet: the list on stdout
     assert code == 1 and "body-on-material (error): robot A" in stdout and stderr.splitlines() == [verdict]
+
+
+@settings(max_examples=60, deadline=None)
+@given(angle=st.floats(-180, 180), size=st.tuples(st.floats(10, 1500), st.floats(10, 900)),
+       body=st.tuples(st.floats(100, 400), st.floats(100, 500), st.floats(100, 500)),
+       f=st.tuples(*[st.floats(0, 1)] * 4), height=st.floats(1, 300))
+def test_the_way_round_any_printed_box_keeps_the_body_off_it(angle, size, body, f, height):
+    """``turn_round`` against its promise, for any chunking axis, print and body: from a last
+    point whose body stands behind the printed box (the front at most at its near edge, as
+    printing a chunk leaves it) to a first point whose body stands beyond it, every position of
+    the way in the facing in force, and every degree of the turn, keeps the body's footprint off
+    the box (as the planner sees it: the box, in the facing's frame, of the triangles' XY boxes)."""
+    from cooprint.config import RobotProfile
+
+    a = np.array([math.cos(math.radians(angle)), math.sin(math.radians(angle))])
+    p = np.array([-a[1], a[0]])
+    bd, length, width = body
+    ls, lq = size
+    corners = np.array([s * a + q * p for s in (-ls / 2, ls / 2) for q in (-lq / 2, lq / 2)])
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    material = build.MaterialIndex({"X": np.array([[lo[0], lo[1], hi[0], hi[1], height]])}, 0.0)
+    box = np.array([[x, y] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])])
+    s_lo, s_hi, q_lo, q_hi = (box @ a).min(), (box @ a).max(), (box @ p).min(), (box @ p).max()
+    here = np.r_[(s_lo + f[0] * min(bd, s_hi - s_lo)) * a + (q_lo + f[1] * (q_hi - q_lo)) * p, height / 2]
+    p4 = np.r_[(s_hi - f[2] * min(bd, s_hi - s_lo)) * a + (q_lo + f[3] * (q_hi - q_lo)) * p, 0.5]
+    way = build.turn_round(here, p4, a, material, ["X"], build.BodySize(bd, length, width), 25.0, 5.0)
+    profile = RobotProfile(build_depth=bd, body_length=length, body_width=width)
+
+    def overlaps(nozzles, facing):  # (k,) the body's footprint over the box by more than 1 um
+        c = nozzles[:, None, :2] + body_corners(profile, facing)[None]
+        cs, cq = c @ a, c @ p
+        return ((np.minimum(cs.max(1), s_hi) - np.maximum(cs.min(1), s_lo) > 1e-3)
+                & (np.minimum(cq.max(1), q_hi) - np.maximum(cq.min(1), q_lo) > 1e-3))
+
+    z = way.before[0, 2]
+    assert z >= max(here[2], p4[2]) + 5.0 - 1e-3 and (way.before[:, 2] == z).all() and (way.after[:, 2] == z).all()
+    t = np.linspace(0.0, 1.0, 41)[:, None]
+    for legs, facing in ((np.vstack([here, way.before]), a), (way.after, -a)):
+        for u, v in zip(legs[:-1], legs[1:]):
+            assert not overlaps(u + t * (v - u), facing).any()
+    assert np.allclose(way.after[-1, :2], p4[:2], atol=1e-3)
+    assert abs(way.via @ a) < 1e-9  # a quarter turn from both facings
+    turn = way.before[-1][None]
+    for phi in np.linspace(0.0, math.pi, 181):  # old facing -> via -> new facing, about the nozzle
+        assert not overlaps(turn, math.cos(phi) * a + math.sin(phi) * way.via).any()
