@@ -330,3 +330,20 @@ def test_the_way_round_any_printed_box_keeps_the_body_off_it(angle, size, body, 
     turn = way.before[-1][None]
     for phi in np.linspace(0.0, math.pi, 181):  # old facing -> via -> new facing, about the nozzle
         assert not overlaps(turn, math.cos(phi) * a + math.sin(phi) * way.via).any()
+
+
+def test_material_before_a_time_is_each_robots_prefix():
+    from cooprint.simulation.checks import Material
+
+    rng = np.random.default_rng(3)
+    t = np.r_[np.sort(rng.uniform(0, 10, 50)), np.sort(rng.uniform(0, 10, 30))]
+    mat = Material(rng.normal(size=(80, 3)).astype(np.float32), t, np.ones(80, np.float32), np.array([0, 50, 80]))
+    for when in (-1.0, 0.5, 5.0, 20.0):
+        sub = mat.before(when)
+        keep = t < when
+        np.testing.assert_array_equal(sub.t, t[keep])
+        np.testing.assert_array_equal(sub.xyz, mat.xyz[keep])
+        assert sub.bounds.tolist() == [0, int(keep[:50].sum()), int(keep.sum())]
+    assert mat.before(20.0) is mat
+    one = Material(mat.xyz[:50], t[:50], mat.h[:50], np.array([0, 50]))
+    assert np.shares_memory(one.before(5.0).xyz, one.xyz)  # one robot: a view
