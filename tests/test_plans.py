@@ -167,6 +167,10 @@ def test_the_body_checks_use_the_facing_in_force():
     # 300 .. 650 mm behind the nozzle: over the line when the nozzle is at x = 400)
     via = _sim_coop(LINE + "MOVE 400 -100 30\n;@facing 0\n;@facing -90\nMOVE 400 -400 30\n", [-100, 0, 5], 90.0)
     assert [(f.kind, f.position[:2]) for f in via.findings] == [("body-on-material", (400.0, -100.0))]
+    # turns before anything is printed and after the last move: checked where the robot stands then
+    assert _sim_coop(";@facing 0\n" + LINE + ";@facing -90\n", [-100, 0, 5], 90.0).findings == []
+    (f,) = _sim_coop(";@facing 0\n" + LINE + "MOVE 100 -400 30\n;@facing -90\n", [-100, 0, 5], 90.0).findings
+    assert f.kind == "body-on-material" and f.position[:2] == (100.0, -400.0)
 
 
 def test_robots_collide_with_the_facing_in_force():
