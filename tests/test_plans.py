@@ -108,6 +108,13 @@ def test_one_robot_prints_the_plate_facing_each_side_and_stands_on_nothing(plate
     # the simulator followed the turn: two facings in force, the second from the turn on
     spans = res.robots[0].facing_spans(res.timelines["A"])
     np.testing.assert_allclose([sp.facing for sp in spans], [[0, 1], [-1, 0], [0, -1]], atol=1e-12)
+    from cooprint.simulation import frames
+
+    fr = frames(res, 600.0)  # the seed's Fig. 15 dataset follows it too
+    turned = fr.t >= spans[-1].time
+    assert turned.any() and (~turned).any()
+    np.testing.assert_allclose(fr.facing[~turned, 0], [[0, 1]] * int((~turned).sum()), atol=1e-12)
+    np.testing.assert_allclose(fr.facing[turned, 0], [[0, -1]] * int(turned.sum()), atol=1e-12)
 
 
 def test_the_way_round_the_plate_keeps_the_body_off_the_print(plate_one_robot):

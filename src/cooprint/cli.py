@@ -305,7 +305,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         fr = frames(result, frame_step)
         with atomic_file(targets[1], force=True) as tmp, open(tmp, "wb") as f:
             np.savez_compressed(f, t=fr.t, robots=np.array(fr.robots), position=fr.position, done=fr.done,
-                                material=fr.material)
+                                material=fr.material, facing=fr.facing)
     with atomic_file(target, force=True) as tmp:
         write_json(tmp, record)
     if not quiet:

@@ -96,6 +96,8 @@ class Frames:
     material : (T, R) float64
         mm^3 each robot has laid down (width x height x length, the part of the move under way
         included).
+    facing : (T, R, 2) float64
+        The direction each robot faces (from its body to its nozzle), as its turns leave it.
     """
 
     t: np.ndarray
@@ -103,6 +105,7 @@ class Frames:
     position: np.ndarray
     done: np.ndarray
     material: np.ndarray
+    facing: np.ndarray
 
 
 def frames(result: SimResult, dt: float) -> Frames:
@@ -114,7 +117,7 @@ def frames(result: SimResult, dt: float) -> Frames:
     span = result.makespan
     t = np.arange(0.0, span, dt) if span > 0 else np.zeros(0)
     t = np.append(t, span)
-    pos, done, material = [], [], []
+    pos, done, material, facing = [], [], [], []
     for r in result.robots:
         tl = result.timelines[r.name]
         vol = move_volumes(r, tl, result.slicing)
@@ -126,13 +129,15 @@ def frames(result: SimResult, dt: float) -> Frames:
             under_way = (k < len(tl.t1)) & (tl.t0[cur] < t) & (span_k > 0)
             part[under_way] = vol[cur[under_way]] * (t[under_way] - tl.t0[cur[under_way]]) / span_k[under_way]
         pos.append(tl.position(t))
+        facing.append(r.facing_at(tl, t))
         done.append(k)
         material.append(np.concatenate([[0.0], np.cumsum(vol)])[k] + part)
     shape = (len(t), 0)
     return Frames(t, tuple(r.name for r in result.robots),
                   np.stack(pos, axis=1) if pos else np.zeros(shape + (3,)),
                   np.stack(done, axis=1) if done else np.zeros(shape, np.int64),
-                  np.stack(material, axis=1) if material else np.zeros(shape))
+                  np.stack(material, axis=1) if material else np.zeros(shape),
+                  np.stack(facing, axis=1) if facing else np.zeros(shape + (2,)))
 
 
 def findings_line(counts: dict[str, int]) -> str:
