@@ -55,3 +55,35 @@ def with_hole(man: m3d.Manifold, n_faces: int = 2) -> trimesh.Trimesh:
     keep[start:start + n_faces] = False
     tm.update_faces(keep)
     return tm
+
+
+# hard cases for the planner (tests/test_plans.py)
+
+def plate(x: float = 1500.0, y: float = 800.0, z: float = 20.0) -> m3d.Manifold:
+    """A large flat plate: five chunks, wider (x) than a robot's body."""
+    return box(x, y, z)
+
+
+def slender(side: float = 30.0, height: float = 250.0) -> m3d.Manifold:
+    """A tall, thin column."""
+    return box(side, side, height)
+
+
+def islands(rows: int = 4, cols: int = 3, r: float = 8.0, h: float = 20.0) -> m3d.Manifold:
+    """Separate pegs in a grid over 120 x 480 mm: every chunk's layers have several islands."""
+    out = m3d.Manifold()
+    for x in np.linspace(-60, 60, cols):
+        for y in np.linspace(-240, 240, rows):
+            out = out + m3d.Manifold.cylinder(h, r, r, 32).translate((float(x), float(y), 0))
+    return out
+
+
+def hollow(x: float = 120.0, y: float = 300.0, z: float = 50.0, wall: float = 10.0) -> m3d.Manifold:
+    """A closed box with a closed cavity inside (its roof is a bridge over air)."""
+    cavity = m3d.Manifold.cube((x - 4 * wall, y - 4 * wall, z - 2 * wall), center=True).translate((0, 0, z / 2))
+    return box(x, y, z) - cavity
+
+
+def sheet(x: float = 300.0, y: float = 600.0, z: float = 1.6) -> m3d.Manifold:
+    """A sheet two coarse layers thick: its centre chunk (a thin wedge) has nothing to print."""
+    return box(x, y, z)

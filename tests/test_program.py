@@ -130,7 +130,8 @@ def _program_texts(draw):
                                                ";@layer 99999999999 0.2",
                                                ";@path perimeter 0", ";@path infill 0.30000000000000004",
                                                ";@layer 0012 .2", ";@LAYER 3 0.2", ";@ layer 4 0.2",
-                                               ";@path travel 0.0", ";@layerx 1 0.2"])))
+                                               ";@path travel 0.0", ";@layerx 1 0.2", ";@facing -90.0",
+                                               ";@facing 12.5", ";@facing 0", ";@facing nan"])))
     return "\n".join(lines) + draw(st.sampled_from(["", "\n"]))
 
 

@@ -198,11 +198,14 @@ def test_cli_simulate_writes_the_summary_and_strict_fails_on_findings(car_bundle
     m = tmp_path / "m.toml"
     m.write_text('[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0, 0]\n'
                  '[[robots]]\nname = "B"\nprogram = "B.coop"\nstart = [0, 900, 0]\nfacing_deg = -90\n')
-    assert main(["simulate", "--manifest", str(m), "--out", str(tmp_path / "o"), "-q"]) == 0
+    # a deadlock is an error: exit 1 with or without --strict (the car's overhangs only with it)
+    assert main(["simulate", "--manifest", str(m), "--out", str(tmp_path / "o"), "-q"]) == 1
+    assert capsys.readouterr().err.splitlines()[0] == "findings: deadlock 1"
     assert main(["simulate", "--manifest", str(m), "--out", str(tmp_path / "o"), "-q", "--strict",
                  "--force"]) == 1
     s = json.loads((tmp_path / "o" / "sim" / "summary.json").read_text())
     assert s["findings"][0]["kind"] == "deadlock" and s["findings"][0]["robot"] == "B"
+    assert main(["simulate", str(car_bundle), "-q", "--force", "--strict"]) == 1
 
 
 def test_pictures_of_a_simulation(car_bundle, tmp_path):

@@ -1,6 +1,9 @@
 """``cooprint`` command line: thin wrappers over :mod:`cooprint.jobs`.
 
-Exit codes: 0 success, 2 bad input (one line on stderr, no traceback unless ``--verbose``),
+Exit codes: 0 success; 1 a plan whose own simulation (``run --simulate``, ``simulate``) finds
+error-level findings (bodies on material, robots colliding, the printhead meeting material,
+deadlocks), or with ``--strict`` any finding (overhang warnings too): one line on stderr says so,
+even with ``--quiet``; 2 bad input (one line on stderr, no traceback unless ``--verbose``);
 130 interrupted.
 """
 
@@ -268,20 +271,46 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str,
         click.echo(f"{where[0].describe()}; {n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
 
 
+def _judge(sim: dict[str, Any], strict: bool, quiet: bool, what: str, summary_path: Path) -> None:
+    """Exit 1 if a plan's simulation summary ``sim`` fails it (:func:`cooprint.simulation.verdict`):
+    the findings line on stderr when ``quiet`` hid it, then one line on stderr saying that the
+    plan is invalid (errors) or fails ``--strict`` (warnings only), what found it and where the
+    summary is."""
+    from cooprint.simulation import failures, findings_line, verdict
+
+    bad = verdict(sim, strict)
+    if bad is None:
+        return
+    if quiet:
+        click.echo(f"findings: {findings_line(sim['finding_counts'])}", err=True)
+    state = "is INVALID" if failures(sim) else "fails --strict"
+    click.echo(f"cooprint: the plan {state}: {what} found {bad}; see {summary_path}", err=True)
+    raise click.exceptions.Exit(1)
+
+
+strict_option = click.option(
+    "--strict", is_flag=True, help="Exit with code 1 on warnings (overhangs) too; errors (a body on material, "
+                                   "robots colliding, the printhead meeting material, a deadlock) always exit 1.")
+
+
 @cli.command(name="run")
 @plan_options
 @click.option("--simulate", "then_simulate", is_flag=True,
-              help="Then simulate the plan: OUT/sim/summary.json, gantt.png and snapshot.png.")
+              help="Then simulate the plan: OUT/sim/summary.json, gantt.png and snapshot.png; exit 1 if the "
+                   "simulation finds errors.")
+@strict_option
 def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: dict[str, Any], force: bool,
-            no_picture: bool, quiet: bool, then_simulate: bool) -> None:
+            no_picture: bool, quiet: bool, then_simulate: bool, strict: bool) -> None:
     """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
 
     Chunks, assigns, slices every chunk and writes OUT/job.json, OUT/chunks/<id>.stl,
     OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically.
+    With --simulate, a plan whose own simulation finds errors is reported INVALID (exit 1).
     """
     from cooprint.jobs import coop_job, write_coop_bundle
 
     record = _plan(coop_job, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
+    sim = None
     if then_simulate:
         from cooprint.jobs import simulate_bundle
 
@@ -291,8 +320,14 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
 
             click.echo(f"simulated: makespan {sim['makespan_s'] / 3600:.2f} h, findings: "
                        f"{findings_line(sim['finding_counts'])}; wrote {out}/sim/summary.json, gantt.png, snapshot.png")
-    if record is None:
-        return
+    if record is not None:
+        _report_run(record, out, no_picture)
+    if sim is not None:
+        _judge(sim, strict, quiet, "its own simulation", Path(out) / "sim" / "summary.json")
+
+
+def _report_run(record: dict[str, Any], out: str, no_picture: bool) -> None:
+    """The lines ``cooprint run`` prints about the plan it wrote."""
     for r in record["robots"]:
         st = r["stats"]
         click.echo(f"  robot {r['name']} ({r['side']} side): {' -> '.join(r['chunks']) or '(idle)'}; "
@@ -321,7 +356,7 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
 @click.argument("inputs", nargs=-1, type=click.Path())
 @click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
 @click.option("--out", "-o", type=click.Path(file_okay=False), help="Folder for sim/ (default: the bundle).")
-@click.option("--strict", is_flag=True, help="Exit with code 1 if any check finds a problem (overhang warnings too).")
+@strict_option
 @click.option("--accel", is_flag=True, help="Moves accelerate (robot profile's acceleration and jerk; "
               "G-code: PrusaSlicer's machine limits) instead of keeping their speed.")
 @click.option("--frames", "frame_step", type=float, default=None, metavar="SECONDS",
@@ -334,7 +369,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
     robot each, M118 NOTIFY / M0 WAIT host lines honoured), or .coop files (one robot each, named by
     the file, the default or --robot profile; or named, placed and profiled by --manifest). Writes
-    sim/summary.json."""
+    sim/summary.json; exits 1 if the checks find errors (with --strict: any finding)."""
     import math
 
     import numpy as np
@@ -362,7 +397,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         fr = frames(result, frame_step)
         with atomic_file(targets[1], force=True) as tmp, open(tmp, "wb") as f:
             np.savez_compressed(f, t=fr.t, robots=np.array(fr.robots), position=fr.position, done=fr.done,
-                                material=fr.material)
+                                material=fr.material, facing=fr.facing)
     with atomic_file(target, force=True) as tmp:
         write_json(tmp, record)
     if not quiet:
@@ -378,8 +413,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
                        f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
                        f"{f.detail}" + (f" ({f.count} samples)" if f.count > 1 else ""))
         click.echo("wrote " + ", ".join(map(str, targets)))
-    if strict and result.findings:
-        raise click.exceptions.Exit(1)
+    _judge(record, strict, quiet, "the simulation", target)
 
 
 @cli.command()

@@ -258,7 +258,7 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
              progress: Progress | None = None) -> CoopJob:
     """Chunk, assign, slice every chunk in the object's layer grid, and make each robot's
     command stream (transitions, NOTIFY / WAIT)."""
-    from cooprint.program.build import MaterialIndex, robot_programs
+    from cooprint.program.build import BodySize, MaterialIndex, robot_programs
     from cooprint.slicing import iter_layers
     from cooprint.slicing.slicer import layer_range
 
@@ -290,7 +290,8 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     programs, placements = robot_programs(
         dict(chunked.assignment.sequences), layers, chunked.chunks.deps, material,
         reach=settings.robot.nozzle_depth, clearance=settings.program.clearance,
-        axis=chunked.chunks.plan.axis, roles={c.id: c.role for c in chunked.chunks.chunks})
+        axis=chunked.chunks.plan.axis, roles={c.id: c.role for c in chunked.chunks.chunks},
+        body=BodySize(settings.robot.build_depth, settings.robot.body_length, settings.robot.body_width))
     if progress:
         progress("program", 1, 1)
     return CoopJob(chunked, layers, programs, placements)
@@ -362,10 +363,12 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
         name = Path(job.chunked.solid.report.path).name
         for k, (robot, program) in enumerate(job.programs.items()):
             place = job.placements[robot]
+            turns = "".join(f", turns to {d:.1f} deg before {c}" for c, d in place.facings[1:])
             header = [f"job: {name}, robot '{settings.robot.name}' as {robot}",
                       f"side {place.side}, facing {place.facing_deg:.1f} deg, "
-                      f"start {place.start[0]:.3f}, {place.start[1]:.3f}, {place.start[2]:.3f}",
-                      "annotations: ;@chunk ID, ;@layer INDEX HEIGHT, ;@path ROLE WIDTH (docs/program.md)"]
+                      f"start {place.start[0]:.3f}, {place.start[1]:.3f}, {place.start[2]:.3f}{turns}",
+                      "annotations: ;@chunk ID, ;@layer INDEX HEIGHT, ;@path ROLE WIDTH"
+                      + (", ;@facing DEGREES" if program.turns else "") + " (docs/program.md)"]
             with open(tmp / "robots" / f"{robot}.coop", "w", encoding="utf-8") as fh:
                 write_coop(fh, program, header)
             if progress:

@@ -7,6 +7,10 @@
   chunk ``p1`` straight up to ``p2``, a clearance above the highest material that may be printed
   within the printhead's reach (``nozzle_depth``) of the way over, across to ``p3`` above the
   next chunk's first point, and down to it, ``p4``, with the tool off (:func:`transition_height`).
+* A robot faces the centre line from the side of the chunk it prints (left chunks and the centre
+  along the chunking axis, right chunks against it). A robot that prints both sides (one robot
+  alone) turns round between them, driving around the print (:func:`turn_round`): the turn is a
+  ``;@facing`` annotation of its program (:attr:`Program.turns`).
 * Every dependency between chunks of different robots becomes a ``NOTIFY <chunk>`` right after
   the last move of the chunk depended on and a ``WAIT <chunk>`` right before the moves that lead
   into the dependent chunk (its transition); chunks of one robot are simply in order.
@@ -16,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Iterator, Sequence
+from typing import Iterable, Iterator, NamedTuple, Sequence
 
 import numpy as np
 
@@ -135,6 +139,99 @@ def transition_height(p1: np.ndarray, p4: np.ndarray, material: MaterialIndex, p
     return float(quantize(max(top, p1[2], p4[2]) + clearance))
 
 
+class BodySize(NamedTuple):
+    """A robot's body as the planner sees it, mm: its front ``build_depth`` behind the nozzle
+    (along the facing), ``length`` behind the front, ``width`` across."""
+
+    build_depth: float
+    length: float
+    width: float
+
+
+@dataclass(frozen=True)
+class TurnRound:
+    """The way of a robot that turns round between two chunks (:func:`turn_round`): nozzle
+    positions (k, 3) driven ``before`` the turn in the old facing, the facing ``via`` which it
+    turns (a unit XY vector a quarter turn from both), and the positions ``after`` in the new
+    facing. The turn happens at ``before[-1]``."""
+
+    before: np.ndarray
+    via: np.ndarray
+    after: np.ndarray
+
+
+def _extent(material: MaterialIndex, ids: Iterable[str], a: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``(s_lo, s_hi, q_lo, q_hi)``: the box, along ``a`` and across it (``p``), of the XY boxes of
+    the triangles of chunks ``ids`` (never smaller than the material)."""
+    boxes = [material.boxes[c] for c in ids]
+    t = np.vstack(boxes) if boxes else np.zeros((0, 5))
+    if len(t) == 0:
+        return np.array([np.inf, -np.inf, np.inf, -np.inf])
+    corners = np.stack([t[:, [0, 1]], t[:, [0, 3]], t[:, [2, 1]], t[:, [2, 3]]])  # (4, m, 2)
+    s, q = corners @ a, corners @ p
+    return np.array([s.min(), s.max(), q.min(), q.max()])
+
+
+def turn_round(here: np.ndarray, p4: np.ndarray, facing: np.ndarray, material: MaterialIndex,
+               printed: Iterable[str], body: BodySize, reach: float, clearance: float) -> TurnRound:
+    """The way from ``here`` (the end of the last chunk printed facing ``facing``) to above
+    ``p4`` (the first point of the next chunk, printed facing ``-facing``), driving around what
+    is printed (chunks ``printed``), and the turn on the way.
+
+    In the frame of the old facing (``s`` along it, ``q`` across it) the material printed so far
+    lies in a box ``[s_lo, s_hi] x [q_lo, q_hi]`` (the triangles of its chunks). The nozzle rises
+    ``clearance`` above the highest material within the printhead's ``reach`` of the whole way,
+    then, ``m = clearance`` the margin:
+
+    1. backs off along ``-facing`` until the body's front is ``m`` behind ``s_lo`` (if it is not
+       already): the body, behind the nozzle, is then clear of the box whatever ``q``;
+    2. goes across to the side of the box nearer to its way, until the body is ``m`` clear of
+       ``[q_lo, q_hi]`` (nozzle ``width / 2 + m`` outside): there it turns round about the
+       nozzle, via the facing that points across, at the print, so that the body swings on the
+       outside: at every angle of the turn it stays beyond ``q_lo - m`` (or ``q_hi + m``);
+    3. now facing ``-facing``, body ahead of the nozzle along ``+facing``: goes along the side
+       until the body's front is ``m`` beyond ``s_hi`` (or to ``p4``'s ``s`` if that is further),
+    4. across to ``p4``'s ``q``, and along to above ``p4``: the robot prints the next chunk from
+       there with its body on the unprinted side, as a robot that only prints that side would.
+
+    So the body never overlaps the box in either facing; only the last leg (when ``p4`` lies
+    within ``build_depth`` of the box) brings it back towards the print, where the next chunk
+    needs it anyway.
+    """
+    a = np.asarray(facing, dtype=np.float64)[:2]
+    a = a / np.linalg.norm(a)
+    p = np.array([-a[1], a[0]])
+    printed = list(printed)
+    s_lo, s_hi, q_lo, q_hi = _extent(material, printed, a, p)
+    if not np.isfinite(s_lo):  # nothing printed: the ends alone
+        s_lo = s_hi = float(here[:2] @ a)
+        q_lo = q_hi = float(here[:2] @ p)
+    bd, length, width = body
+    m = clearance
+    s0, q0 = float(here[:2] @ a), float(here[:2] @ p)
+    st, qt = float(p4[:2] @ a), float(p4[:2] @ p)
+    s1 = min(s0, s_lo - m + bd)
+    low, high = q_lo - width / 2 - m, q_hi + width / 2 + m
+    qs = low if abs(q0 - low) + abs(qt - low) <= abs(q0 - high) + abs(qt - high) else high
+    s2 = max(st, s_hi + m - bd)
+    via = p if qs == low else -p  # towards the print: the body swings on the outside
+
+    def at(pts: list[tuple[float, float]]) -> np.ndarray:
+        return np.array([s * a + q * p for s, q in pts])
+
+    before, after = at([(s0, q0), (s1, q0), (s1, qs)]), at([(s2, qs), (s2, qt), (st, qt)])
+    way = np.vstack([before, after])
+    z = max(transition_height(np.r_[u, here[2]], np.r_[v, p4[2]], material, printed, reach, clearance)
+            for u, v in zip(way[:-1], way[1:]))
+    before, after = (quantize(np.column_stack([w, np.full(len(w), z)])) for w in (before, after))
+    return TurnRound(before, via, after)
+
+
+def facing_deg(facing: Sequence[float]) -> float:
+    """Degrees from +X of an XY direction."""
+    return math.degrees(math.atan2(facing[1], facing[0]))
+
+
 def _moves(robot: str, points: Sequence[np.ndarray]) -> Program:
     pts = np.array(points, dtype=np.float64).reshape(-1, 3)
     return make_program(robot, np.full(len(pts), MOVE, np.uint8), pts)
@@ -147,27 +244,40 @@ def _sync(robot: str, kind: int, events: Sequence[str]) -> Program:
 @dataclass(frozen=True)
 class RobotPlacement:
     """Where a robot works from: the side of the centre line it stays on, the direction it
-    faces (towards the chunks it prints), and its start position (the nozzle above the first
-    point of its first chunk, a clearance up)."""
+    faces (towards the chunks it prints) at the start, and its start position (the nozzle above
+    the first point of its first chunk, a clearance up); ``facings``: from which chunk on it
+    faces which way (the first entry is the start's facing; a robot that prints both sides turns
+    round once)."""
 
     name: str
     side: str  # "left" or "right" (-axis or +axis of the chunking direction); "both" for one robot
     facing: tuple[float, float]  # unit XY vector from the body to the nozzle
     start: tuple[float, float, float]
+    facings: tuple[tuple[str, float], ...] = ()  # (chunk id, degrees) where the facing changes
 
     @property
     def facing_deg(self) -> float:
-        return math.degrees(math.atan2(self.facing[1], self.facing[0]))
+        return facing_deg(self.facing)
 
     def to_dict(self) -> dict[str, object]:
         return {"name": self.name, "side": self.side, "facing_deg": self.facing_deg,
-                "facing": list(self.facing), "start": list(self.start)}
+                "facing": list(self.facing), "start": list(self.start),
+                "facings": [{"from_chunk": c, "facing_deg": d} for c, d in self.facings]}
+
+
+def chunk_facings(seq: Sequence[str], roles: dict[str, str], axis: np.ndarray) -> dict[str, np.ndarray]:
+    """The direction a robot faces while it prints each chunk of ``seq``: a left chunk along
+    ``axis`` (the body on the -axis side, outside the chunks printed before), a right chunk
+    against it; the centre chunk as the robot's first side chunk (along ``axis`` if none)."""
+    sides = [roles[c] for c in seq if roles[c] != "centre"]
+    centre = -axis if sides and sides[0] == "right" else axis
+    return {c: -axis if roles[c] == "right" else (axis if roles[c] == "left" else centre) for c in seq}
 
 
 def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequence[LayerPaths]],
                    deps: dict[str, tuple[str, ...]], material: MaterialIndex, *, reach: float,
-                   clearance: float, axis: Sequence[float], roles: dict[str, str]) -> tuple[dict[str, Program],
-                                                                                          dict[str, RobotPlacement]]:
+                   clearance: float, axis: Sequence[float], roles: dict[str, str],
+                   body: BodySize | None = None) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
     """Each robot's command stream and placement.
 
     Parameters
@@ -184,6 +294,9 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         above material of a transition, mm.
     axis
         The chunking direction (unit XY(Z)); ``roles`` maps chunk ids to centre/left/right.
+    body
+        The robot's body, for the way around the print of a robot that prints both sides
+        (:func:`turn_round`); needed only then.
     """
     owner = {c: r for r, seq in sequences.items() for c in seq}
     notify_after = {d for c, ds in deps.items() for d in ds if owner[d] != owner[c]}
@@ -193,13 +306,19 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         pieces: list[Program] = []
         sides = {roles[c] for c in seq} - {"centre"}
         side = "both" if len(sides) != 1 else sides.pop()
-        facing = tuple(float(x) for x in (ax if side != "right" else -ax))
+        faces = chunk_facings(seq, roles, ax)
+        printing = [c for c in seq if _first_point(layers, (c,)) is not None]
+        current = faces[printing[0]] if printing else (ax if side != "right" else -ax)
+        facing = tuple(float(x) for x in current)
         first_point = _first_point(layers, seq)
-        if first_point is None:  # a robot with nothing to print parks off the part, on the +axis side
-            programs[robot] = Program.empty(robot)
+        if first_point is None:  # a robot with nothing to print parks off the part, on the +axis side,
+            # and keeps its word (the WAITs and NOTIFYs of its empty chunks)
+            programs[robot] = Program.concat(robot, [_sync(robot, k, ev) for k, ev in _syncs(seq, deps, owner, robot,
+                                                                                            notify_after)])
             placements[robot] = RobotPlacement(robot, "right", tuple(float(x) for x in -ax),  # type: ignore[arg-type]
                                                _parking(layers, ax, clearance))
             continue
+        facings = [(printing[0], facing_deg(current))]
         printed_before = [c for r, s in sequences.items() if r != robot for c in s]
         start = quantize(first_point + [0.0, 0.0, clearance])
         pieces.append(_moves(robot, [start]))
@@ -209,9 +328,22 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
             if waits:
                 pieces.append(_sync(robot, WAIT, waits))
             p4 = _first_point(layers, (cid,))
-            if p4 is None:
+            if p4 is None:  # nothing to print: done at once, and said so if another robot waits for it
+                if cid in notify_after:
+                    pieces.append(_sync(robot, NOTIFY, [cid]))
                 continue
-            if j > 0:
+            if j > 0 and not np.array_equal(faces[cid], current):
+                if body is None:
+                    raise ValueError(f"robot {robot} turns round before {cid}: robot_programs needs its body")
+                way = turn_round(here, p4, current, material, printed_before + list(seq[:j]), body, reach,
+                                 clearance)
+                current = faces[cid]
+                turns = ((0, facing_deg(way.via)), (0, facing_deg(current)))
+                pieces += [_moves(robot, _distinct(here, way.before)), make_program(robot, np.zeros(0), turns=turns),
+                           _moves(robot, _distinct(way.before[-1], way.after))]
+                facings.append((cid, facing_deg(current)))
+                here = way.after[-1]
+            elif j > 0:
                 z = transition_height(here, p4, material, printed_before + list(seq[:j]), reach, clearance)
                 pieces.append(_moves(robot, [np.r_[here[:2], z], np.r_[p4[:2], z]]))
                 here = quantize(np.r_[p4[:2], z])
@@ -222,7 +354,8 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
                 pieces.append(_sync(robot, NOTIFY, [cid]))
         pieces.append(_moves(robot, [here + [0.0, 0.0, clearance]]))  # lift off the last chunk
         programs[robot] = Program.concat(robot, pieces)
-        placements[robot] = RobotPlacement(robot, side, facing, tuple(float(x) for x in start))  # type: ignore[arg-type]
+        placements[robot] = RobotPlacement(robot, side, facing, tuple(float(x) for x in start),  # type: ignore[arg-type]
+                                           tuple(facings))
     return programs, placements
 
 
@@ -242,6 +375,26 @@ def _parking(layers: dict, ax: np.ndarray, clearance: float) -> tuple[float, flo
     return (float(p[0]), float(p[1]), float(clearance))
 
 
+def _syncs(seq: Sequence[str], deps: dict[str, tuple[str, ...]], owner: dict[str, str], robot: str,
+           notify_after: set[str]) -> list[tuple[int, list[str]]]:
+    """The WAITs and NOTIFYs of a robot's chunks alone, in order (``(kind, events)``): what a
+    robot with nothing to print still owes the fleet."""
+    out: list[tuple[int, list[str]]] = []
+    for cid in seq:
+        waits = [d for d in deps.get(cid, ()) if owner[d] != robot]
+        if waits:
+            out.append((WAIT, waits))
+        if cid in notify_after:
+            out.append((NOTIFY, [cid]))
+    return out
+
+
+def _distinct(here: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``points`` without those where the nozzle already is (the one before, or ``here``)."""
+    prev = np.vstack([quantize(here)[None], points[:-1]])
+    return points[(points != prev).any(axis=1)]
+
+
 def _first_point(layers: dict, seq: Iterable[str]) -> np.ndarray | None:
     """(3,) where the first of ``seq``'s chunks with anything to print starts."""
     for cid in seq:
@@ -251,4 +404,5 @@ def _first_point(layers: dict, seq: Iterable[str]) -> np.ndarray | None:
     return None
 
 
-__all__ = ["MaterialIndex", "layer_pieces", "RobotPlacement", "layer_program", "robot_programs", "transition_height"]
+__all__ = ["BodySize", "MaterialIndex", "RobotPlacement", "TurnRound", "chunk_facings", "facing_deg", "layer_pieces",
+           "layer_program", "robot_programs", "transition_height", "turn_round"]

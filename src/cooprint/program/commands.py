@@ -21,6 +21,9 @@ viewers need to know which chunk a move prints::
     ;@layer 12 0.2        layer 12 of that chunk (from 0), 0.2 mm thick ('-': no layer)
     ;@path perimeter 0.45 the following moves print a perimeter 0.45 mm wide (roles: outer-perimeter,
                           perimeter, skin, infill, travel)
+    ;@facing -90          before the next command the robot turns round about its nozzle, the
+                          shorter way, to face -90 degrees (the direction from its body to the
+                          nozzle); a robot may act on it, other readers ignore it (Program.turns)
 
 The writer emits an annotation wherever its value changes, so ``parse(write(p)) == p`` exactly:
 coordinates are kept on a 1 µm grid (``quantize``) and written with three decimals. The parser
@@ -96,6 +99,11 @@ class Program:
         Chunk ids.
     events : tuple of tuple of str
         The event names of each NOTIFY / WAIT, in order (a NOTIFY has one).
+    turns : tuple of (int, float)
+        ``(i, degrees)``: before command ``i`` the robot turns about its nozzle, the shorter way,
+        to face ``degrees`` (from +X, the direction from its body to the nozzle); ``i`` in order,
+        ``len(self)`` for a turn after the last command. Empty: it keeps the facing it started
+        with (the plan's ``facing_deg``) throughout.
     """
 
     robot: str
@@ -109,6 +117,7 @@ class Program:
     event: np.ndarray
     chunks: tuple[str, ...] = ()
     events: tuple[tuple[str, ...], ...] = ()
+    turns: tuple[tuple[int, float], ...] = ()
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -117,6 +126,7 @@ class Program:
         if not isinstance(other, Program):
             return NotImplemented
         return (self.robot == other.robot and self.chunks == other.chunks and self.events == other.events
+                and self.turns == other.turns
                 and all(np.array_equal(getattr(self, f), getattr(other, f), equal_nan=f == "xyz")
                         for f in COLUMNS))
 
@@ -150,7 +160,11 @@ class Program:
             chunks += [c for c in p.chunks if c not in chunks]
         cols: dict[str, list[np.ndarray]] = {f: [] for f in COLUMNS}
         events: list[tuple[str, ...]] = []
+        turns: list[tuple[int, float]] = []
+        at = 0  # commands before the piece
         for p in pieces:
+            turns += [(i + at, deg) for i, deg in p.turns]
+            at += len(p)
             remap = np.array([chunks.index(c) for c in p.chunks] + [-1], dtype=np.int16)
             for f in COLUMNS[:6]:  # as they are; chunk and event renumbered
                 cols[f].append(getattr(p, f))
@@ -158,15 +172,15 @@ class Program:
             cols["event"].append(np.where(p.event >= 0, p.event + len(events), -1).astype(np.int32))
             events += p.events
         return Program(robot, *(np.concatenate(cols[f]) for f in cols), chunks=tuple(chunks),
-                       events=tuple(events))
+                       events=tuple(events), turns=tuple(turns))
 
 
 def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *, role=TRAVEL, width=0.0,
                  layer=-1, height=0.0, chunk=-1, chunks: tuple[str, ...] = (),
-                 events: tuple[tuple[str, ...], ...] = ()) -> Program:
+                 events: tuple[tuple[str, ...], ...] = (), turns: tuple[tuple[int, float], ...] = ()) -> Program:
     """A :class:`Program` from a kind array and (n, 3) MOVE targets (rows of other commands are
     ignored); the metadata are scalars or (n,) arrays. Events number the NOTIFY / WAIT commands in
-    order."""
+    order; ``turns`` are :attr:`Program.turns`."""
     kind = np.asarray(kind, dtype=np.uint8)
     n = len(kind)
     pos = np.full((n, 3), np.nan)
@@ -183,7 +197,8 @@ def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *,
         return np.broadcast_to(np.asarray(v, dtype=dtype), (n,)).copy()
 
     return Program(robot, kind, pos, full(role, np.uint8), full(width, np.float64), full(layer, np.int32),
-                   full(height, np.float64), full(chunk, np.int16), event, tuple(chunks), tuple(events))
+                   full(height, np.float64), full(chunk, np.int16), event, tuple(chunks), tuple(events),
+                   tuple((int(i), float(d)) for i, d in turns))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -217,11 +232,16 @@ def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> Non
         out.write(f"; {line}\n")
     p = program
     n = len(p)
+    turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
+    for i, deg in p.turns:
+        turns.setdefault(i, []).append(deg)
     if n == 0:
+        out.write("".join(f";@facing {d!r}\n" for d in turns.get(0, ())))
         return
     meta_change = np.ones(n, dtype=bool)
     meta_change[1:] = ((p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1]) | (p.height[1:] != p.height[:-1])
                        | (p.role[1:] != p.role[:-1]) | (p.width[1:] != p.width[:-1]))
+    meta_change[[i for i in turns if i < n]] = True  # a turn starts a run of its own
     not_move = p.kind != MOVE
     # a run of MOVEs ends before a command that is not a move or whose annotations change
     breaks = np.flatnonzero(meta_change | not_move | np.r_[False, not_move[:-1]])
@@ -231,6 +251,8 @@ def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> Non
     for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
         text, state = _annotations(p, a, state)
         out.write(text)
+        if a in turns:
+            out.write("".join(f";@facing {d!r}\n" for d in turns[a]))
         k = int(p.kind[a])
         if k == MOVE:
             out.write("MOVE %.3f, %.3f, %.3f\n" * (b - a) % tuple(xyz[3 * a:3 * b]))
@@ -238,6 +260,7 @@ def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> Non
             out.write(KIND_NAMES[k] + "\n")
         else:
             out.write(f"{KIND_NAMES[k]} {', '.join(p.events[int(p.event[a])])}\n")
+    out.write("".join(f";@facing {d!r}\n" for d in turns.get(n, ())))
 
 
 def coop_text(program: Program, header: Iterable[str] = ()) -> str:
@@ -360,10 +383,13 @@ class _Lines:
                 return "ann", "layer", (int(vals[0]), float(vals[1]))
             if key == "path" and len(vals) == 2 and vals[0] in _ROLE_OF_WORD and float(vals[1]) >= 0:
                 return "ann", "path", (_ROLE_OF_WORD[vals[0]], float(vals[1]))
+            if key == "facing" and len(vals) == 1 and _NUMBER.fullmatch(vals[0]) and math.isfinite(float(vals[0])):
+                return "ann", "facing", float(vals[0])
         except ValueError:
             pass
-        if key in ("chunk", "layer", "path"):
+        if key in ("chunk", "layer", "path", "facing"):
             form = {"chunk": "';@chunk ID' or ';@chunk -'", "layer": "';@layer INDEX HEIGHT' or ';@layer -'",
+                    "facing": "';@facing DEGREES' (a finite number)",
                     "path": "';@path ROLE WIDTH' with ROLE one of " + ", ".join(_ROLE_OF_WORD)}[key]
             raise self.error(lineno, col, f"malformed annotation '{comment.strip()}': expected {form}")
         return None  # an annotation of a later version: a comment here
@@ -391,7 +417,7 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
     kind_of, xyz_of = swept.kind, swept.xyz  # per slot: a command, or a line for the line parser
     lines = _Lines(source, robot)
     events = []
-    ann: dict[str, list] = {"chunk": [], "layer": [], "path": []}  # (line, slot, value) of the line parser's
+    ann: dict[str, list] = {"chunk": [], "layer": [], "path": [], "facing": []}  # (line, slot, value) of the line parser's
     for i, a, b, slot in swept.other.tolist():
         try:
             line = bytes(data[a:b]).decode("utf-8")
@@ -440,8 +466,13 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
     used = used[np.argsort(first)]
     remap = np.full(len(lines.chunks) + 1, -1, dtype=np.int16)
     remap[used] = np.arange(len(used))
+    # a turn comes before the first command below its line (the commands above it: its slot
+    # among the commands' slots)
+    turn_slot = np.array([x[1] for x in ann["facing"]], dtype=np.int64)
+    turn_at = turn_slot if slot_of is None else np.searchsorted(slot_of, turn_slot)
+    turns = tuple((int(i), x[2][0]) for i, x in zip(turn_at.tolist(), ann["facing"]))
     return Program(robot, kind_of, xyz_of, role.astype(np.uint8), width, layer.astype(np.int32), height,
-                   remap[chunk], event, tuple(lines.chunks[c] for c in used.tolist()), tuple(events))
+                   remap[chunk], event, tuple(lines.chunks[c] for c in used.tolist()), tuple(events), turns)
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:

@@ -12,13 +12,16 @@ written here, piece by piece as it arrives (``cooprint slice`` streams one layer
 * ``;LAYER:<i>``, ``;Z:<z>``, ``;CHUNK:<id>`` and ``;TYPE:<role>`` comments, as slicers write them;
 * NOTIFY and WAIT for a fleet host (docs/program.md): ``; NOTIFY e`` then ``M400`` (wait until the
   moves before are done) and ``M118 NOTIFY e`` (a line the host reads); ``; WAIT e`` then ``M400``
-  and ``M0 WAIT e`` (the printer stops until the host resumes it once every event was announced).
+  and ``M0 WAIT e`` (the printer stops until the host resumes it once every event was announced);
 * heating: a printer (``cooprint slice``) heats bed and nozzle in its start code; a mobile robot
   (:class:`Heating`) heats its nozzle only right before the first extrusion (``M104`` + ``M109`` at
   the first ``TOOL ON``), so that a robot whose program starts by waiting for another robot's
   chunk does not sit hot for hours; before a WAIT expected to last longer than the idle limit
   the hot nozzle is turned off (``M104 S0``) and it is heated again before the next extrusion. A
   robot heats a bed (``M140``/``M190``) only when its profile has one.
+* a turn (``;@facing d``) as ``; FACING d``, ``M400`` and ``M0 FACING d``: the printer stops where
+  the turn is, and the host turns the robot round about its nozzle to face ``d`` degrees, then
+  resumes it.
 """
 
 from __future__ import annotations
@@ -166,6 +169,8 @@ class GcodeWriter:
         """
         n = len(p)
         if n == 0:
+            for _, deg in p.turns:  # a piece that is only a turn
+                self._turn([deg])
             return
         kind, xyz = p.kind, p.xyz
         on = p.tool_on(self.tool)
@@ -192,9 +197,15 @@ class GcodeWriter:
         # runs: a new one wherever a command does not continue the extrusion before it
         moved = np.r_[True, (p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1])]
         cont = np.r_[False, ext_cmd[1:] & ext_cmd[:-1] & (p.role[1:] == p.role[:-1])] & ~moved
+        turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
+        for t, deg in p.turns:
+            turns.setdefault(t, []).append(deg)
+        cont[[t for t in turns if t < n]] = False
         starts = np.flatnonzero(~cont).tolist() + [n]
         out, s = self.out, self.s
         for i, j in zip(starts[:-1], starts[1:]):
+            if i in turns:
+                self._turn(turns[i])
             if moved[i] and p.layer[i] >= 0:
                 where = (p.chunks[p.chunk[i]] if p.chunk[i] >= 0 else None, int(p.layer[i]))
                 if where != self.where:
@@ -241,9 +252,17 @@ class GcodeWriter:
                         self.hot = False
                     self.waits += 1
                 out.write(f"{code} {word} {ev}\n")
+        if n in turns:
+            self._turn(turns[n])
         self.tool = bool(on[-1])
         if len(mv):
             self.pos = xyz[mv[-1]]
+
+    def _turn(self, facings: list[float]) -> None:
+        """Host lines of a turn: the printer finishes its moves and stops; the host turns the
+        robot (through each facing in order) and resumes it."""
+        for deg in facings:
+            self.out.write(f"; FACING {deg:.3f}\nM400\nM0 FACING {deg:.3f}\n")
 
     def _announce(self, where: tuple, xyz: np.ndarray, kind: np.ndarray, i: int) -> None:
         chunk, layer = where

@@ -35,8 +35,12 @@ class _Scene:
         self.result, self.size = result, size
         self.basis = _view_basis(azimuth_deg, elevation_deg)
         extent = [np.vstack([tl.p0, tl.p1]) for tl in result.timelines.values() if len(tl.p0)]
-        feet = [_footprint(result, r, p) for r in result.robots for tl in [result.timelines[r.name]]
-                for p in ([tl.p0[0], tl.p1[-1]] if len(tl.p0) else [])]
+        feet = [_footprint(result, r, p, t) for r in result.robots for tl in [result.timelines[r.name]]
+                for p, t in ([(tl.p0[0], tl.t0[0]), (tl.p1[-1], tl.t1[-1])] if len(tl.p0) else [])]
+        for r in result.robots:  # where a robot turns, in the facings before and after
+            spans = r.facing_spans(result.timelines[r.name]) if r.program.turns else []
+            feet += [np.column_stack([sp.position[:2] + body_corners(result.profile, f), np.zeros(4)])
+                     for before, sp in zip(spans, spans[1:]) for f in (before.facing, sp.facing)]
         every = np.vstack(extent + feet) if extent else np.zeros((1, 3))
         self.lo, self.scale, self.off = _fit((every @ self.basis.T)[:, :2], size, 40, 90)
         self.palette = np.array([_colour(i) for i in range(len(result.robots))])
@@ -75,7 +79,7 @@ class _Scene:
         """Footprints on the floor and nozzles (a mast from the floor and a dot)."""
         for i, r in enumerate(self.result.robots):
             n = self.result.timelines[r.name].position(t)
-            foot = [tuple(q) for q in self.px(_footprint(self.result, r, n)).round(1).tolist()]
+            foot = [tuple(q) for q in self.px(_footprint(self.result, r, n, t)).round(1).tolist()]
             light = tuple(int(0.5 * x + 0.5 * 255) for x in _colour(i))
             draw.polygon(foot, fill=light if filled else None, outline=_colour(i))
             a, b = self.px(np.array([n[0], n[1], 0.0])), self.px(n)
@@ -175,9 +179,11 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
     return path
 
 
-def _footprint(result: SimResult, r, nozzle: np.ndarray) -> np.ndarray:
-    """(4, 3) corners of a robot's body on the floor with its nozzle at ``nozzle``."""
-    xy = nozzle[:2] + body_corners(result.profile, r.facing)
+def _footprint(result: SimResult, r, nozzle: np.ndarray, t: float) -> np.ndarray:
+    """(4, 3) corners of a robot's body on the floor with its nozzle at ``nozzle`` at time ``t``
+    (in the facing in force then: a robot that turns round is drawn as it stands)."""
+    facing = r.facing_at(result.timelines[r.name], t) if r.program.turns else r.facing
+    xy = nozzle[:2] + body_corners(result.profile, facing)
     return np.column_stack([xy, np.zeros(4)])
 
 

@@ -16,7 +16,7 @@ from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation.checks import STEP, Material, footprint_checks, overhangs, robots_collide
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
 from cooprint.simulation.kinematics import MachineLimits
-from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule
+from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
 #: Finding kinds, in the order of the issue's checks (a)-(e).
@@ -97,6 +97,8 @@ class Frames:
     material : (T, R) float64
         mm^3 each robot has laid down (width x height x length, the part of the move under way
         included).
+    facing : (T, R, 2) float64
+        The direction each robot faces (from its body to its nozzle), as its turns leave it.
     """
 
     t: np.ndarray
@@ -104,6 +106,7 @@ class Frames:
     position: np.ndarray
     done: np.ndarray
     material: np.ndarray
+    facing: np.ndarray
 
 
 def frames(result: SimResult, dt: float) -> Frames:
@@ -115,7 +118,7 @@ def frames(result: SimResult, dt: float) -> Frames:
     span = result.makespan
     t = np.arange(0.0, span, dt) if span > 0 else np.zeros(0)
     t = np.append(t, span)
-    pos, done, material = [], [], []
+    pos, done, material, facing = [], [], [], []
     for r in result.robots:
         tl = result.timelines[r.name]
         vol = move_volumes(r, tl, result.slicing)
@@ -127,19 +130,37 @@ def frames(result: SimResult, dt: float) -> Frames:
             under_way = (k < len(tl.t1)) & (tl.t0[cur] < t) & (span_k > 0)
             part[under_way] = vol[cur[under_way]] * (t[under_way] - tl.t0[cur[under_way]]) / span_k[under_way]
         pos.append(tl.position(t))
+        facing.append(r.facing_at(tl, t))
         done.append(k)
         material.append(np.concatenate([[0.0], np.cumsum(vol)])[k] + part)
     shape = (len(t), 0)
     return Frames(t, tuple(r.name for r in result.robots),
                   np.stack(pos, axis=1) if pos else np.zeros(shape + (3,)),
                   np.stack(done, axis=1) if done else np.zeros(shape, np.int64),
-                  np.stack(material, axis=1) if material else np.zeros(shape))
+                  np.stack(material, axis=1) if material else np.zeros(shape),
+                  np.stack(facing, axis=1) if facing else np.zeros(shape + (2,)))
 
 
 def findings_line(counts: dict[str, int]) -> str:
     """``finding_counts`` of a summary in a few words: the kinds found and how many, or none."""
     found = [f"{k} {v}" for k, v in counts.items() if v]
     return ", ".join(found) if found else "none"
+
+
+def failures(record: dict, strict: bool = False) -> dict[str, int]:
+    """The ``finding_counts`` of a summary that make a plan fail: the error-level kinds found
+    (every kind but overhang), and with ``strict`` the warnings too. Empty: the plan passes."""
+    return {k: v for k, v in record["finding_counts"].items() if v and (strict or severity(k) == "error")}
+
+
+def verdict(record: dict, strict: bool = False) -> str | None:
+    """What a plan's checks say against it, in a few words (``errors (body-on-material 12)``,
+    or ``warnings (overhang 3)`` under ``strict`` when there are no errors); ``None``: it passes."""
+    errors = failures(record)
+    if errors:
+        return f"errors ({findings_line(errors)})"
+    warnings = failures(record, strict)
+    return f"warnings ({findings_line(warnings)})" if warnings else None
 
 
 def summary(result: SimResult) -> dict[str, object]:
@@ -168,5 +189,5 @@ def summary(result: SimResult) -> dict[str, object]:
             "findings": [f.to_dict() for f in result.findings], "notes": list(result.notes)}
 
 
-__all__ = ["KINDS", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "findings_line", "frames",
-           "load_inputs", "simulate", "summary"]
+__all__ = ["KINDS", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "failures", "findings_line",
+           "frames", "load_inputs", "simulate", "summary", "verdict"]

@@ -113,6 +113,19 @@ class Material:
     def robot(self, i: int) -> slice:
         return slice(int(self.bounds[i]), int(self.bounds[i + 1]))
 
+    def before(self, t: float) -> "Material":
+        """The material laid down before time ``t`` (each robot's points are in time order: a
+        prefix of each; views when one robot laid it all)."""
+        ends = [int(self.bounds[i]) + int(np.searchsorted(self.t[self.robot(i)], t, side="left"))
+                for i in range(len(self.bounds) - 1)]
+        if all(e == int(b) for e, b in zip(ends, self.bounds[1:])):
+            return self
+        parts = [slice(int(a), e) for a, e in zip(self.bounds[:-1], ends)]
+        bounds = np.cumsum([0] + [e - int(a) for a, e in zip(self.bounds[:-1], ends)])
+        if len(parts) == 1:
+            return Material(self.xyz[parts[0]], self.t[parts[0]], self.h[parts[0]], bounds)
+        return Material(*(np.concatenate([getattr(self, f)[sl] for sl in parts]) for f in ("xyz", "t", "h")), bounds)
+
 
 def _frame(facing: np.ndarray) -> np.ndarray:
     """(2, 2) rows: the facing direction and its left."""
@@ -176,30 +189,56 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
     """``body-on-material`` (``body``): a robot's body over material laid down before; and
     ``printhead-hits-material`` (``head``): material laid down before within the printhead's
     reach and higher than ``nozzle_height`` over the nozzle tip. One finding per robot, kind and
-    chunk, with the first instant and how many nozzle samples."""
+    chunk, with the first instant and how many nozzle samples.
+
+    A robot that turns (``;@facing``) is checked span by span (:meth:`SimRobot.facing_spans`),
+    each in the facing then in force, on rasters in that facing's frame; a span after a turn
+    starts with the turn point itself, so that the body is checked there in the old facing (the
+    last sample before) and in the new one (and in a facing it passes through while turning
+    there, a span without moves)."""
     n_step = _step(timelines, step, deposits_only=False)
     findings = []
     for r in robots:
         tl = timelines[r.name]
-        frame = _frame(r.facing).astype(np.float32)
-        checks = robot_checks(material, frame, profile, body, head, tolerance, tl)
-        if not checks or len(tl.t0) == 0:
+        if len(tl.t0) == 0:
             continue
-        b, h = (checks[0] if body else None), (checks[-1] if head else None)
         chunk = r.program.chunk[tl.index].astype(np.int64)
         chunk[chunk < 0] = len(r.program.chunks)  # between chunks: the last slot
         slots = len(r.program.chunks) + 1
         count, when, where = np.zeros((2, slots), np.int64), np.full((2, slots), np.inf), np.zeros((2, slots, 3))
         _, n, first = _selection(tl, n_step, deposits_only=False)  # the nozzle samples: all its path
-        kernels.footprint_sweep(tl.p0, tl.p1, tl.t0, tl.t1, n, first, chunk, frame, b is not None,
-                                (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state,
-                                count, when, where)
-        for k, c in enumerate((b, h)):
+        spans = r.facing_spans(tl)
+        for j, span in enumerate(spans):
+            frame = _frame(span.facing).astype(np.float32)
+            a, e = span.start, span.stop
+            if a < e:  # its moves, from the turn point on (from the start, for the first span)
+                p0, p1, t0, t1, nn, ch, first_here = tl.p0[a:e], tl.p1[a:e], tl.t0[a:e], tl.t1[a:e], n[a:e], \
+                    chunk[a:e], first if j == 0 else True
+            else:  # none: the turn point alone, as a move that goes nowhere
+                p0 = p1 = span.position[None].astype(np.float64)
+                t0 = t1 = np.array([span.time])
+                nn, first_here = np.ones(1, np.int64), False
+                ch = np.array([chunk[a] if a < len(chunk) else slots - 1], np.int64)
+            # the material laid down before the span's last instant, on rasters in its frame
+            mat = material.before(float(t1[-1])) if len(spans) > 1 else material
+            checks = robot_checks(mat, frame, profile, body, head, tolerance, tl)
+            if not checks:
+                break
+            b, h = (checks[0] if body else None), (checks[-1] if head else None)
+            kernels.footprint_sweep(p0, p1, t0, t1, nn, first_here, ch, frame, b is not None,
+                                    (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state,
+                                    count, when, where)
+        for k, (kind, detail) in enumerate(((_BodyCheck.kind, _BodyCheck.detail), (_HeadCheck.kind, _head_detail(profile)))):
             for slot in np.flatnonzero(count[k]):
-                findings.append(Finding(c.kind, r.name, float(when[k, slot]), tuple(float(x) for x in where[k, slot]),
-                                        r.program.chunks[slot] if slot < len(r.program.chunks) else None, c.detail,
+                findings.append(Finding(kind, r.name, float(when[k, slot]), tuple(float(x) for x in where[k, slot]),
+                                        r.program.chunks[slot] if slot < len(r.program.chunks) else None, detail,
                                         int(count[k, slot])))
     return sorted(findings, key=lambda f: (f.time, f.kind))
+
+
+def _head_detail(profile: RobotProfile) -> str:
+    return (f"material laid down before rises within the printhead's reach ({profile.nozzle_depth:g} mm) "
+            f"above its underside ({profile.nozzle_height:g} mm over the nozzle tip)")
 
 
 def robot_checks(material: Material, frame: np.ndarray, profile: RobotProfile, body: bool = True,
@@ -271,8 +310,7 @@ class _HeadCheck:
         top = np.full(1, -np.inf, dtype=np.float32)  # the highest material added
         self.state = (high, coarse, HEAD_BLOCK, xyz, t, keep, frame, bounds[1:].astype(np.int64), added, top,
                       *grid.params, lift)  # what the kernels take
-        self.detail = (f"material laid down before rises within the printhead's reach ({profile.nozzle_depth:g} mm) "
-                       f"above its underside ({profile.nozzle_height:g} mm over the nozzle tip)")
+        self.detail = _head_detail(profile)
 
     @staticmethod
     def idle() -> "_HeadCheck":
@@ -320,15 +358,30 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
 
 def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
                    dt: float = 0.5, tolerance: float = TOLERANCE) -> list[Finding]:
-    """Pairs of robots whose footprints overlap at the same instant (sampled every ``dt`` s)."""
+    """Pairs of robots whose footprints overlap at the same instant (sampled every ``dt`` s),
+    each robot in the facing in force at that instant."""
     findings = []
     end = max((tl.end for tl in timelines.values()), default=0.0)
     times = np.arange(0.0, end + dt, dt)
     nozzle = {r.name: _nozzle_xy(timelines[r.name], times) for r in robots}
+    facing = {}  # per robot: its facings, and which is in force at each instant
+    for r in robots:
+        spans = r.facing_spans(timelines[r.name])
+        starts = np.array([sp.time for sp in spans])
+        facing[r.name] = ([sp.facing for sp in spans], np.searchsorted(starts[1:], times, side="right"))
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
-            hit = kernels.rects_overlap(nozzle[a.name], nozzle[b.name], body_corners(profile, a.facing, tolerance),
-                                        body_corners(profile, b.facing, tolerance))
+            (fa, ka), (fb, kb) = facing[a.name], facing[b.name]
+            if len(fa) == len(fb) == 1:
+                hit = kernels.rects_overlap(nozzle[a.name], nozzle[b.name], body_corners(profile, fa[0], tolerance),
+                                            body_corners(profile, fb[0], tolerance))
+            else:  # the instants of each pair of facings in force
+                hit = np.zeros(len(times), dtype=bool)
+                for ja, jb in sorted(set(zip(ka.tolist(), kb.tolist()))):
+                    sel = (ka == ja) & (kb == jb)
+                    hit[sel] = kernels.rects_overlap(nozzle[a.name][sel], nozzle[b.name][sel],
+                                                     body_corners(profile, fa[ja], tolerance),
+                                                     body_corners(profile, fb[jb], tolerance))
             if hit.any():
                 k = np.flatnonzero(hit)
                 t = float(times[k[0]])

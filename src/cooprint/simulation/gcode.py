@@ -283,6 +283,8 @@ def host_line(line: str, where: str) -> tuple[int, tuple[str, ...]] | str | None
     * ``M118 NOTIFY e`` announces event ``e``: ``(NOTIFY, (e,))``;
     * ``M0 WAIT e[, f ...]`` (or ``M1``) blocks until every named event is announced:
       ``(WAIT, (e, f, ...))``; this is what cooprint writes after ``M400`` (docs/program.md);
+    * ``M0 FACING d`` is a turn of a robot that prints both sides (the host turns it): nothing to
+      simulate, since where a G-code robot's body stands is not known: ``None``;
     * any other ``M0``/``M1`` is a pause for an operator, which the simulation cannot honour: the
       word (``"M0"``) is returned, for a note in the summary;
     * any other ``M118`` is an echo to the host: ``None``.
@@ -303,6 +305,8 @@ def host_line(line: str, where: str) -> tuple[int, tuple[str, ...]] | str | None
             raise HostLineError(f"{where}: '{_clip(line)}': expected M118 NOTIFY and one event name "
                                 "(letters, digits, _ : . -)")
         return NOTIFY, (names[0],)
+    if word == "FACING":  # a turn for the host (docs/program.md); a G-code robot's body is not placed
+        return None
     if word != "WAIT":
         return code
     names = [x.strip() for x in args.split(",")]

@@ -175,7 +175,8 @@ def load_manifest(path: str | Path) -> SimInput:
         name = "A"
         program = "A.coop"      # relative to the manifest
         start = [0.0, 0.0, 5.0] # nozzle position at the start, mm (absent: the first MOVE)
-        facing_deg = 90.0       # direction from the body to the nozzle (absent: +Y)
+        facing_deg = 90.0       # direction from the body to the nozzle at the start (absent: +Y;
+                                # the program's ;@facing lines turn the robot on the way)
     """
     p = Path(path)
     where = str(p)

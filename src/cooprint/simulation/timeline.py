@@ -36,7 +36,9 @@ class SimRobot:
     start : (3,) float
         Nozzle position before the first command, mm (``None``: at the first MOVE's target).
     facing : (2,) float
-        Unit XY vector from the body to the nozzle (the body stands ``build_depth`` behind).
+        Unit XY vector from the body to the nozzle (the body stands ``build_depth`` behind), at
+        the start; the program's ``;@facing`` turns (:attr:`Program.turns`) change it on the way
+        (:meth:`facing_spans`).
     speed : (n,) float or None
         Per-command speed of MOVEs, mm/s (a G-code file's feed rates); ``None``: the profile's.
     de : (n,) float or None
@@ -54,11 +56,65 @@ class SimRobot:
     de: np.ndarray | None = None
     notes: tuple[str, ...] = ()
 
+    def facing_spans(self, tl: "Timeline") -> list["FacingSpan"]:
+        """The robot's timeline cut where its facing changes: one span per facing in force, in
+        order. A turn before command ``i`` takes effect from the first move at or after ``i``,
+        at that move's start (where and when the robot turns); two turns at the same place give
+        a span without moves (the robot passes through that facing while turning there)."""
+        spans = [FacingSpan(0, len(tl.t0), _unit(self.facing), 0.0 if not len(tl.t0) else float(tl.t0[0]),
+                            self._start_position(tl))]
+        for i, deg in self.program.turns:
+            k = int(np.searchsorted(tl.index, i, side="left"))
+            if k < len(tl.t0):
+                when, where = float(tl.t0[k]), tl.p0[k]
+            elif len(tl.t0):
+                when, where = float(tl.t1[-1]), tl.p1[-1]
+            else:
+                when, where = 0.0, self._start_position(tl)
+            last = spans[-1]
+            spans[-1] = FacingSpan(last.start, k, last.facing, last.time, last.position)
+            spans.append(FacingSpan(k, len(tl.t0), _unit_deg(deg), when, np.asarray(where, dtype=np.float64)))
+        return spans
+
+    def facing_at(self, tl: "Timeline", t: np.ndarray | float) -> np.ndarray:
+        """(..., 2) the facing in force at time(s) ``t`` (a turn at time T is in force from T on)."""
+        spans = self.facing_spans(tl)
+        start = np.array([sp.time for sp in spans])
+        k = np.clip(np.searchsorted(start[1:], np.asarray(t, dtype=np.float64), side="right"), 0, len(spans) - 1)
+        return np.stack([sp.facing for sp in spans])[k]
+
+    def _start_position(self, tl: "Timeline") -> np.ndarray:
+        if self.start is not None:
+            return np.asarray(self.start, dtype=np.float64)
+        return tl.p0[0].astype(np.float64) if len(tl.t0) else np.zeros(3)
+
     def bead(self, index: np.ndarray, width: float, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Width and height of the material laid by commands ``index``: their annotations, or
         ``width`` and ``height`` (the slicing settings') where a program has none."""
         w, h = self.program.width[index], self.program.height[index]
         return np.where(w > 0, w, width), np.where(h > 0, h, height)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    v = np.asarray(v, dtype=np.float64)[:2]
+    return v / np.linalg.norm(v)
+
+
+def _unit_deg(deg: float) -> np.ndarray:
+    return np.array([np.cos(np.radians(deg)), np.sin(np.radians(deg))])
+
+
+@dataclass(frozen=True)
+class FacingSpan:
+    """A stretch of a robot's timeline with one facing: moves ``start:stop`` of the timeline
+    (possibly none), the ``facing`` (unit XY, from the body to the nozzle), and the ``time`` and
+    nozzle ``position`` (3,) where it comes into force (the turn; the start for the first)."""
+
+    start: int
+    stop: int
+    facing: np.ndarray
+    time: float
+    position: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -125,6 +181,15 @@ class Timeline:
         return seg, idx
 
 
+#: Finding kinds that are warnings: the plan can still be printed (every other kind is an error).
+WARNING_KINDS = frozenset({"overhang"})
+
+
+def severity(kind: str) -> str:
+    """``warning`` or ``error``: how bad a finding of ``kind`` is."""
+    return "warning" if kind in WARNING_KINDS else "error"
+
+
 @dataclass(frozen=True)
 class Finding:
     """A physical problem of a plan: what, which robot, when, where, in which chunk."""
@@ -140,7 +205,7 @@ class Finding:
     @property
     def severity(self) -> str:
         """``warning`` for an overhang (the plan can still be printed), else ``error``."""
-        return "warning" if self.kind == "overhang" else "error"
+        return severity(self.kind)
 
     def to_dict(self) -> dict[str, object]:
         return {"kind": self.kind, "severity": self.severity, "robot": self.robot, "time_s": self.time,
@@ -261,4 +326,4 @@ def _chunk_at(program: Program, i: int) -> str | None:
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["Finding", "SimRobot", "Timeline", "move_durations", "schedule"]
+__all__ = ["FacingSpan", "Finding", "SimRobot", "Timeline", "WARNING_KINDS", "move_durations", "schedule", "severity"]
