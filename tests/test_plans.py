@@ -71,7 +71,9 @@ def test_every_generated_solid_plans_without_an_error(name, robots, tmp_path):
         printing = [c for c in seq if any(len(layer) for _, layer in job.layers[c])]
         sides = {roles[c] for c in printing} - {"centre"}
         turns = 1 if sides == {"left", "right"} else 0  # a robot turns round only to change sides
-        assert len(job.placements[robot].facings) == 1 + turns
+        # a robot with nothing to print (a part that fits the build depth is one chunk) parks, facing
+        # the part, and never turns
+        assert len(job.placements[robot].facings) == (1 + turns if printing else 0)
         assert len(job.programs[robot].turns) == 2 * turns  # via a quarter turn, then round
 
 
