@@ -27,8 +27,10 @@ STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writin
 
 @contextmanager
 def stage_progress(enabled: bool) -> Iterator[Any]:
-    """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr."""
-    if not enabled:
+    """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr, when
+    stderr is a terminal (a log or a pipe gets no bars: a failed run's stderr is its one error
+    line)."""
+    if not enabled or not sys.stderr.isatty():
         yield None
         return
     from rich.console import Console  # rich costs ~80 ms to import: only when bars are drawn

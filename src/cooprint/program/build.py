@@ -305,7 +305,8 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
     for robot, seq in sequences.items():
         pieces: list[Program] = []
         sides = {roles[c] for c in seq} - {"centre"}
-        side = "both" if len(sides) != 1 else sides.pop()
+        # the side its body stands on: a robot that prints only the centre chunk faces +axis, from the left
+        side = "left" if not sides else ("both" if len(sides) > 1 else sides.pop())
         faces = chunk_facings(seq, roles, ax)
         printing = [c for c in seq if _first_point(layers, (c,)) is not None]
         current = faces[printing[0]] if printing else (ax if side != "right" else -ax)
