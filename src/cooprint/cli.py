@@ -6,7 +6,9 @@ Exit codes: 0 success, 2 bad input (one line on stderr, no traceback unless ``--
 
 from __future__ import annotations
 
+import errno
 import os
+import signal
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -114,11 +116,12 @@ def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], t
     (``write(job, out, force, picture, progress)``) with progress bars; print the plan unless
     ``quiet`` (then return ``None``), else return the record."""
     from cooprint.io.bundle import check_destination
+    from cooprint.io.outputs import estimate_bytes
 
     _lean_malloc()
     settings = _settings(config, {"chunking.theta_deg": theta, "chunking.shift": shift,
                                   "chunking.top_width": top_width, "chunking.centre_angle_deg": centre_angle})
-    check_destination(Path(out), force)  # before the work, not after
+    check_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     with stage_progress(not quiet) as progress:
         record = write(make(mesh, settings, robots, progress), out, force, not no_picture, progress)
     if quiet:
@@ -166,11 +169,12 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], layer_height: float 
     The same slicer turns every chunk of a cooperative job into tool paths.
     """
     from cooprint.io.bundle import check_file_destination
+    from cooprint.io.outputs import estimate_bytes
     from cooprint.jobs import slice_to_gcode
 
     _lean_malloc()
     settings = _settings(config, {"slicing.layer_height": layer_height, "slicing.infill_density": infill})
-    check_file_destination(Path(out), force)  # before the work, not after
+    check_file_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     with stage_progress(not quiet) as progress:
         n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True)
     if not quiet:
@@ -246,7 +250,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
 
     import numpy as np
 
-    from cooprint.io.bundle import atomic_file, write_json
+    from cooprint.io.bundle import atomic_file, check_file_destination, write_json
     from cooprint.simulation import findings_line, frames, load_inputs, simulate as run_sim, summary
 
     _need_inputs(inputs, manifest)
@@ -254,23 +258,22 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         raise UserError(f"--frames {frame_step:g}: expected a positive number of seconds")
     folder = _sim_folder(inputs, out)
     targets = [folder / "summary.json"] + ([folder / "frames.npz"] if frame_step is not None else [])
-    for target in targets:
-        if target.exists() and not force:
-            raise UserError(f"{target}: exists; use --force to replace it")
+    sources = (*inputs, manifest)
+    for target in targets:  # before the work; cooprint's own earlier results need no --force
+        check_file_destination(target, force, sources, create_parents=2)
     target = targets[0]
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest), accel=accel)
     record = summary(result)
-    folder.mkdir(parents=True, exist_ok=True)
     if frame_step is not None:
         if result.makespan / frame_step > 10_000_000:
             raise UserError(f"--frames {frame_step:g}: more than 10 million frames over {result.makespan:.0f} s; "
                             "take a longer step")
         fr = frames(result, frame_step)
-        with atomic_file(targets[1], force=True) as tmp, open(tmp, "wb") as f:
+        with atomic_file(targets[1], force=True, inputs=sources, create_parents=2) as tmp, open(tmp, "wb") as f:
             np.savez_compressed(f, t=fr.t, robots=np.array(fr.robots), position=fr.position, done=fr.done,
                                 material=fr.material)
-    with atomic_file(target, force=True) as tmp:
+    with atomic_file(target, force=True, inputs=sources, create_parents=2) as tmp:
         write_json(tmp, record)
     if not quiet:
         click.echo(f"makespan {record['makespan_s'] / 3600:.2f} h ({record['makespan_s']:.0f} s)")
@@ -301,13 +304,18 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
 def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, duration: float | None,
            speedup: float | None, manifest: str | None, out: str | None, force: bool) -> None:
     """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
-    from cooprint.io.bundle import atomic_file, check_file_destination
+    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import load_inputs, simulate as run_sim
 
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
+    sources = (*inputs, manifest)
+    if out:  # before the work; the name of a snapshot in sim/ is known only after it
+        check_file_destination(out, force, sources)
+    else:
+        check_sim_folder(_sim_folder(inputs, None))
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest), checks=False)
     t = result.makespan if at is None else at
@@ -315,21 +323,14 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
     target = Path(out) if out else _sim_folder(inputs, None) / name
-    check_file_destination(target, force)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    if fmt in ("mp4", "gif"):  # the encoder names its format from the suffix: write beside, then rename
-        tmp = target.with_name(f".{target.stem}.tmp{target.suffix}")
-        try:
+    # a bundle's sim/ is made if missing; cooprint's earlier pictures there need no --force
+    with atomic_file(target, force, inputs=sources, create_parents=0 if out else 1) as tmp:
+        if fmt in ("mp4", "gif"):  # the temporary file keeps the suffix the encoder names its format from
             render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup)
-            tmp.replace(target)
-        finally:
-            tmp.unlink(missing_ok=True)
-    else:
-        with atomic_file(target, force) as tmp:
-            if fmt == "gantt":
-                render_gantt(result, tmp)
-            else:
-                render_snapshot(result, t, tmp)
+        elif fmt == "gantt":
+            render_gantt(result, tmp)
+        else:
+            render_snapshot(result, t, tmp)
     click.echo(f"wrote {target}")
 
 
@@ -388,18 +389,45 @@ def main(argv: list[str] | None = None) -> int:
             raise
         click.echo(f"cooprint: error: {one_line(str(exc))}", err=True)
         return exc.exit_code
-    except click.exceptions.Abort:
-        click.echo("cooprint: interrupted", err=True)
-        return 130
+    except (click.exceptions.Abort, KeyboardInterrupt):
+        return _interrupted()
     except click.ClickException as exc:  # a bad option or argument: one line too, no usage block
         if verbose:
             raise
         click.echo(f"cooprint: error: {one_line(exc.format_message())}", err=True)
         return 2
-    except KeyboardInterrupt:
-        click.echo("cooprint: interrupted", err=True)
-        return 130
+    except OSError as exc:  # no space, no permission, read-only: the machine's state, not a bug; one line
+        if verbose or exc.errno not in _WRITE_ERRNOS:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"cooprint: error: {one_line(f'{where}{exc.strerror} ({errno.errorcode[exc.errno]})')}", err=True)
+        return 2
     return 0
+
+
+#: OS errors that mean "not possible on this machine, here", not a bug.
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG}
+
+
+def _interrupted() -> int:
+    """Ctrl-C: one line, exit code 130; a second Ctrl-C while leaving is ignored (the atomic
+    writers have already removed their temporary files, the slicer its worker processes)."""
+    previous = _ignore_sigint()
+    try:
+        click.echo("cooprint: interrupted", err=True)
+    except (OSError, ValueError):
+        pass
+    if previous is not None:  # in-process callers (tests, a REPL) get their Ctrl-C back
+        signal.signal(signal.SIGINT, previous)
+    return 130
+
+
+def _ignore_sigint() -> Any:
+    """Ignore Ctrl-C from now on; return the handler it had (None if not ours to set)."""
+    try:
+        return signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not ours to set
+        return None
 
 
 def entry() -> None:
@@ -407,6 +435,7 @@ def entry() -> None:
     interpreter down. Everything a command writes is closed by then; what is left is unloading
     numba's compiled code one function at a time, 0.15-0.25 s for nothing."""
     code = main()
+    _ignore_sigint()  # done: a Ctrl-C now must not turn into a traceback while leaving
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

@@ -23,3 +23,8 @@ class MeshError(UserError):
 
 class InfeasibleError(UserError):
     """The job cannot be printed by the given robots (slope or reach limits)."""
+
+
+class OutputError(UserError):
+    """An output path cannot be written: a special file, a folder of someone else's, no room, a
+    read-only file system. One line naming the path and the reason; nothing is left behind."""
