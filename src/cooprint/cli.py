@@ -51,7 +51,19 @@ def _settings(config: tuple[str, ...], overrides: dict[str, Any]) -> Any:
     return load_settings(*config, overrides=overrides)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class Interrupted(Exception):
+    """Ctrl-C, carried past click (which would print a blank line for it) to :func:`main`."""
+
+
+class _Group(click.Group):
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            raise Interrupted() from None
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="cooprint")
 @click.option("-v", "--verbose", is_flag=True, help="Show tracebacks for errors.")
 @click.pass_context
@@ -217,6 +229,10 @@ def run_cmd(mesh: str, out: str, theta: float | None, shift: float | None, top_w
                + ("" if no_picture else f", {out}/chunks.png"))
 
 
+#: Free space a summary or a picture needs at the least, bytes.
+_SMALL_OUTPUT = 1 << 16
+
+
 def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
     if not inputs and not manifest:
         raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, or --manifest FILE.toml")
@@ -224,7 +240,9 @@ def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
 
 def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
     """Where simulation output goes: ``DIR/sim`` of a bundle, or ``OUT/sim`` for files."""
-    if out:
+    if out is not None:
+        if not out:
+            raise UserError("--out '': an empty path; give a folder name")
         return Path(out) / "sim"
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         return Path(inputs[0]) / "sim"
@@ -260,7 +278,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     targets = [folder / "summary.json"] + ([folder / "frames.npz"] if frame_step is not None else [])
     sources = (*inputs, manifest)
     for target in targets:  # before the work; cooprint's own earlier results need no --force
-        check_file_destination(target, force, sources, create_parents=2)
+        check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=2)
     target = targets[0]
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest), accel=accel)
@@ -312,19 +330,19 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
     sources = (*inputs, manifest)
-    if out:  # before the work; the name of a snapshot in sim/ is known only after it
-        check_file_destination(out, force, sources)
+    if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
+        check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
     else:
-        check_sim_folder(_sim_folder(inputs, None))
+        check_sim_folder(_sim_folder(inputs, None), need_bytes=_SMALL_OUTPUT)
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest), checks=False)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
-    target = Path(out) if out else _sim_folder(inputs, None) / name
+    target = Path(out) if out is not None else _sim_folder(inputs, None) / name
     # a bundle's sim/ is made if missing; cooprint's earlier pictures there need no --force
-    with atomic_file(target, force, inputs=sources, create_parents=0 if out else 1) as tmp:
+    with atomic_file(target, force, inputs=sources, create_parents=0 if out is not None else 1) as tmp:
         if fmt in ("mp4", "gif"):  # the temporary file keeps the suffix the encoder names its format from
             render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup)
         elif fmt == "gantt":
@@ -389,12 +407,17 @@ def main(argv: list[str] | None = None) -> int:
             raise
         click.echo(f"cooprint: error: {one_line(str(exc))}", err=True)
         return exc.exit_code
-    except (click.exceptions.Abort, KeyboardInterrupt):
+    except (Interrupted, click.exceptions.Abort, KeyboardInterrupt):
         return _interrupted()
     except click.ClickException as exc:  # a bad option or argument: one line too, no usage block
         if verbose:
             raise
         click.echo(f"cooprint: error: {one_line(exc.format_message())}", err=True)
+        return 2
+    except ValueError as exc:  # a path with a NUL character (only from Python: argv cannot hold one)
+        if verbose or "null byte" not in str(exc):
+            raise
+        click.echo("cooprint: error: a path with a NUL character", err=True)
         return 2
     except OSError as exc:  # no space, no permission, read-only: the machine's state, not a bug; one line
         if verbose or exc.errno not in _WRITE_ERRNOS:
@@ -414,7 +437,8 @@ def _interrupted() -> int:
     writers have already removed their temporary files, the slicer its worker processes)."""
     previous = _ignore_sigint()
     try:
-        click.echo("cooprint: interrupted", err=True)
+        tty = sys.stderr.isatty()  # a terminal has echoed ^C: the line starts on a line of its own
+        click.echo(("\n" if tty else "") + "cooprint: interrupted", err=True)
     except (OSError, ValueError):
         pass
     if previous is not None:  # in-process callers (tests, a REPL) get their Ctrl-C back

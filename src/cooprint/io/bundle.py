@@ -42,8 +42,8 @@ from typing import Any, Callable, Iterable, Iterator
 import numpy as np
 
 from cooprint.errors import OutputError
-from cooprint.io.outputs import (TMP_PREFIX, check_output, deferred_sigint, inputs_inside, remove_tree,
-                                 same_file_as_input, special_kind, write_error)
+from cooprint.io.outputs import (TMP_PREFIX, check_output, check_writable, deferred_sigint, inputs_inside,
+                                 remove_tree, same_file_as_input, special_kind, write_error)
 
 #: ``job.json["format"]`` of every bundle starts with this.
 BUNDLE_FORMAT = "cooprint-job/"
@@ -97,8 +97,13 @@ def is_sim_folder(folder: str | Path) -> bool:
 
 def is_derived_output(path: str | Path) -> bool:
     """Whether ``path`` is one of cooprint's derived outputs (a ``SIM_NAMES`` file in cooprint's
-    ``sim/``): ``simulate`` and ``render`` rewrite those without ``--force``."""
+    ``sim/``, and for ``summary.json`` one whose format is cooprint's): ``simulate`` and
+    ``render`` rewrite those without ``--force``."""
     path = Path(os.path.abspath(path))
+    if path.name == "summary.json" and path.exists():  # the one derived output that says whose it is
+        summary = _read_json_object(path)
+        if summary is None or not str(summary.get("format", "")).startswith(SIM_FORMAT):
+            return False
     return bool(SIM_NAMES.fullmatch(path.name)) and is_sim_folder(path.parent)
 
 
@@ -129,13 +134,17 @@ def check_destination(out: str | Path, force: bool = False, inputs: Iterable[str
                       need_bytes: int = 0) -> None:
     """Check a bundle folder before the work: a writable path (:func:`check_output`), not
     holding an input, and either missing, empty, or a cooprint bundle with ``force``."""
-    p = check_output(out, folder=True, need_bytes=need_bytes)
+    p = check_output(out, folder=True, probe=False)
     held = inputs_inside(p, inputs)
     if held is not None:
         raise OutputError(f"{out}: holds {held}, an input of this command; choose another --out "
                           "(cooprint does not write where its inputs are)")
-    if not p.exists() or not _entries(p):
-        return
+    if p.exists() and _entries(p):
+        _check_replaceable(p, out, force)
+    check_writable(out, folder=True, need_bytes=need_bytes)
+
+
+def _check_replaceable(p: Path, out: str | Path, force: bool) -> None:
     if not is_bundle(p):
         if force:
             raise OutputError(f"{out}: is not a cooprint bundle (no job.json of cooprint's) and is not empty; "
@@ -147,12 +156,13 @@ def check_destination(out: str | Path, force: bool = False, inputs: Iterable[str
     _check_layout(p, out, BUNDLE_FOLDERS, ("job.json", "chunks.png"))
 
 
-def check_sim_folder(folder: str | Path) -> Path:
+def check_sim_folder(folder: str | Path, need_bytes: int = 0) -> Path:
     """Check ``DIR/sim`` before writing derived outputs into it: it may be missing (it is made),
     must be a folder if it exists, and its parent must exist and be writable."""
-    p = check_output(folder, folder=True, create_parents=0)
+    p = check_output(folder, folder=True, probe=False)
     if p.exists():
         _check_layout(p, folder, (), ())
+    check_writable(folder, folder=True, need_bytes=need_bytes)
     return p
 
 
@@ -301,12 +311,17 @@ def check_file_destination(out: str | Path, force: bool = False, inputs: Iterabl
     """Check a single output file before the work: a writable path (:func:`check_output`),
     not an input of the command, and not an existing file unless ``force`` or it is one of
     cooprint's derived outputs (:func:`is_derived_output`). Returns the absolute path."""
-    p = check_output(out, folder=False, need_bytes=need_bytes, create_parents=create_parents)
+    p = check_output(out, folder=False, create_parents=create_parents, probe=False)
     same = same_file_as_input(p, inputs)
     if same is not None:
         raise OutputError(f"{out}: is {same}, an input of this command; choose another --out")
+    for folder in (p.parent, p.parent.parent):  # job.json, chunks/C.stl, robots/A.gcode of a bundle
+        rel = p.relative_to(folder).as_posix()
+        if not rel.startswith("sim/") and owned(rel) and is_bundle(folder):
+            raise OutputError(f"{out}: is part of the cooprint bundle {folder}; choose another --out")
     if p.exists() and not force and not is_derived_output(p):
         raise OutputError(f"{out}: exists; use --force to replace it")
+    check_writable(out, folder=False, need_bytes=need_bytes)
     return p
 
 

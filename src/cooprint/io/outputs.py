@@ -70,10 +70,13 @@ def _under(path: str, roots: Iterable[str]) -> str | None:
     return None
 
 
-def _nearest_existing(path: Path) -> Path:
-    """``path`` or its nearest ancestor that exists (following symlinks)."""
+def _nearest_existing(path: Path, shown: str | Path) -> Path:
+    """``path`` or its nearest ancestor that exists (following symlinks); a dangling symlink
+    on the way is refused (a folder made there would fail, or land where it points)."""
     p = path
     while not os.path.exists(p) and p != p.parent:
+        if os.path.islink(p):
+            raise OutputError(f"{shown}: {p} is a dangling symlink (to {os.readlink(p)}); remove it or choose another --out")
         p = p.parent
     return p
 
@@ -93,13 +96,16 @@ def probe_write(folder: Path, name: str | Path) -> None:
         pass
 
 
-def check_output(path: str | Path, *, folder: bool, need_bytes: int = 0, create_parents: int = 0) -> Path:
+def check_output(path: str | Path, *, folder: bool, need_bytes: int = 0, create_parents: int = 0,
+                 probe: bool = True) -> Path:
     """Check that ``path`` can be written as a folder (``folder``) or a file; return it absolute.
 
     ``create_parents`` is how many missing folders above ``path`` the caller will make itself
     (``DIR/sim/`` of a bundle not yet simulated: 1). ``need_bytes`` is a low estimate of what
-    will be written. Raises :class:`OutputError` (one line) for anything that cannot work; see
-    the module docstring for the rules.
+    will be written. With ``probe`` (the default) it ends with :func:`check_writable`; callers
+    with refusals of their own make those first and then call it, so that a refused command
+    does not even touch the folder's modification time. Raises :class:`OutputError` (one line)
+    for anything that cannot work; see the module docstring for the rules.
     """
     text = os.fspath(path)
     if not text:
@@ -134,14 +140,24 @@ def check_output(path: str | Path, *, folder: bool, need_bytes: int = 0, create_
             raise OutputError(f"{path}: exists and is not a folder; choose another --out")
         if not folder and stat.S_ISDIR(st.st_mode):
             raise OutputError(f"{path}: is a folder; give a file name")
-    anchor = _nearest_existing(p.parent)
+    anchor = _nearest_existing(p.parent, path)
     if not anchor.is_dir():
         raise OutputError(f"{path}: {anchor} is a file, not a folder")
     missing = len(p.parent.relative_to(anchor).parts) if anchor != p.parent else 0
     if missing > create_parents:
         first_missing = anchor / p.parent.relative_to(anchor).parts[0]
         raise OutputError(f"{path}: parent folder {p.parent if create_parents == 0 else first_missing} does not exist")
-    here = p if st is not None and folder else anchor  # an existing folder is written in place
+    if probe:
+        check_writable(path, folder=folder, need_bytes=need_bytes)
+    return p
+
+
+def check_writable(path: str | Path, *, folder: bool, need_bytes: int = 0) -> None:
+    """The writing half of :func:`check_output` (which must have passed): the folder that will
+    be written (an existing output folder itself, else the nearest existing parent) is
+    writable (``os.access`` and a probe file made and removed) and has ``need_bytes`` free."""
+    p = Path(os.path.abspath(path))
+    here = p if folder and p.is_dir() else _nearest_existing(p.parent, path)
     if not os.access(here, os.W_OK | os.X_OK):
         raise OutputError(f"{path}: {here} is not writable (permission denied or read-only)")
     probe_write(here, path)
@@ -152,7 +168,6 @@ def check_output(path: str | Path, *, folder: bool, need_bytes: int = 0, create_
             free = None
         if free is not None and free < need_bytes:
             raise OutputError(f"{path}: about {_mb(need_bytes)} needed, only {_mb(free)} free on its file system")
-    return p
 
 
 def _mb(n: int) -> str:

@@ -213,10 +213,10 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
     """Stop a pool now: cancel what has not started, terminate the workers (a block under way
     is of no use any more), wait for them and for the pool's thread. Ctrl-C is held meanwhile."""
     with deferred_sigint():
-        pool.shutdown(wait=False, cancel_futures=True)
-        if hasattr(pool, "terminate_workers"):  # Python 3.14
-            pool.terminate_workers()
+        # the pool's own list of its processes (Python < 3.14 has no public way to terminate
+        # them), taken before shutdown() forgets it
         procs = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
             if proc.is_alive():
                 proc.terminate()
