@@ -12,11 +12,13 @@ The public API is re-exported here; :func:`run` is the whole pipeline (``cooprin
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
 
 from cooprint.errors import ConfigError, InfeasibleError, MeshError, UserError
 
+TYPE_CHECKING = False  # not typing's: importing typing here would cost the command 10-60 ms
 if TYPE_CHECKING:
+    from typing import Any
+
     from cooprint.chunking import ChunkPlan, ChunkSet, Chunk, Plane, cut_chunks, plan_chunks, slope_limits
     from cooprint.config import JobSettings, RobotProfile, load_settings
     from cooprint.io.mesh import Solid, load_mesh, solid_from_trimesh

@@ -18,6 +18,7 @@ import click
 
 from cooprint import __version__
 from cooprint.errors import UserError
+from cooprint.interrupts import blocked_sigint, check_interrupt, held_imports, interrupted, sticky_sigint
 
 STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing files",
                "render": "drawing picture", "slice": "slicing layers", "program": "robot programs"}
@@ -25,19 +26,25 @@ STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writin
 
 @contextmanager
 def stage_progress(enabled: bool) -> Iterator[Any]:
-    """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr."""
+    """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr (or, not
+    ``enabled``, drawing nothing). Either way it raises a Ctrl-C that some code swallowed
+    (:func:`cooprint.interrupts.check_interrupt`): the stages call it as they advance."""
     if not enabled:
-        yield None
+        yield lambda stage, done, total: check_interrupt()
         return
     from rich.console import Console  # rich costs ~80 ms to import: only when bars are drawn
     from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
 
     console = Console(stderr=True)
-    with Progress(TextColumn("{task.description:<16}"), BarColumn(), TaskProgressColumn(),
-                  TimeElapsedColumn(), console=console, transient=False) as bars:
+    bars = Progress(TextColumn("{task.description:<16}"), BarColumn(), TaskProgressColumn(),
+                    TimeElapsedColumn(), console=console, transient=False)
+    with blocked_sigint():  # its refresh thread starts with SIGINT blocked: Ctrl-C goes to the main thread
+        bars.start()
+    with bars:
         tasks: dict[str, Any] = {}
 
         def update(stage: str, done: int, total: int) -> None:
+            check_interrupt()
             if stage not in tasks:
                 tasks[stage] = bars.add_task(STAGE_NAMES.get(stage, stage), total=max(total, 1))
             bars.update(tasks[stage], completed=done, total=max(total, 1))
@@ -399,7 +406,9 @@ def main(argv: list[str] | None = None) -> int:
     if verbose:  # accepted anywhere on the line, not only before the subcommand
         args = ["--verbose"] + [a for a in args if a not in ("-v", "--verbose")]
     try:
-        code = cli.main(args=args, prog_name="cooprint", standalone_mode=False)
+        # Ctrl-C while a compiled library loads: after it, not inside it; and never lost
+        with held_imports(), sticky_sigint():
+            code = cli.main(args=args, prog_name="cooprint", standalone_mode=False)
         if isinstance(code, int):  # click returns the code of an Exit (simulate --strict)
             return code
     except UserError as exc:
@@ -415,16 +424,24 @@ def main(argv: list[str] | None = None) -> int:
         click.echo(f"cooprint: error: {one_line(exc.format_message())}", err=True)
         return 2
     except ValueError as exc:  # a path with a NUL character (only from Python: argv cannot hold one)
+        if interrupted(exc):
+            return _interrupted()
         if verbose or "null byte" not in str(exc):
             raise
         click.echo("cooprint: error: a path with a NUL character", err=True)
         return 2
     except OSError as exc:  # no space, no permission, read-only: the machine's state, not a bug; one line
+        if interrupted(exc):
+            return _interrupted()
         if verbose or exc.errno not in _WRITE_ERRNOS:
             raise
         where = f"{exc.filename}: " if exc.filename else ""
         click.echo(f"cooprint: error: {one_line(f'{where}{exc.strerror} ({errno.errorcode[exc.errno]})')}", err=True)
         return 2
+    except Exception as exc:
+        if interrupted(exc):  # a Ctrl-C wrapped by Python or a library
+            return _interrupted()
+        raise
     return 0
 
 

@@ -42,7 +42,8 @@ from typing import Any, Callable, Iterable, Iterator
 import numpy as np
 
 from cooprint.errors import OutputError
-from cooprint.io.outputs import (TMP_PREFIX, check_output, check_writable, deferred_sigint, inputs_inside,
+from cooprint.interrupts import check_interrupt, deferred_sigint
+from cooprint.io.outputs import (TMP_PREFIX, check_output, check_writable, inputs_inside,
                                  remove_tree, same_file_as_input, special_kind, write_error)
 
 #: ``job.json["format"]`` of every bundle starts with this.
@@ -235,9 +236,11 @@ def atomic_dir(out: str | Path, force: bool = False, *, inputs: Iterable[str | P
         new = tmp / "new" if in_place else tmp
         new.mkdir(exist_ok=True)
         yield new
+        check_interrupt()  # a Ctrl-C some library swallowed: not committed
         with deferred_sigint():
             if in_place:
-                kept = _swap_in(new, p, tmp / "old", _sim_owned if sim else owned, listed)
+                kept = _swap_in(new, p, tmp / "old", _sim_owned if sim else owned, listed,
+                                () if sim else BUNDLE_FOLDERS)
             else:
                 _relax_permissions(tmp)
                 os.rename(tmp, p)
@@ -252,10 +255,12 @@ def atomic_dir(out: str | Path, force: bool = False, *, inputs: Iterable[str | P
         notice(f"kept {len(kept)} file{'s' if len(kept) > 1 else ''} that cooprint did not write: {shown}")
 
 
-def _swap_in(new: Path, out: Path, old: Path, is_owned: Callable[..., bool], listed: set[str]) -> list[str]:
+def _swap_in(new: Path, out: Path, old: Path, is_owned: Callable[..., bool], listed: set[str],
+             folders: Iterable[str] = ()) -> list[str]:
     """Move the files under ``new`` into ``out`` in place of its cooprint files (moved to
-    ``old`` first, deleted with it by the caller); undo everything on failure. Returns the
-    files of ``out`` that are not cooprint's (kept)."""
+    ``old`` first, deleted with it by the caller); undo everything on failure. Afterwards the
+    ``folders`` of cooprint's (and those of the files it moved) that the new set does not
+    have are removed if empty. Returns the files of ``out`` that are not cooprint's (kept)."""
     files, _ = _walk(out)
     mine = [f for f in files if is_owned(f, listed)]
     kept = [f for f in files if not is_owned(f, listed)]
@@ -299,7 +304,7 @@ def _swap_in(new: Path, out: Path, old: Path, is_owned: Callable[..., bool], lis
         raise
     if marker_saved and "job.json" not in installed:
         (out / "job.json").unlink(missing_ok=True)  # the old marker, when the new bundle has none
-    for name in sorted({rel.split("/")[0] for rel in mine if "/" in rel}, reverse=True):
+    for name in sorted(set(folders) | {rel.split("/")[0] for rel in mine if "/" in rel}, reverse=True):
         d = out / name
         if d.is_dir() and name not in fresh_dirs and not any(d.iterdir()):
             d.rmdir()  # a folder of stale cooprint files only (robots/ after `chunk`)
@@ -347,6 +352,7 @@ def atomic_file(out: str | Path, force: bool = False, *, inputs: Iterable[str | 
             os.close(fd)
             tmp = Path(name)
         yield tmp
+        check_interrupt()
         with deferred_sigint():
             _relax_permissions(tmp, 0o666)
             if os.path.lexists(p) and special_kind(os.lstat(p).st_mode):  # made since the check

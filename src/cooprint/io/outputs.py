@@ -28,15 +28,13 @@ from __future__ import annotations
 import errno
 import os
 import shutil
-import signal
 import stat
 import tempfile
-import threading
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Iterable
 
 from cooprint.errors import OutputError
+from cooprint.interrupts import deferred_sigint
 
 #: Virtual file systems: writing there talks to the kernel, never makes a file.
 VIRTUAL_ROOTS = ("/proc", "/sys")
@@ -210,30 +208,6 @@ def same_file_as_input(path: Path, inputs: Iterable[str | Path]) -> str | None:
         except OSError:
             continue
     return None
-
-
-@contextmanager
-def deferred_sigint() -> Iterator[None]:
-    """Hold Ctrl-C until the block is done, then raise it: a rename sequence or a clean-up is
-    never cut in half. Only the main thread receives signals; elsewhere this does nothing."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught: list[int] = []
-    try:
-        previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
-    except ValueError:  # not the main interpreter
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        if caught:
-            if callable(previous):
-                previous(signal.SIGINT, None)
-            elif previous == signal.SIG_DFL:
-                raise KeyboardInterrupt
 
 
 def remove_tree(path: Path) -> None:

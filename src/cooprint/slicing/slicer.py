@@ -23,7 +23,6 @@ import os
 import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor
-from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
@@ -32,7 +31,7 @@ import numpy as np
 
 from cooprint.config import SlicingSettings
 from cooprint.io.mesh import Solid
-from cooprint.io.outputs import deferred_sigint
+from cooprint.interrupts import blocked_sigint, deferred_sigint
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.sections import LayerSlicer
 from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths,
@@ -150,7 +149,7 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
     pool = None
     try:
         if workers > 1:
-            with _sigint_blocked():  # workers are forked here: none sees a Ctrl-C before it ignores it
+            with blocked_sigint():  # workers are forked here: none sees a Ctrl-C before it ignores it
                 pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
                                            initializer=_worker_init, initargs=(os.getpid(),))
                 parts = pool.map(_work_block, blocks)
@@ -170,21 +169,6 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
         if pool is not None:
             pool.shutdown(wait=True)
         _WORKER = None
-
-
-@contextmanager
-def _sigint_blocked() -> Iterator[None]:
-    """SIGINT blocked in this thread for the block: processes forked in it start with it
-    blocked (and the pool's threads made in it never take it); one that arrives meanwhile is
-    delivered when the block ends."""
-    if not hasattr(signal, "pthread_sigmask"):
-        yield
-        return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
