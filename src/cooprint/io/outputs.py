@@ -176,7 +176,7 @@ def estimate_bytes(inputs: Iterable[str | Path], factor: float) -> int:
     """A low estimate of the output size: ``factor`` times the inputs' size (a gzipped mesh
     counted four times), plus 64 kB. Low on purpose: free space is refused only when clearly short."""
     total = 0
-    for x in inputs:
+    for x in _paths(inputs):
         try:
             size = os.stat(x).st_size
         except (OSError, ValueError):
@@ -185,11 +185,16 @@ def estimate_bytes(inputs: Iterable[str | Path], factor: float) -> int:
     return int(total * factor) + 65536
 
 
-def inputs_inside(folder: Path, inputs: Iterable[str | Path]) -> str | None:
+def _paths(inputs: Iterable[object]) -> list[str | Path]:
+    """The file paths among ``inputs`` (the Python API also takes loaded solids, and None)."""
+    return [x for x in inputs if isinstance(x, (str, os.PathLike)) and os.fspath(x)]
+
+
+def inputs_inside(folder: Path, inputs: Iterable[object]) -> str | None:
     """The first of ``inputs`` that lies in ``folder`` (or is it), symlinks resolved; else None."""
     root = os.path.realpath(folder)
-    for x in inputs:
-        if x is None or not os.path.exists(x):
+    for x in _paths(inputs):
+        if not os.path.exists(x):
             continue
         real = os.path.realpath(x)
         if real == root or real.startswith(root.rstrip(os.sep) + os.sep):
@@ -197,13 +202,13 @@ def inputs_inside(folder: Path, inputs: Iterable[str | Path]) -> str | None:
     return None
 
 
-def same_file_as_input(path: Path, inputs: Iterable[str | Path]) -> str | None:
+def same_file_as_input(path: Path, inputs: Iterable[object]) -> str | None:
     """The first of ``inputs`` that is the same file as ``path`` (hard links too); else None."""
     if not os.path.exists(path):
         return None
-    for x in inputs:
+    for x in _paths(inputs):
         try:
-            if x is not None and os.path.samefile(path, x):
+            if os.path.samefile(path, x):
                 return str(x)
         except OSError:
             continue
