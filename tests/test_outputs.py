@@ -253,7 +253,7 @@ def test_simulate_bundle_keeps_the_users_files_in_sim(planned, tmp_path, capsys)
     simulate_bundle(job)
     assert (job / "sim" / "notes.txt").read_text() == "mine"
     assert (job / "sim" / "snapshot.png").read_bytes()[:4] == b"\x89PNG"
-    assert "kept 1 file that cooprint did not write: notes.txt" in capsys.readouterr().err
+    assert "kept 1 file that cooprint did not write: sim/notes.txt" in capsys.readouterr().err
     assert hidden(tmp_path) == []
 
 

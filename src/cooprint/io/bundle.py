@@ -251,6 +251,8 @@ def atomic_dir(out: str | Path, force: bool = False, *, inputs: Iterable[str | P
         if tmp is not None:
             remove_tree(tmp)
     if kept and notice is not None:
+        if sim:  # named as from the bundle, where the user looks
+            kept = [f"{p.name}/{rel}" for rel in kept]
         shown = ", ".join(kept[:5]) + (f" and {len(kept) - 5} more" if len(kept) > 5 else "")
         notice(f"kept {len(kept)} file{'s' if len(kept) > 1 else ''} that cooprint did not write: {shown}")
 
