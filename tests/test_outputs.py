@@ -204,6 +204,30 @@ def test_slice_write_failure_and_special_files(meshes, tmp_path, capsys, monkeyp
     assert "character device" in line and Path("/dev/full").is_char_device()
 
 
+def test_a_write_failure_mid_slice_stops_the_workers(tmp_path, capsys, monkeypatch):
+    import multiprocessing
+
+    import cooprint.program.gcode
+
+    mesh = tmp_path / "tall.stl"
+    to_trimesh(box(20, 20, 40)).export(mesh)  # 200 layers: 5 blocks, sliced by worker processes
+    real = cooprint.program.gcode.write_gcode
+
+    def fails_after_a_while(fh, pieces, *args, **kwargs):
+        def some(pieces):
+            for k, piece in enumerate(pieces):
+                if k == 60:
+                    raise OSError(errno.ENOSPC, "No space left on device")
+                yield piece
+        return real(fh, some(pieces), *args, **kwargs)
+
+    monkeypatch.setattr(cooprint.program.gcode, "write_gcode", fails_after_a_while)
+    line = assert_rejected(["slice", mesh, "--out", tmp_path / "tall.gcode", "-q"], capsys, watch=[])
+    assert "No space left on device (ENOSPC)" in line
+    assert multiprocessing.active_children() == []
+    assert sorted(os.listdir(tmp_path)) == ["tall.stl"]
+
+
 def test_simulate_and_render_rewrite_their_own_outputs_without_force(planned, tmp_path, capsys):
     job = Path(shutil.copytree(planned, tmp_path / "job"))
     # render on a bundle not yet simulated makes sim/

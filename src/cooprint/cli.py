@@ -339,8 +339,10 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     sources = (*inputs, manifest)
     if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
         check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
-    else:
+    elif len(inputs) == 1 and Path(inputs[0]).is_dir():  # a bundle: DIR/sim/<picture>
         check_sim_folder(_sim_folder(inputs, None), need_bytes=_SMALL_OUTPUT)
+    else:
+        raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest), checks=False)
     t = result.makespan if at is None else at
