@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from badinput import assert_rejected, snapshot
+from badinput import assert_rejected
 from cooprint.cli import main
 
 from solids import box, to_trimesh, tube
