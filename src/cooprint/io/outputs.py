@@ -82,16 +82,17 @@ def _nearest_existing(path: Path, shown: str | Path) -> Path:
 def probe_write(folder: Path, name: str | Path) -> None:
     """Create and remove a hidden file in ``folder``; an :class:`OutputError` if that fails
     (read-only file system, immutable folder, no permission, no inodes left)."""
-    try:
-        fd, probe = tempfile.mkstemp(prefix=TMP_PREFIX + "probe.", dir=folder)
-    except OSError as exc:
-        raise OutputError(f"{name}: cannot write in {folder}: {exc.strerror or exc}"
-                          + (f" ({errno.errorcode.get(exc.errno or 0, '')})" if exc.errno else "")) from None
-    os.close(fd)
-    try:
-        os.unlink(probe)
-    except OSError:
-        pass
+    with deferred_sigint():  # made and removed as one step: a Ctrl-C never leaves the probe behind
+        try:
+            fd, probe = tempfile.mkstemp(prefix=TMP_PREFIX + "probe.", dir=folder)
+        except OSError as exc:
+            raise OutputError(f"{name}: cannot write in {folder}: {exc.strerror or exc}"
+                              + (f" ({errno.errorcode.get(exc.errno or 0, '')})" if exc.errno else "")) from None
+        os.close(fd)
+        try:
+            os.unlink(probe)
+        except OSError:
+            pass
 
 
 def check_output(path: str | Path, *, folder: bool, need_bytes: int = 0, create_parents: int = 0,
