@@ -304,7 +304,7 @@ def test_ctrl_c_leaves_no_process_and_no_temporary_file(tmp_path):
     to_trimesh(tube(30, 22, 100, 128)).export(tmp_path / "tube.stl")  # 500 layers: ~4 s to slice
     to_trimesh(box(60, 300, 100)).export(tmp_path / "block.stl")  # 3 chunks of 500 layers: ~7 s to plan
     env = dict(os.environ, PYTHONPATH=str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    delays = [0.25, 0.6, 1.0, 1.5, 2.1, 2.9, 4.0, 5.5]
+    delays = [0.4, 0.7, 1.0, 1.5, 2.1, 2.9, 4.0, 5.5]  # from 0.4 s: Python itself is up
     outcomes = []
     for k, delay in enumerate(delays):
         procs = {}
