@@ -330,5 +330,11 @@ def test_ctrl_c_leaves_no_process_and_no_temporary_file(tmp_path):
         assert hidden(tmp_path) == [], hidden(tmp_path)
         for cmd, code in ((c, p.returncode) for c, p in procs.items()):
             out = tmp_path / (f"s{k}.gcode" if cmd == "slice" else f"r{k}")
-            assert out.exists() == (code == 0), (cmd, delay, code)  # whole or not at all
+            if code == 0:
+                assert out.exists(), (cmd, delay)
+            if out.exists():  # whole (a Ctrl-C just after the final rename still exits 130) or not at all
+                if cmd == "run":
+                    assert json.loads((out / "job.json").read_text())["format"].startswith("cooprint-job/")
+                else:
+                    assert out.stat().st_size > 0
     assert sum(code == 130 for _, _, code in outcomes) >= len(outcomes) // 2, outcomes
