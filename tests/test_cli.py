@@ -72,10 +72,21 @@ def test_existing_output_is_kept_unless_force(tmp_path, car_stl, capsys):
     out.mkdir()
     (out / "mine.txt").write_text("precious")
     code, _, err = run_cli(["chunk", car_stl, "--out", out, "-q"], capsys)
-    assert code == 2 and "use --force" in err
+    assert code == 2 and "not a cooprint bundle" in err
     assert (out / "mine.txt").read_text() == "precious"
-    code, _, _ = run_cli(["chunk", car_stl, "--out", out, "-q", "--force", "--no-picture"], capsys)
-    assert code == 0 and (out / "job.json").exists() and not (out / "mine.txt").exists()
+    # --force replaces only cooprint's own outputs: a folder that is not a bundle is refused
+    code, _, err = run_cli(["chunk", car_stl, "--out", out, "-q", "--force", "--no-picture"], capsys)
+    assert code == 2 and "--force replaces only cooprint's own outputs" in err
+    assert sorted(p.name for p in out.iterdir()) == ["mine.txt"]
+    # a bundle: refused without --force, replaced with it, the user's file kept
+    (out / "mine.txt").unlink()
+    assert run_cli(["chunk", car_stl, "--out", out, "-q", "--no-picture"], capsys)[0] == 0
+    (out / "mine.txt").write_text("precious")
+    code, _, err = run_cli(["chunk", car_stl, "--out", out, "-q", "--no-picture"], capsys)
+    assert code == 2 and "use --force" in err
+    code, _, err = run_cli(["chunk", car_stl, "--out", out, "-q", "--force", "--no-picture"], capsys)
+    assert code == 0 and (out / "job.json").exists() and (out / "mine.txt").read_text() == "precious"
+    assert "kept 1 file that cooprint did not write: mine.txt" in err
 
 
 @pytest.mark.parametrize("args, needle", [

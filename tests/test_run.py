@@ -193,7 +193,9 @@ def test_cli_run_refuses_to_overwrite_and_reports_bad_input(car_stl, tmp_path, c
     out.mkdir()
     (out / "mine.txt").write_text("keep me")
     assert main(["run", str(car_stl), "--out", str(out), "-q"]) == 2
-    assert "use --force" in capsys.readouterr().err
+    assert "not a cooprint bundle" in capsys.readouterr().err
+    assert main(["run", str(car_stl), "--out", str(out), "-q", "--force"]) == 2  # --force: only cooprint's own
+    assert "--force replaces only cooprint's own outputs" in capsys.readouterr().err
     assert (out / "mine.txt").read_text() == "keep me"
     bad = tmp_path / "bad.toml"
     bad.write_text("[program]\nclearance = -1\n")

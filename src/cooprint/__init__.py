@@ -11,12 +11,36 @@ The public API is re-exported here; :func:`run` is the whole pipeline (``cooprin
 
 from __future__ import annotations
 
-from cooprint.chunking import ChunkPlan, ChunkSet, Chunk, Plane, cut_chunks, plan_chunks, slope_limits
-from cooprint.config import JobSettings, RobotProfile, load_settings
+import importlib
+
 from cooprint.errors import ConfigError, InfeasibleError, MeshError, UserError
-from cooprint.io.mesh import Solid, load_mesh, solid_from_trimesh
+
+TYPE_CHECKING = False  # not typing's: importing typing here would cost the command 10-60 ms
+if TYPE_CHECKING:
+    from typing import Any
+
+    from cooprint.chunking import ChunkPlan, ChunkSet, Chunk, Plane, cut_chunks, plan_chunks, slope_limits
+    from cooprint.config import JobSettings, RobotProfile, load_settings
+    from cooprint.io.mesh import Solid, load_mesh, solid_from_trimesh
 
 __version__ = "0.1.0"
+
+#: Re-exported names and their modules, imported on first use (PEP 562): ``import cooprint``
+#: (and so the ``cooprint`` command, before it can catch a Ctrl-C) does not load numpy, trimesh
+#: and manifold3d until they are needed.
+_LAZY = {**dict.fromkeys(("ChunkPlan", "ChunkSet", "Chunk", "Plane", "cut_chunks", "plan_chunks", "slope_limits"),
+                         "cooprint.chunking"),
+         **dict.fromkeys(("JobSettings", "RobotProfile", "load_settings"), "cooprint.config"),
+         **dict.fromkeys(("Solid", "load_mesh", "solid_from_trimesh"), "cooprint.io.mesh")}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'cooprint' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
 
 
 def run(mesh, out, *, config=(), overrides=None, robots: int = 2, force: bool = False, picture: bool = True):

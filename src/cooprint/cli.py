@@ -9,8 +9,10 @@ even with ``--quiet``; 2 bad input (one line on stderr, no traceback unless ``--
 
 from __future__ import annotations
 
+import errno
 import functools
 import os
+import signal
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,6 +22,7 @@ import click
 
 from cooprint import __version__
 from cooprint.errors import UserError
+from cooprint.interrupts import blocked_sigint, check_interrupt, held_imports, interrupted, sticky_sigint
 
 STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing files",
                "render": "drawing picture", "slice": "slicing layers", "program": "robot programs"}
@@ -27,21 +30,26 @@ STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writin
 
 @contextmanager
 def stage_progress(enabled: bool) -> Iterator[Any]:
-    """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr, when
-    stderr is a terminal (a log or a pipe gets no bars: a failed run's stderr is its one error
-    line)."""
+    """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr when it is
+    a terminal (a log or a pipe gets no bars: a failed run's stderr is its one error line), or,
+    not ``enabled``, drawing nothing. Either way it raises a Ctrl-C that some code swallowed
+    (:func:`cooprint.interrupts.check_interrupt`): the stages call it as they advance."""
     if not enabled or not sys.stderr.isatty():
-        yield None
+        yield lambda stage, done, total: check_interrupt()
         return
     from rich.console import Console  # rich costs ~80 ms to import: only when bars are drawn
     from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
 
     console = Console(stderr=True)
-    with Progress(TextColumn("{task.description:<16}"), BarColumn(), TaskProgressColumn(),
-                  TimeElapsedColumn(), console=console, transient=False) as bars:
+    bars = Progress(TextColumn("{task.description:<16}"), BarColumn(), TaskProgressColumn(),
+                    TimeElapsedColumn(), console=console, transient=False)
+    with blocked_sigint():  # its refresh thread starts with SIGINT blocked: Ctrl-C goes to the main thread
+        bars.start()
+    with bars:
         tasks: dict[str, Any] = {}
 
         def update(stage: str, done: int, total: int) -> None:
+            check_interrupt()
             if stage not in tasks:
                 tasks[stage] = bars.add_task(STAGE_NAMES.get(stage, stage), total=max(total, 1))
             bars.update(tasks[stage], completed=done, total=max(total, 1))
@@ -55,7 +63,19 @@ def _settings(config: tuple[str, ...], overrides: dict[str, Any]) -> Any:
     return load_settings(*config, overrides=overrides)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class Interrupted(Exception):
+    """Ctrl-C, carried past click (which would print a blank line for it) to :func:`main`."""
+
+
+class _Group(click.Group):
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            raise Interrupted() from None
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="cooprint")
 @click.option("-v", "--verbose", is_flag=True, help="Show tracebacks for errors.")
 @click.pass_context
@@ -201,10 +221,11 @@ def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], o
     (``write(job, out, force, picture, progress)``) with progress bars; print the plan unless
     ``quiet`` (then return ``None``), else return the record."""
     from cooprint.io.bundle import check_destination
+    from cooprint.io.outputs import estimate_bytes
 
     _lean_malloc()
     settings = _settings(config, overrides)
-    check_destination(Path(out), force)  # before the work, not after
+    check_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     with stage_progress(not quiet) as progress:
         record = write(make(mesh, settings, robots, progress), out, force, not no_picture, progress)
     if quiet:
@@ -259,13 +280,14 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str,
     job into tool paths.
     """
     from cooprint.io.bundle import check_file_destination
+    from cooprint.io.outputs import estimate_bytes
     from cooprint.io.place import parse_center
     from cooprint.jobs import slice_to_gcode
 
     _lean_malloc()
     settings = _settings(config, overrides)
     xy = None if center is None else parse_center(center)
-    check_file_destination(Path(out), force)  # before the work, not after
+    check_file_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     where: list[Any] = []
     with stage_progress(not quiet) as progress:
         n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True, center=xy, placed=where.append)
@@ -339,6 +361,10 @@ def _report_run(record: dict[str, Any], out: str, no_picture: bool) -> None:
                + ("" if no_picture else f", {out}/chunks.png"))
 
 
+#: Free space a summary or a picture needs at the least, bytes.
+_SMALL_OUTPUT = 1 << 16
+
+
 def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
     if not inputs and not manifest:
         raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, .coop files, "
@@ -347,7 +373,9 @@ def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
 
 def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
     """Where simulation output goes: ``DIR/sim`` of a bundle, or ``OUT/sim`` for files."""
-    if out:
+    if out is not None:
+        if not out:
+            raise UserError("--out '': an empty path; give a folder name")
         return Path(out) / "sim"
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         return Path(inputs[0]) / "sim"
@@ -376,7 +404,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
 
     import numpy as np
 
-    from cooprint.io.bundle import atomic_file, write_json
+    from cooprint.io.bundle import atomic_file, check_file_destination, write_json
     from cooprint.simulation import findings_line, frames, load_inputs, simulate as run_sim, summary
 
     _need_inputs(inputs, manifest)
@@ -384,23 +412,22 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         raise UserError(f"--frames {frame_step:g}: expected a positive number of seconds")
     folder = _sim_folder(inputs, out)
     targets = [folder / "summary.json"] + ([folder / "frames.npz"] if frame_step is not None else [])
-    for target in targets:
-        if target.exists() and not force:
-            raise UserError(f"{target}: exists; use --force to replace it")
+    sources = (*inputs, manifest)
+    for target in targets:  # before the work; cooprint's own earlier results need no --force
+        check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=2)
     target = targets[0]
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest, _settings(config, {}) if config else None), accel=accel)
     record = summary(result)
-    folder.mkdir(parents=True, exist_ok=True)
     if frame_step is not None:
         if result.makespan / frame_step > 10_000_000:
             raise UserError(f"--frames {frame_step:g}: more than 10 million frames over {result.makespan:.0f} s; "
                             "take a longer step")
         fr = frames(result, frame_step)
-        with atomic_file(targets[1], force=True) as tmp, open(tmp, "wb") as f:
+        with atomic_file(targets[1], force=True, inputs=sources, create_parents=2) as tmp, open(tmp, "wb") as f:
             np.savez_compressed(f, t=fr.t, robots=np.array(fr.robots), position=fr.position, done=fr.done,
                                 material=fr.material, facing=fr.facing)
-    with atomic_file(target, force=True) as tmp:
+    with atomic_file(target, force=True, inputs=sources, create_parents=2) as tmp:
         write_json(tmp, record)
     if not quiet:
         click.echo(f"makespan {record['makespan_s'] / 3600:.2f} h ({record['makespan_s']:.0f} s)")
@@ -432,35 +459,35 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
 def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, duration: float | None,
            speedup: float | None, manifest: str | None, out: str | None, force: bool) -> None:
     """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
-    from cooprint.io.bundle import atomic_file, check_file_destination
+    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import load_inputs, simulate as run_sim
 
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
+    sources = (*inputs, manifest)
+    if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
+        check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
+    elif len(inputs) == 1 and Path(inputs[0]).is_dir():  # a bundle: DIR/sim/<picture>
+        check_sim_folder(_sim_folder(inputs, None), need_bytes=_SMALL_OUTPUT)
+    else:
+        raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
     result = run_sim(load_inputs(list(inputs), manifest), checks=False)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
-    target = Path(out) if out else _sim_folder(inputs, None) / name
-    check_file_destination(target, force)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    if fmt in ("mp4", "gif"):  # the encoder names its format from the suffix: write beside, then rename
-        tmp = target.with_name(f".{target.stem}.tmp{target.suffix}")
-        try:
+    target = Path(out) if out is not None else _sim_folder(inputs, None) / name
+    # a bundle's sim/ is made if missing; cooprint's earlier pictures there need no --force
+    with atomic_file(target, force, inputs=sources, create_parents=0 if out is not None else 1) as tmp:
+        if fmt in ("mp4", "gif"):  # the temporary file keeps the suffix the encoder names its format from
             render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup)
-            tmp.replace(target)
-        finally:
-            tmp.unlink(missing_ok=True)
-    else:
-        with atomic_file(target, force) as tmp:
-            if fmt == "gantt":
-                render_gantt(result, tmp)
-            else:
-                render_snapshot(result, t, tmp)
+        elif fmt == "gantt":
+            render_gantt(result, tmp)
+        else:
+            render_snapshot(result, t, tmp)
     click.echo(f"wrote {target}")
 
 
@@ -511,7 +538,9 @@ def main(argv: list[str] | None = None) -> int:
     if verbose:  # accepted anywhere on the line, not only before the subcommand
         args = ["--verbose"] + [a for a in args if a not in ("-v", "--verbose")]
     try:
-        code = cli.main(args=args, prog_name="cooprint", standalone_mode=False)
+        # Ctrl-C while a compiled library loads: after it, not inside it; and never lost
+        with held_imports(), sticky_sigint():
+            code = cli.main(args=args, prog_name="cooprint", standalone_mode=False)
         if isinstance(code, int):  # click returns the code of an Exit (simulate --strict)
             return code
     except UserError as exc:
@@ -519,18 +548,59 @@ def main(argv: list[str] | None = None) -> int:
             raise
         click.echo(f"cooprint: error: {one_line(str(exc))}", err=True)
         return exc.exit_code
-    except click.exceptions.Abort:
-        click.echo("cooprint: interrupted", err=True)
-        return 130
+    except (Interrupted, click.exceptions.Abort, KeyboardInterrupt):
+        return _interrupted()
     except click.ClickException as exc:  # a bad option or argument: one line too, no usage block
         if verbose:
             raise
         click.echo(f"cooprint: error: {one_line(exc.format_message())}", err=True)
         return 2
-    except KeyboardInterrupt:
-        click.echo("cooprint: interrupted", err=True)
-        return 130
+    except ValueError as exc:  # a path with a NUL character (only from Python: argv cannot hold one)
+        if interrupted(exc):
+            return _interrupted()
+        if verbose or "null byte" not in str(exc):
+            raise
+        click.echo("cooprint: error: a path with a NUL character", err=True)
+        return 2
+    except OSError as exc:  # no space, no permission, read-only: the machine's state, not a bug; one line
+        if interrupted(exc):
+            return _interrupted()
+        if verbose or exc.errno not in _WRITE_ERRNOS:
+            raise
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"cooprint: error: {one_line(f'{where}{exc.strerror} ({errno.errorcode[exc.errno]})')}", err=True)
+        return 2
+    except Exception as exc:
+        if interrupted(exc):  # a Ctrl-C wrapped by Python or a library
+            return _interrupted()
+        raise
     return 0
+
+
+#: OS errors that mean "not possible on this machine, here", not a bug.
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG}
+
+
+def _interrupted() -> int:
+    """Ctrl-C: one line, exit code 130; a second Ctrl-C while leaving is ignored (the atomic
+    writers have already removed their temporary files, the slicer its worker processes)."""
+    previous = _ignore_sigint()
+    try:
+        tty = sys.stderr.isatty()  # a terminal has echoed ^C: the line starts on a line of its own
+        click.echo(("\n" if tty else "") + "cooprint: interrupted", err=True)
+    except (OSError, ValueError):
+        pass
+    if previous is not None:  # in-process callers (tests, a REPL) get their Ctrl-C back
+        signal.signal(signal.SIGINT, previous)
+    return 130
+
+
+def _ignore_sigint() -> Any:
+    """Ignore Ctrl-C from now on; return the handler it had (None if not ours to set)."""
+    try:
+        return signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not ours to set
+        return None
 
 
 def entry() -> None:
@@ -538,6 +608,7 @@ def entry() -> None:
     interpreter down. Everything a command writes is closed by then; what is left is unloading
     numba's compiled code one function at a time, 0.15-0.25 s for nothing."""
     code = main()
+    _ignore_sigint()  # done: a Ctrl-C now must not turn into a traceback while leaving
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()

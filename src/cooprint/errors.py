@@ -32,3 +32,8 @@ def warn(message: str) -> None:
 
     text = " ".join(str(message).split())
     print(f"cooprint: warning: {text}", file=sys.stderr, flush=True)
+
+
+class OutputError(UserError):
+    """An output path cannot be written: a special file, a folder of someone else's, no room, a
+    read-only file system. One line naming the path and the reason; nothing is left behind."""

@@ -11,6 +11,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Sequence
 
+import os
+from contextlib import closing
+
 import numpy as np
 
 from cooprint.chunking import ChunkSet, cut_chunks, plan_chunks
@@ -121,9 +124,10 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
 def write_chunk_bundle(job: ChunkJob, out: str | Path, force: bool = False, picture: bool = True,
                        progress: Progress | None = None) -> dict[str, Any]:
     """Write ``job.json``, ``chunks/<id>.stl`` and (``picture``) ``chunks.png`` into ``out``,
-    atomically. Returns the job record written to ``job.json``."""
+    atomically; with ``force`` an existing bundle's own files are replaced and the rest kept
+    (:func:`cooprint.io.bundle.atomic_dir`). Returns the job record written to ``job.json``."""
     out = Path(out)
-    with atomic_dir(out, force) as tmp:
+    with atomic_dir(out, force, inputs=_input_paths(job.solid)) as tmp:
         (tmp / "chunks").mkdir()
         n = len(job.chunks.chunks)
         for i, c in enumerate(job.chunks.chunks):
@@ -142,6 +146,12 @@ def write_chunk_bundle(job: ChunkJob, out: str | Path, force: bool = False, pict
                 progress("render", 1, 1)
         write_json(tmp / "job.json", record)
     return record
+
+
+def _input_paths(solid: Solid) -> tuple[str, ...]:
+    """The mesh file a job was read from (an output folder must not hold it)."""
+    path = getattr(solid.report, "path", None)
+    return (path,) if isinstance(path, str) and os.path.exists(path) else ()
 
 
 def check_build_volume(solid: Solid, s: SlicingSettings) -> None:
@@ -190,10 +200,13 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     if placed:
         placed(placement)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
-    counted = _Counted(iter_layers(solid, settings.slicing, layer_progress))
+    layers = iter_layers(solid, settings.slicing, layer_progress)
+    counted = _Counted(layers)
     del solid  # iter_layers keeps only what slicing needs, not the whole Solid
     s = settings.slicing
-    with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
+    # closing: on any failure (Ctrl-C included) the slicer's worker processes stop now, not
+    # whenever the generator is collected
+    with closing(layers), atomic_file(out, force, inputs=(mesh,)) as tmp, open(tmp, "w", encoding="ascii") as fh:
         used = write_gcode(fh, layer_pieces(counted), s, Feeds.of_slicer(s), Path(mesh).name)
     return counted.n, used
 
@@ -227,7 +240,7 @@ def run_chunk(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path]
     """Python twin of ``cooprint chunk``: returns the job record that was written."""
     from cooprint.io.bundle import check_destination
 
-    check_destination(Path(out), force)
+    check_destination(Path(out), force, inputs=(mesh, *config))
     job = chunk_job(mesh, load_settings(*config, overrides=overrides), robots)
     return write_chunk_bundle(job, out, force, picture)
 
@@ -352,7 +365,7 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
     feeds = Feeds.of_robot(settings.robot, s)
     waits = wait_estimates([SimRobot(r, p, np.asarray(job.placements[r].start, float), np.zeros(2), feeds.speeds(p))
                             for r, p in job.programs.items()], settings.robot.print_speed, settings.robot.travel_speed)
-    with atomic_dir(out, force) as tmp:
+    with atomic_dir(out, force, inputs=_input_paths(job.chunked.solid)) as tmp:
         (tmp / "chunks").mkdir()
         (tmp / "robots").mkdir()
         n = len(job.chunked.chunks.chunks)
@@ -397,7 +410,7 @@ def run(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
     written to ``out/job.json``."""
     from cooprint.io.bundle import check_destination
 
-    check_destination(Path(out), force)
+    check_destination(Path(out), force, inputs=(mesh, *config))
     job = coop_job(mesh, load_settings(*config, overrides=overrides), robots, progress)
     return write_coop_bundle(job, out, force, picture, progress)
 
@@ -406,14 +419,16 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
     """Simulate the bundle in ``out`` (written by :func:`run`) and write ``out/sim/``:
     ``summary.json``, ``gantt.png``, ``snapshot.png`` (at ``snapshot_at`` s, default half the
     makespan) and, with ``animation``, ``animation.mp4`` (20 s at 24 frames/s); returns the
-    summary. The folder is replaced whole."""
+    summary. cooprint's earlier derived outputs in ``sim/`` are replaced, other files kept."""
+    from cooprint.io.bundle import check_sim_folder
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import load_inputs, simulate, summary
 
     out = Path(out)
+    check_sim_folder(out / "sim")  # before the work, not after
     result = simulate(load_inputs([str(out)]))
     record = summary(result)
-    with atomic_dir(out / "sim", force=True) as tmp:
+    with atomic_dir(out / "sim", force=True, sim=True) as tmp:
         write_json(tmp / "summary.json", record)
         render_gantt(result, tmp / "gantt.png")
         render_snapshot(result, result.makespan / 2 if snapshot_at is None else snapshot_at, tmp / "snapshot.png")

@@ -1,95 +1,381 @@
-"""Atomic output folders.
+"""Output bundles and files, written atomically and without touching what cooprint did not write.
 
-A run writes its whole bundle into a hidden temporary folder beside the destination and renames it
-into place only when everything succeeded, so a failed or interrupted run leaves no half-written
-bundle, and an existing folder is replaced only when the user asked for it (``force``).
+A bundle folder is recognised by its marker: ``job.json`` holding an object whose ``"format"``
+starts with ``cooprint-job/``. The files cooprint writes in it are *its own* (:func:`owned`):
+``job.json``, ``chunks.png``, ``chunks/<id>.stl``, ``robots/<robot>.coop`` and ``.gcode``, the
+derived outputs in ``sim/`` (``summary.json``, ``frames.npz``, ``gantt.png``, snapshots,
+animations), and any file the old ``job.json`` names. Everything else in the folder is the
+user's and is never removed or overwritten.
+
+Writing a bundle (:func:`atomic_dir`):
+
+* into a new folder: everything is written into a hidden temporary folder beside it, renamed
+  into place only when complete (a failed or interrupted run leaves nothing);
+* into an existing folder (empty, or a bundle with ``--force``; ``--out .`` included, which
+  cannot be renamed): the new bundle is built whole in a hidden temporary folder *inside* it,
+  then swapped in file by file with Ctrl-C held: the old bundle's own files are moved aside,
+  the new ones renamed in (``job.json``, the marker, last), the old ones deleted. A failure
+  before the swap leaves the old bundle as it was; a failure during it moves everything back.
+  The user's files stay where they are and are reported ("kept 2 files that cooprint did not
+  write: ...").
+
+``--force`` is refused on a non-empty folder that is not a bundle, and on a folder that holds
+an input of the command. Single files (:func:`atomic_file`) are written beside their
+destination and renamed over it; an existing file is replaced only with ``force``, or when it
+is one of cooprint's derived outputs in a bundle's ``sim/``.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import re
 import shutil
+import stat
+import sys
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterable, Iterator
 
 import numpy as np
 
-from cooprint.errors import UserError
+from cooprint.errors import OutputError
+from cooprint.interrupts import check_interrupt, deferred_sigint
+from cooprint.io.outputs import (TMP_PREFIX, check_output, check_writable, inputs_inside,
+                                 remove_tree, same_file_as_input, special_kind, write_error)
+
+#: ``job.json["format"]`` of every bundle starts with this.
+BUNDLE_FORMAT = "cooprint-job/"
+#: ``sim/summary.json["format"]`` starts with this.
+SIM_FORMAT = "cooprint-sim/"
+#: Folders of a bundle: cooprint writes into them, so a plain file there is in its way.
+BUNDLE_FOLDERS = ("chunks", "robots", "sim")
+#: The names of the derived outputs cooprint writes in ``sim/``.
+SIM_NAMES = re.compile(r"summary\.json|frames\.npz|gantt\.png|snapshot(_\d+s)?\.png|animation\.(mp4|gif)")
+_BUNDLE_NAMES = re.compile(r"job\.json|chunks\.png|chunks/(C|[LR]\d+)\.stl|robots/([A-Z]|R\d+)\.(coop|gcode)")
+#: job.json larger than this is not read to recognise a bundle (a marker is small).
+_MARKER_LIMIT = 256 << 20
+
+Notice = Callable[[str], None]
 
 
-def check_destination(out: Path, force: bool) -> None:
-    """Refuse to touch an existing, non-empty ``out`` unless ``force``; fail early, before work."""
-    if out.exists() and not out.is_dir():
-        raise UserError(f"{out}: exists and is not a folder; choose another --out")
-    if out.is_dir() and any(out.iterdir()) and not force:
-        raise UserError(f"{out}: folder exists and is not empty; use --force to replace it")
-    parent = out.resolve().parent
-    if not parent.is_dir():
-        raise UserError(f"{out}: parent folder {parent} does not exist")
+def _read_json_object(path: Path) -> dict | None:
+    """The JSON object in regular file ``path``, or None (missing, special, huge, not JSON)."""
+    try:
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > _MARKER_LIMIT:
+            return None  # a FIFO named job.json would block a reader forever
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def bundle_record(folder: str | Path) -> dict | None:
+    """The ``job.json`` record if ``folder`` is a cooprint bundle, else None."""
+    record = _read_json_object(Path(folder) / "job.json")
+    if record is not None and str(record.get("format", "")).startswith(BUNDLE_FORMAT):
+        return record
+    return None
+
+
+def is_bundle(folder: str | Path) -> bool:
+    """Whether ``folder`` holds cooprint's marker: a ``job.json`` with a ``cooprint-job/`` format."""
+    return bundle_record(folder) is not None
+
+
+def is_sim_folder(folder: str | Path) -> bool:
+    """Whether ``folder`` is cooprint's ``sim/``: that of a bundle, or one holding a
+    ``summary.json`` with a ``cooprint-sim/`` format."""
+    folder = Path(os.path.abspath(folder))
+    if folder.name == "sim" and is_bundle(folder.parent):
+        return True
+    summary = _read_json_object(folder / "summary.json")
+    return summary is not None and str(summary.get("format", "")).startswith(SIM_FORMAT)
+
+
+def is_derived_output(path: str | Path) -> bool:
+    """Whether ``path`` is one of cooprint's derived outputs (a ``SIM_NAMES`` file in cooprint's
+    ``sim/``, and for ``summary.json`` one whose format is cooprint's): ``simulate`` and
+    ``render`` rewrite those without ``--force``."""
+    path = Path(os.path.abspath(path))
+    if path.name == "summary.json" and path.exists():  # the one derived output that says whose it is
+        summary = _read_json_object(path)
+        if summary is None or not str(summary.get("format", "")).startswith(SIM_FORMAT):
+            return False
+    return bool(SIM_NAMES.fullmatch(path.name)) and is_sim_folder(path.parent)
+
+
+def _listed_files(record: dict | None) -> set[str]:
+    """Relative paths of the files an old ``job.json`` says cooprint wrote."""
+    names: set[str] = set()
+    if not record:
+        return names
+    rows = [r for key in ("chunks", "robots") for r in (record.get(key) or []) if isinstance(r, dict)]
+    for value in [record.get("picture")] + [r.get(k) for r in rows for k in ("file", "program", "gcode")]:
+        if isinstance(value, str) and value and not value.startswith("/") and ".." not in value.split("/"):
+            names.add(value)
+    return names
+
+
+def owned(rel: str, listed: Iterable[str] = ()) -> bool:
+    """Whether bundle-relative path ``rel`` (``/``-separated) is a file cooprint writes."""
+    if _BUNDLE_NAMES.fullmatch(rel) or rel in listed:
+        return True
+    return rel.startswith("sim/") and bool(SIM_NAMES.fullmatch(rel[4:]))
+
+
+def _sim_owned(rel: str, listed: Iterable[str] = ()) -> bool:
+    return bool(SIM_NAMES.fullmatch(rel))
+
+
+def check_destination(out: str | Path, force: bool = False, inputs: Iterable[str | Path] = (),
+                      need_bytes: int = 0) -> None:
+    """Check a bundle folder before the work: a writable path (:func:`check_output`), not
+    holding an input, and either missing, empty, or a cooprint bundle with ``force``."""
+    p = check_output(out, folder=True, probe=False)
+    held = inputs_inside(p, inputs)
+    if held is not None:
+        raise OutputError(f"{out}: holds {held}, an input of this command; choose another --out "
+                          "(cooprint does not write where its inputs are)")
+    if p.exists() and _entries(p):
+        _check_replaceable(p, out, force)
+    check_writable(out, folder=True, need_bytes=need_bytes)
+
+
+def _check_replaceable(p: Path, out: str | Path, force: bool) -> None:
+    if not is_bundle(p):
+        if force:
+            raise OutputError(f"{out}: is not a cooprint bundle (no job.json of cooprint's) and is not empty; "
+                              "--force replaces only cooprint's own outputs: choose another --out")
+        raise OutputError(f"{out}: folder exists, is not empty and is not a cooprint bundle; choose another --out")
+    if not force:
+        raise OutputError(f"{out}: holds a cooprint bundle; use --force to replace it "
+                          "(files cooprint did not write are kept)")
+    _check_layout(p, out, BUNDLE_FOLDERS, ("job.json", "chunks.png"))
+
+
+def check_sim_folder(folder: str | Path, need_bytes: int = 0) -> Path:
+    """Check ``DIR/sim`` before writing derived outputs into it: it may be missing (it is made),
+    must be a folder if it exists, and its parent must exist and be writable."""
+    p = check_output(folder, folder=True, probe=False)
+    if p.exists():
+        _check_layout(p, folder, (), ())
+    check_writable(folder, folder=True, need_bytes=need_bytes)
+    return p
+
+
+def _check_layout(p: Path, shown: str | Path, folders: Iterable[str], files: Iterable[str]) -> None:
+    """Refuse plain files where cooprint writes folders, and folders where it writes files."""
+    for name in folders:
+        q = p / name
+        if os.path.lexists(q) and not q.is_dir():
+            raise OutputError(f"{Path(shown) / name}: a file where cooprint writes a folder; move it away")
+    for name in files:
+        q = p / name
+        if os.path.lexists(q):
+            try:
+                regular = stat.S_ISREG(os.stat(q).st_mode)
+            except OSError:
+                regular = False
+            if not regular:
+                raise OutputError(f"{Path(shown) / name}: not a regular file where cooprint writes one; move it away")
+
+
+def _entries(folder: Path) -> list[str]:
+    return [n for n in os.listdir(folder) if not n.startswith(TMP_PREFIX)]
+
+
+def _walk(root: Path) -> tuple[list[str], list[str]]:
+    """Files (and symlinks, and special files) under ``root`` as ``/``-separated relative paths,
+    and the folders; cooprint's hidden temporary entries at the top are left out."""
+    files, folders = [], []
+    for here, dirs, names in os.walk(root):
+        rel_here = os.path.relpath(here, root)
+        prefix = "" if rel_here == "." else rel_here.replace(os.sep, "/") + "/"
+        if not prefix:
+            dirs[:] = [d for d in dirs if not d.startswith(TMP_PREFIX)]
+            names = [n for n in names if not n.startswith(TMP_PREFIX)]
+        links = [d for d in dirs if os.path.islink(os.path.join(here, d))]
+        dirs[:] = sorted(d for d in dirs if d not in links)
+        folders += [prefix + d for d in dirs]
+        files += [prefix + n for n in sorted(names + links)]
+    return files, folders
+
+
+def _stderr_notice(message: str) -> None:
+    print(f"cooprint: {message}", file=sys.stderr)
 
 
 @contextmanager
-def atomic_dir(out: str | Path, force: bool = False) -> Iterator[Path]:
-    """Yield a temporary folder; on success it becomes ``out`` (replacing it if ``force``).
+def atomic_dir(out: str | Path, force: bool = False, *, inputs: Iterable[str | Path] = (),
+               notice: Notice | None = _stderr_notice, sim: bool = False) -> Iterator[Path]:
+    """Yield a temporary folder to fill; on success its files become ``out``'s.
 
-    On any exception the temporary folder is removed and ``out`` is left as it was.
+    ``out`` missing: the folder is renamed into place. ``out`` existing (empty, or a bundle
+    with ``force``; with ``sim``, a ``sim/`` folder of derived outputs): the files are swapped
+    in (see the module docstring); files cooprint did not write are kept and reported through
+    ``notice``. On any exception nothing is left behind and ``out`` is as it was; an OS error
+    becomes a one-line :class:`OutputError`.
     """
     out = Path(out)
-    check_destination(out, force)
-    parent = out.resolve().parent
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=parent))
+    inputs = tuple(inputs)
+    p = check_sim_folder(out) if sim else Path(os.path.abspath(out))
+    if not sim:
+        check_destination(out, force, inputs)
+    in_place = p.exists()
+    listed = _listed_files(bundle_record(p)) if in_place and not sim else set()
+    tmp: Path | None = None
+    kept: list[str] = []
     try:
-        yield tmp
-        _relax_permissions(tmp)
-        old = None
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=parent))
-            out.replace(old / "x")
-        tmp.replace(out)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        with deferred_sigint():
+            tmp = Path(tempfile.mkdtemp(prefix=TMP_PREFIX if in_place else f".{p.name}.", suffix=".tmp",
+                                        dir=p if in_place else p.parent))
+        new = tmp / "new" if in_place else tmp
+        new.mkdir(exist_ok=True)
+        yield new
+        check_interrupt()  # a Ctrl-C some library swallowed: not committed
+        with deferred_sigint():
+            if in_place:
+                kept = _swap_in(new, p, tmp / "old", _sim_owned if sim else owned, listed,
+                                () if sim else BUNDLE_FOLDERS)
+            else:
+                _relax_permissions(tmp)
+                os.rename(tmp, p)
+                tmp = None
+    except OSError as exc:
+        raise write_error(out, exc) from None
+    finally:
+        if tmp is not None:
+            remove_tree(tmp)
+    if kept and notice is not None:
+        if sim:  # named as from the bundle, where the user looks
+            kept = [f"{p.name}/{rel}" for rel in kept]
+        shown = ", ".join(kept[:5]) + (f" and {len(kept) - 5} more" if len(kept) > 5 else "")
+        notice(f"kept {len(kept)} file{'s' if len(kept) > 1 else ''} that cooprint did not write: {shown}")
+
+
+def _swap_in(new: Path, out: Path, old: Path, is_owned: Callable[..., bool], listed: set[str],
+             folders: Iterable[str] = ()) -> list[str]:
+    """Move the files under ``new`` into ``out`` in place of its cooprint files (moved to
+    ``old`` first, deleted with it by the caller); undo everything on failure. Afterwards the
+    ``folders`` of cooprint's (and those of the files it moved) that the new set does not
+    have are removed if empty. Returns the files of ``out`` that are not cooprint's (kept)."""
+    files, _ = _walk(out)
+    mine = [f for f in files if is_owned(f, listed)]
+    kept = [f for f in files if not is_owned(f, listed)]
+    fresh, fresh_dirs = _walk(new)
+    fresh.sort(key=lambda f: f == "job.json")  # the marker last: a half swap is still a bundle
+    moved: list[str] = []
+    installed: list[str] = []
+    made: list[Path] = []
+    marker_saved = False
+    try:
+        for rel in mine:
+            (old / rel).parent.mkdir(parents=True, exist_ok=True)
+            if rel == "job.json":  # keep the marker in place until the new one replaces it
+                shutil.copy2(out / rel, old / rel)
+                marker_saved = True
+            else:
+                os.replace(out / rel, old / rel)
+                moved.append(rel)
+        for rel in fresh:
+            target = out / rel
+            for parent in reversed(target.relative_to(out).parents[:-1]):
+                d = out / parent
+                if not d.is_dir():
+                    d.mkdir()
+                    made.append(d)
+            os.replace(new / rel, target)
+            installed.append(rel)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        for rel in reversed(installed):
+            if rel == "job.json" and marker_saved:
+                os.replace(old / rel, out / rel)
+            else:
+                (out / rel).unlink(missing_ok=True)
+        for rel in reversed(moved):
+            os.replace(old / rel, out / rel)
+        for d in reversed(made):
+            try:
+                d.rmdir()
+            except OSError:
+                pass
         raise
+    if marker_saved and "job.json" not in installed:
+        (out / "job.json").unlink(missing_ok=True)  # the old marker, when the new bundle has none
+    for name in sorted(set(folders) | {rel.split("/")[0] for rel in mine if "/" in rel}, reverse=True):
+        d = out / name
+        if d.is_dir() and name not in fresh_dirs and not any(d.iterdir()):
+            d.rmdir()  # a folder of stale cooprint files only (robots/ after `chunk`)
+    return kept
 
 
-def check_file_destination(out: Path, force: bool) -> None:
-    """Refuse an existing file unless ``force``, a folder, or a missing parent; fail early."""
-    if out.is_dir():
-        raise UserError(f"{out}: is a folder; give a file name")
-    if out.exists() and not force:
-        raise UserError(f"{out}: exists; use --force to replace it")
-    if not out.resolve().parent.is_dir():
-        raise UserError(f"{out}: parent folder {out.resolve().parent} does not exist")
+def check_file_destination(out: str | Path, force: bool = False, inputs: Iterable[str | Path] = (),
+                           need_bytes: int = 0, create_parents: int = 0) -> Path:
+    """Check a single output file before the work: a writable path (:func:`check_output`),
+    not an input of the command, and not an existing file unless ``force`` or it is one of
+    cooprint's derived outputs (:func:`is_derived_output`). Returns the absolute path."""
+    p = check_output(out, folder=False, create_parents=create_parents, probe=False)
+    same = same_file_as_input(p, inputs)
+    if same is not None:
+        raise OutputError(f"{out}: is {same}, an input of this command; choose another --out")
+    for folder in (p.parent, p.parent.parent):  # job.json, chunks/C.stl, robots/A.gcode of a bundle
+        rel = p.relative_to(folder).as_posix()
+        if not rel.startswith("sim/") and owned(rel) and is_bundle(folder):
+            raise OutputError(f"{out}: is part of the cooprint bundle {folder}; choose another --out")
+    if p.exists() and not force and not is_derived_output(p):
+        raise OutputError(f"{out}: exists; use --force to replace it")
+    check_writable(out, folder=False, need_bytes=need_bytes)
+    return p
 
 
 @contextmanager
-def atomic_file(out: str | Path, force: bool = False) -> Iterator[Path]:
-    """Yield a temporary path beside ``out``; on success it is renamed to ``out``. An existing
-    ``out`` is refused unless ``force``; on failure nothing is left behind."""
+def atomic_file(out: str | Path, force: bool = False, *, inputs: Iterable[str | Path] = (),
+                create_parents: int = 0) -> Iterator[Path]:
+    """Yield a temporary path beside ``out`` (same suffix: encoders name their format from
+    it); on success it is renamed to ``out``. ``out`` is checked as by
+    :func:`check_file_destination`; missing parent folders (at most ``create_parents``) are
+    made. On failure nothing is left behind (the folders made are removed again) and an OS
+    error becomes a one-line :class:`OutputError`."""
     out = Path(out)
-    check_file_destination(out, force)
-    fd, name = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.resolve().parent)
-    import os
-
-    os.close(fd)
-    tmp = Path(name)
+    p = check_file_destination(out, force, inputs, create_parents=create_parents)
+    made: list[Path] = []
+    tmp: Path | None = None
     try:
+        for parent in reversed(p.parents):
+            if len(made) < create_parents and not parent.exists():
+                parent.mkdir()
+                made.append(parent)
+        with deferred_sigint():
+            fd, name = tempfile.mkstemp(prefix=f".{p.name}.", suffix=f".tmp{p.suffix}", dir=p.parent)
+            os.close(fd)
+            tmp = Path(name)
         yield tmp
-        _relax_permissions(tmp, 0o666)
-        tmp.replace(out)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+        check_interrupt()
+        with deferred_sigint():
+            _relax_permissions(tmp, 0o666)
+            if os.path.lexists(p) and special_kind(os.lstat(p).st_mode):  # made since the check
+                raise OutputError(f"{out}: became a special file while cooprint worked; nothing written")
+            os.replace(tmp, p)
+            tmp = None
+            made.clear()
+    except OSError as exc:
+        raise write_error(out, exc) from None
+    finally:
+        if tmp is not None:
+            remove_tree(tmp)
+        for d in reversed(made):
+            try:
+                d.rmdir()
+            except OSError:
+                pass
 
 
 def _relax_permissions(root: Path, mode: int = 0o777) -> None:
     """mkdtemp/mkstemp make private 0700/0600 entries; give them the user's usual permissions."""
-    import os
-
     mask = os.umask(0)
     os.umask(mask)
     root.chmod(mode & ~mask)

@@ -20,8 +20,9 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import signal
+import sys
 from concurrent.futures import ProcessPoolExecutor
-from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
@@ -30,6 +31,7 @@ import numpy as np
 
 from cooprint.config import SlicingSettings
 from cooprint.io.mesh import Solid
+from cooprint.interrupts import blocked_sigint, deferred_sigint
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.sections import LayerSlicer
 from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths,
@@ -144,16 +146,70 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
     _WORKER = _Job(solid, settings, base)  # forked workers share it (and its arrays) copy-on-write
     del solid  # the job has what it needs: a caller that let go of the solid gets its memory back
     done = 0
+    pool = None
     try:
-        with (ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
-              if workers > 1 else nullcontext()) as pool:
-            for part in (pool.map if pool else map)(_work_block, blocks):
-                done += len(part)
-                if progress:
-                    progress(done, n - first)
-                yield from part
+        if workers > 1:
+            with blocked_sigint():  # workers are forked here: none sees a Ctrl-C before it ignores it
+                pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
+                                           initializer=_worker_init, initargs=(os.getpid(),))
+                parts = pool.map(_work_block, blocks)
+        else:
+            parts = map(_work_block, blocks)
+        for part in parts:
+            done += len(part)
+            if progress:
+                progress(done, n - first)
+            yield from part
+    except BaseException:  # Ctrl-C, an error, or the consumer stopped early (GeneratorExit)
+        if pool is not None:
+            _stop_pool(pool)
+            pool = None
+        raise
     finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
         _WORKER = None
+
+
+#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
+_PR_SET_PDEATHSIG = 1
+
+
+def _worker_init(parent: int) -> None:
+    """Set up a slicing worker: Ctrl-C is the parent's to handle (it stops the pool), and the
+    worker dies with its parent (Linux ``PR_SET_PDEATHSIG``, best effort), so that no worker
+    outlives a parent that was killed."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before the death signal was armed
+        os._exit(1)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool now: cancel what has not started, terminate the workers (a block under way
+    is of no use any more), wait for them and for the pool's thread. Ctrl-C is held meanwhile."""
+    with deferred_sigint():
+        # the pool's own list of its processes (Python < 3.14 has no public way to terminate
+        # them), taken before shutdown() forgets it
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(5)
+            if proc.is_alive():
+                proc.kill()
+                proc.join(1)
+        pool.shutdown(wait=True)
 
 
 class _Job:
