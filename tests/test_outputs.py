@@ -43,8 +43,8 @@ def hidden(*folders: Path) -> list[str]:
 @pytest.fixture(scope="module")
 def meshes(tmp_path_factory):
     root = tmp_path_factory.mktemp("meshes")
-    to_trimesh(box(20, 200, 10)).export(root / "spot.stl")
-    to_trimesh(box(20, 240, 12)).export(root / "other.stl")  # another plan: other chunks
+    to_trimesh(box(20, 420, 10)).export(root / "spot.stl")
+    to_trimesh(box(20, 640, 12)).export(root / "other.stl")  # another plan: other chunks
     return root
 
 

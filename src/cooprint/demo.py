@@ -26,6 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"demo: a generated car, {solid.report.triangles:,} triangles, "
           f"{solid.volume / 1000:.0f} cm3; robot '{settings.robot.name}' (build depth "
           f"{settings.robot.build_depth:g} mm)", file=sys.stderr)
+    (out / "model.stl").unlink(missing_ok=True)  # the demo's own copy of the model, beside its bundle
     with stage_progress(True) as progress:
         job = coop_job(solid, settings, robots=2, progress=progress)
         record = write_coop_bundle(job, out, force=True, progress=progress)
