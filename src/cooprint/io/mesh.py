@@ -15,6 +15,7 @@ import logging
 import re
 import warnings
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -120,7 +121,7 @@ def _read_bytes(path: Path, gz: bool) -> bytes:
     try:
         with (gzip.open(path, "rb") if gz else open(path, "rb")) as fh:
             data = fh.read(MAX_BYTES + 1)
-    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error) as exc:  # zlib.error: corrupt deflate data
         raise MeshError(f"{path}: cannot read{' gzip' if gz else ''} file ({exc})") from None
     if len(data) > MAX_BYTES:
         raise MeshError(f"{path}: larger than {MAX_BYTES // 1024**2} MiB decompressed; refusing to load")
@@ -158,7 +159,7 @@ def _read_binary_stl(path: Path, gz: bool) -> np.ndarray | None:
                 corners[lo:lo + k] = raw[:STL_RECORD.itemsize * k].view(STL_RECORD)["v"]
             if gz and fh.read(1):
                 return None
-    except (OSError, EOFError, gzip.BadGzipFile):
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error):
         return None
     return corners.reshape(-1, 3)
 
