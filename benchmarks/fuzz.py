@@ -239,6 +239,10 @@ def _mesh_target(tally: Tally, tmp: Path):
             return ext, buf.getvalue()
         return ext, draw(inputs(own))
 
+    for k, (ext, data) in enumerate(seeds):  # imports and compiled code loaded before any input's clock runs
+        (tmp / f"warm{k}.{ext}").write_bytes(data)
+        load_mesh(tmp / f"warm{k}.{ext}")
+
     def one(item):
         ext, data = item
         path = tmp / f"m.{ext}"
@@ -251,6 +255,7 @@ def _mesh_target(tally: Tally, tmp: Path):
 def _coop_target(tally: Tally, tmp: Path):
     from cooprint.program.commands import parse_coop, read_coop
 
+    parse_coop(COOP, "A")  # warm: the sweep's compiled code loaded
     def one(data: bytes):
         if data[:1] == b"M":  # one in a few through the file reader (mmap)
             path = tmp / "A.coop"
@@ -265,6 +270,8 @@ def _coop_target(tally: Tally, tmp: Path):
 def _gcode_target(tally: Tally, tmp: Path):
     from cooprint.simulation.inputs import read_gcode
 
+    (tmp / "warm.gcode").write_bytes(GCODE)
+    read_gcode(tmp / "warm.gcode")
     def one(data: bytes):
         path = tmp / "A.gcode"
         path.write_bytes(data)
@@ -278,6 +285,8 @@ def _manifest_target(tally: Tally, tmp: Path):
 
     (tmp / "A.coop").write_bytes(COOP)
     (tmp / "B.coop").write_bytes(b"WAIT C\nMOVE 0, 0, 5\n")
+    (tmp / "warm.toml").write_bytes(MANIFEST)
+    load_manifest(tmp / "warm.toml")
 
     def one(data: bytes):
         path = tmp / "m.toml"
