@@ -453,3 +453,31 @@ def test_frames_follow_the_seed_fig15_loop_and_the_material_adds_up(tmp_path):
         assert np.array_equal(saved["position"], fr.position) and saved["robots"].tolist() == ["A"]
     assert main(["simulate", "--manifest", str(job / "fleet.toml"), "--out", str(job), "--frames", "0", "-q",
                  "--force"]) == 2
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), spread=st.sampled_from([30.0, 3000.0, 2e6]))
+def test_the_overhang_check_over_a_huge_area_agrees_with_the_dense_bands(seed, spread):
+    """Issue 12: a plan spread over kilometres took a band of millions of cells (MemoryError);
+    the sparse bands (each with only its points and its own rows) give the same flags."""
+    from cooprint.simulation.kernels import overhang_flags
+
+    rng = np.random.default_rng(seed)
+    n = 300
+    h = rng.choice([0.2, 0.3], n)
+    z = 0.2 * rng.integers(0, 4, n)
+    centres = rng.uniform(-spread / 2, spread / 2, (4, 2))  # clusters far apart
+    xy = centres[rng.integers(0, 4, n)] + rng.uniform(-12, 12, (n, 2))
+    xyz = np.column_stack([xy, z]).astype(np.float32)
+    t = rng.uniform(0, 50, n)
+    dense = overhang_flags(xyz, h, t, 2.5) if spread < 1e5 else None
+    sparse = overhang_flags(xyz, h, t, 2.5, budget=37, max_cells=200)
+    if dense is not None:
+        assert np.array_equal(sparse, dense)
+    # the huge spread: each cluster alone gives the same flags as within the whole
+    for c in range(4):
+        near = np.flatnonzero((np.abs(xy - centres[c]) <= 12).all(axis=1))
+        alone = overhang_flags(xyz[near], h[near], t[near], 2.5)
+        far_from_others = all(np.abs(centres[c] - centres[d]).max() > 60 for d in range(4) if d != c)
+        if far_from_others:
+            assert np.array_equal(sparse[near], alone)

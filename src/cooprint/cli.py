@@ -460,7 +460,7 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
            speedup: float | None, manifest: str | None, out: str | None, force: bool) -> None:
     """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
     from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
-    from cooprint.render.sim import render_animation, render_gantt, render_snapshot
+    from cooprint.render.sim import frame_count, render_animation, render_gantt, render_snapshot
     from cooprint.simulation import load_inputs, simulate as run_sim
 
     _need_inputs(inputs, manifest)
@@ -478,6 +478,8 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
+    if fmt in ("mp4", "gif"):  # the options must not ask for unbounded work: refused before anything is written
+        frame_count(result.makespan, fps, duration, speedup, gif=fmt == "gif")
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
     target = Path(out) if out is not None else _sim_folder(inputs, None) / name
     # a bundle's sim/ is made if missing; cooprint's earlier pictures there need no --force

@@ -4,6 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+#: Largest coordinate any input may hold, mm (1 km): every reader refuses a point farther from
+#: the origin along an axis (a mesh, a ``.coop`` MOVE, a G-code move, a manifest start), so that
+#: no stage meets a size its arrays cannot hold (a plan 1e308 mm wide, rasters of terabytes).
+#: Nothing cooprint prints is near it; anything past it is a unit or file error.
+MAX_COORD_MM = 1e6
+
 
 def edge_table(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     """Directed edges (3m, 2), how many triangles use each edge's undirected twin (3m,), and

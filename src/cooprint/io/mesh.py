@@ -12,6 +12,10 @@ from __future__ import annotations
 import gzip
 import io
 import logging
+import re
+import warnings
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -22,15 +26,16 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import (compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
+from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
                                open_edges, signed_volume, winding_consistent)
 from cooprint.errors import MeshError
 
 FORMATS = ("stl", "obj", "ply", "3mf")
 #: Largest decompressed input read, bytes (a 20M-triangle binary STL is 1 GB).
 MAX_BYTES = 2 * 1024**3
-#: Largest coordinate accepted, mm (10 km: anything larger is a unit or file error).
-MAX_COORD = 1e7
+#: Largest coordinate accepted, mm (:data:`cooprint.geometry.MAX_COORD_MM`, 1 km: anything
+#: larger is a unit or file error).
+MAX_COORD = MAX_COORD_MM
 
 logging.getLogger("trimesh").setLevel(logging.ERROR)
 
@@ -116,7 +121,7 @@ def _read_bytes(path: Path, gz: bool) -> bytes:
     try:
         with (gzip.open(path, "rb") if gz else open(path, "rb")) as fh:
             data = fh.read(MAX_BYTES + 1)
-    except (OSError, EOFError, gzip.BadGzipFile) as exc:
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error) as exc:  # zlib.error: corrupt deflate data
         raise MeshError(f"{path}: cannot read{' gzip' if gz else ''} file ({exc})") from None
     if len(data) > MAX_BYTES:
         raise MeshError(f"{path}: larger than {MAX_BYTES // 1024**2} MiB decompressed; refusing to load")
@@ -154,7 +159,7 @@ def _read_binary_stl(path: Path, gz: bool) -> np.ndarray | None:
                 corners[lo:lo + k] = raw[:STL_RECORD.itemsize * k].view(STL_RECORD)["v"]
             if gz and fh.read(1):
                 return None
-    except (OSError, EOFError, gzip.BadGzipFile):
+    except (OSError, EOFError, gzip.BadGzipFile, zlib.error):
         return None
     return corners.reshape(-1, 3)
 
@@ -178,6 +183,274 @@ def _check_stl(path: Path, data: bytes) -> int | None:
                     f"file has {len(data)} bytes (truncated or not an STL)")
 
 
+#: A number of a text mesh format: ASCII decimal digits only (Python's ``float()`` also takes
+#: full-width and other Unicode digits, ``1_000``, ``nan`` and ``inf``; none of them is a
+#: coordinate a mesh file holds).
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+_NUMBER_BYTES = re.compile(_NUMBER.pattern.encode())
+_INDEX = re.compile(r"[+-]?[0-9]+")
+
+
+def _clip(text: str, limit: int = 40) -> str:
+    """A token of the input as an error message shows it: at most ``limit`` characters."""
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
+
+
+def _text(path: Path, data: bytes, fmt: str) -> str:
+    """The text of a text mesh file (UTF-8), or a :class:`MeshError` naming the line of the first
+    byte that is not UTF-8."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise MeshError(f"{path}:{line}: not UTF-8 text (byte 0x{data[exc.start]:02x}); is this an {fmt} "
+                        "file?") from None
+
+
+def _coordinate(path: Path, lineno: int, tok: str) -> float:
+    """One coordinate of a text mesh file: an ASCII decimal number, finite and at most
+    :data:`MAX_COORD` from 0."""
+    if not _NUMBER.fullmatch(tok):
+        if _NONFINITE.fullmatch(tok):
+            raise MeshError(f"{path}:{lineno}: coordinate '{tok}' is NaN or infinite")
+        raise MeshError(f"{path}:{lineno}: '{_clip(tok)}' is not a number")
+    x = float(tok)
+    if not abs(x) <= MAX_COORD:
+        raise MeshError(f"{path}:{lineno}: coordinate {_clip(tok)} is beyond {MAX_COORD:.0e} mm (wrong units?)")
+    return x
+
+
+#: OBJ statements read (``v``, ``f``) and those that carry nothing a solid needs (texture and
+#: normal vertices, groups, materials, smoothing, lines and points, free-form geometry): any
+#: other first word is refused, so that a file that is not OBJ is not read as an empty one.
+_OBJ_IGNORED = frozenset({"vt", "vn", "vp", "g", "o", "s", "usemtl", "mtllib", "l", "p", "mg", "lod", "bevel",
+                          "c_interp", "d_interp", "shadow_obj", "trace_obj", "usemap", "maplib", "cstype", "deg",
+                          "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp", "end",
+                          "con", "ctech", "stech", "call", "csh"})
+
+
+def _read_obj(path: Path, data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and triangles of an OBJ file, by the format's rules: ``v x y z [w]`` (a colour
+    may follow), ``f a b c ...`` with 1-based vertex indices (``a/t/n`` forms too; a negative
+    index counts back from the last vertex read so far); a polygon becomes a fan of triangles.
+
+    An index of 0 (a 0-based file, which would otherwise read as a different solid), a vertex
+    with fewer than three coordinates, a face with fewer than three vertices, an index past the
+    vertices, a token that is not a number: a :class:`MeshError` naming the line."""
+    text = _text(path, data, "OBJ")
+    fast = _read_obj_fast(data)
+    if fast is not None:
+        return fast
+    coords: list[float] = []
+    vlines: list[int] = []
+    tris: list[int] = []
+    pending: list[tuple[int, int]] = []  # (largest positive index, line) of faces, checked at the end
+    top = 0
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        words = line.split("#", 1)[0].split()
+        if not words:
+            continue
+        key = words[0]
+        if key == "v":
+            if not 4 <= len(words) <= 8:
+                raise MeshError(f"{path}:{lineno}: a vertex needs 3 coordinates (v x y z), got {len(words) - 1}")
+            coords += (_coordinate(path, lineno, w) for w in words[1:4])
+            vlines.append(lineno)
+        elif key == "f":
+            if len(words) < 4:
+                raise MeshError(f"{path}:{lineno}: a face needs at least 3 vertices, got {len(words) - 1}")
+            n = len(vlines)
+            ring = []
+            for w in words[1:]:
+                ref, *rest = w.split("/")
+                if not _INDEX.fullmatch(ref) or len(rest) > 2 or any(r and not _INDEX.fullmatch(r) for r in rest):
+                    raise MeshError(f"{path}:{lineno}: '{_clip(w)}' is not a vertex index")
+                k = int(ref)
+                if k == 0:
+                    raise MeshError(f"{path}:{lineno}: vertex index 0: OBJ indices start at 1 (a 0-based file?)")
+                if k < 0:
+                    if -k > n:
+                        raise MeshError(f"{path}:{lineno}: vertex index {k} reaches before the first vertex "
+                                        f"({n} read so far)")
+                    k = n + k
+                else:
+                    top = max(top, k)
+                    if k > n:
+                        pending.append((k, lineno))
+                    k -= 1
+                ring.append(k)
+            for j in range(1, len(ring) - 1):
+                tris += (ring[0], ring[j], ring[j + 1])
+        elif key not in _OBJ_IGNORED:
+            raise MeshError(f"{path}:{lineno}: unknown OBJ statement '{_clip(key)}'")
+    for k, lineno in pending:
+        if k > len(vlines):
+            raise MeshError(f"{path}:{lineno}: vertex index {k} but the file has {len(vlines)} vertices")
+    if not tris:
+        raise MeshError(f"{path}: contains no triangles")
+    return np.array(coords, dtype=np.float64).reshape(-1, 3), np.array(tris, dtype=np.int64).reshape(-1, 3)
+
+
+_PLAIN_NUMBERS = re.compile(rb"[0-9eE.+\- \t\r]*")
+_PLAIN_INDICES = re.compile(rb"[0-9 \t\r]*")
+
+
+def _read_obj_fast(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_read_obj` of the common file (every ``v`` line three plain numbers, every ``f``
+    line three positive plain indices, each at the start of its line; the other lines blank,
+    comments or statements it ignores) in whole-array steps; ``None`` for any other file, which
+    the line reader then reads or refuses, naming the line."""
+    lines = data.split(b"\n")
+    v = [ln[2:] for ln in lines if ln[:2] == b"v "]
+    f = [ln[2:] for ln in lines if ln[:2] == b"f "]
+    if not f or len(v) + len(f) < len(lines) and not all(
+            not w or w[0].startswith(b"#") or w[0].decode("utf-8", "replace") in _OBJ_IGNORED
+            for w in (ln.split(None, 1) for ln in lines if ln[:2] not in (b"v ", b"f "))):
+        return None
+    vtext, ftext = b" ".join(v), b" ".join(f)
+    if b"#" in vtext or b"#" in ftext or not _PLAIN_NUMBERS.fullmatch(vtext) or not _PLAIN_INDICES.fullmatch(ftext):
+        return None
+    vt, ft = vtext.split(), ftext.split()
+    if len(vt) != 3 * len(v) or len(ft) != 3 * len(f):
+        return None
+    try:
+        verts = np.array(vt, dtype=np.float64).reshape(-1, 3)
+        faces = np.array(ft, dtype=np.int64).reshape(-1, 3)
+    except (ValueError, OverflowError):
+        return None
+    if not (np.abs(verts) <= MAX_COORD).all() or faces.min() < 1 or faces.max() > len(verts):
+        return None
+    return verts, faces - 1
+
+
+_STL_VERTEX = re.compile(rb"^[ \t]*vertex[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)[ \t]*\r?$", re.M | re.I)
+_STL_WORD = re.compile(rb"^[ \t]*(vertex|endloop)\b", re.M | re.I)
+
+
+def _read_ascii_stl(path: Path, data: bytes) -> np.ndarray:
+    """The corners (3n, 3) of an ASCII STL: every ``vertex x y z`` line, three per ``outer loop``.
+    A vertex line of another form, a loop without three vertices, a coordinate that is not an
+    ASCII number: a :class:`MeshError` naming the line."""
+    _text(path, data, "STL")
+    found = _STL_VERTEX.findall(data)
+    words = _STL_WORD.findall(data)
+    n_vertex = sum(1 for w in words if w.lower() == b"vertex")
+    if n_vertex != len(found) or n_vertex != 3 * (len(words) - n_vertex):
+        _locate_ascii_stl(path, data)
+    tokens = [t for row in found for t in row]
+    if not all(_NUMBER_BYTES.fullmatch(t) for t in tokens):
+        _locate_ascii_stl(path, data)
+    v = np.array([float(t) for t in tokens], dtype=np.float64).reshape(-1, 3)
+    bad = np.flatnonzero(~(np.abs(v) <= MAX_COORD).all(axis=1))
+    if len(bad):
+        _locate_ascii_stl(path, data)
+    if len(v) == 0:
+        raise MeshError(f"{path}: contains no triangles")
+    return v
+
+
+def _locate_ascii_stl(path: Path, data: bytes) -> None:
+    """Raise the :class:`MeshError` of the first bad line of an ASCII STL (the slow path of
+    :func:`_read_ascii_stl`, only for a file it refuses)."""
+    in_loop = None
+    for lineno, raw in enumerate(data.decode("utf-8").splitlines(), start=1):
+        words = raw.split()
+        if not words:
+            continue
+        key = words[0].lower()
+        if key == "vertex":
+            if in_loop is None:
+                raise MeshError(f"{path}:{lineno}: a vertex outside an 'outer loop'")
+            if len(words) != 4:
+                raise MeshError(f"{path}:{lineno}: a vertex needs 3 coordinates (vertex x y z), got {len(words) - 1}")
+            for w in words[1:]:
+                _coordinate(path, lineno, w)
+            in_loop += 1
+        elif key == "outer":
+            in_loop = 0
+        elif key == "endloop":
+            if in_loop != 3:
+                raise MeshError(f"{path}:{lineno}: a loop of {in_loop or 0} vertices (a facet needs 3)")
+            in_loop = None
+    raise MeshError(f"{path}: malformed ASCII STL (vertex lines not in loops of three)")
+
+
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
+              "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+
+
+def _check_ply(path: Path, data: bytes) -> None:
+    """Refuse a PLY whose header does not describe its body before a reader trusts it: no
+    ``end_header``, an unknown format or property type, an element count that is not a number,
+    or more rows than the body can hold (an ASCII row takes a line, a binary row at least its
+    fixed-size properties); an ASCII body must have exactly the rows the header declares."""
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise MeshError(f"{path}: not a PLY file (no 'ply' ... 'end_header' header)")
+    body_at = data.find(b"\n", end)
+    body_at = len(data) if body_at < 0 else body_at + 1
+    try:
+        header = data[:end].decode("ascii").splitlines()
+    except UnicodeDecodeError:
+        raise MeshError(f"{path}: PLY header is not ASCII text") from None
+    fmt, elements = None, []  # (name, count, fixed bytes per row, has a list)
+    for lineno, line in enumerate(header, start=1):
+        w = line.split()
+        if not w or w[0] in ("ply", "comment", "obj_info"):
+            continue
+        if w[0] == "format":
+            if len(w) < 2 or w[1] not in ("ascii", "binary_little_endian", "binary_big_endian"):
+                raise MeshError(f"{path}:{lineno}: unknown PLY format '{_clip(line.strip())}'")
+            fmt = w[1]
+        elif w[0] == "element":
+            if len(w) != 3 or not w[2].isascii() or not w[2].isdigit():
+                raise MeshError(f"{path}:{lineno}: expected 'element NAME COUNT', got '{_clip(line.strip())}'")
+            elements.append([w[1], int(w[2]), 0, False])
+        elif w[0] == "property":
+            if not elements:
+                raise MeshError(f"{path}:{lineno}: a property before any element")
+            types = w[2:4] if len(w) >= 2 and w[1] == "list" else w[1:2]
+            if len(w) < (5 if w[1:2] == ["list"] else 3) or any(t not in _PLY_SIZES for t in types):
+                raise MeshError(f"{path}:{lineno}: expected 'property TYPE NAME' with a PLY type, got "
+                                f"'{_clip(line.strip())}'")
+            if w[1] == "list":
+                elements[-1][2] += _PLY_SIZES[w[2]]
+                elements[-1][3] = True
+            else:
+                elements[-1][2] += _PLY_SIZES[w[1]]
+        else:
+            raise MeshError(f"{path}:{lineno}: unknown PLY header line '{_clip(line.strip())}'")
+    if fmt is None:
+        raise MeshError(f"{path}: PLY header has no 'format' line")
+    body = len(data) - body_at
+    rows = sum(e[1] for e in elements)
+    if fmt == "ascii":
+        lines = sum(1 for ln in data[body_at:].splitlines() if ln.strip())
+        if lines != rows:
+            raise MeshError(f"{path}: PLY header declares {rows} rows ("
+                            + ", ".join(f"{e[1]} {e[0]}" for e in elements) + f") but the body has {lines} lines")
+    elif sum(e[1] * e[2] for e in elements) > body:
+        raise MeshError(f"{path}: PLY header declares " + ", ".join(f"{e[1]} {e[0]}" for e in elements)
+                        + f": more than the {body} bytes after it hold (truncated?)")
+
+
+def _check_3mf(path: Path, data: bytes) -> None:
+    """Refuse a 3MF that is not a zip, has no model part, or would decompress past
+    :data:`MAX_BYTES` (a zip bomb), before a reader unpacks it."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as z:
+            infos = z.infolist()
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError) as exc:
+        raise MeshError(f"{path}: not a 3MF file (not a readable zip archive: {exc})") from None
+    if not any(i.filename.lower().endswith(".model") for i in infos):
+        raise MeshError(f"{path}: 3MF archive has no model part (3D/3dmodel.model)")
+    size = sum(i.file_size for i in infos)
+    if size > MAX_BYTES:
+        raise MeshError(f"{path}: 3MF archive unpacks to {size / 1024**2:.0f} MiB, more than "
+                        f"{MAX_BYTES // 1024**2} MiB; refusing to load")
+
+
 def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | None]:
     """Vertices (n, 3) and faces (m, 3) of the file's triangles (float32 vertices for binary
     STL, which stores them so: merging them in that precision is exact and twice as fast).
@@ -188,10 +461,19 @@ def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | 
             corners = np.empty((n, 3, 3), dtype=np.float32)
             corners[...] = np.frombuffer(data, STL_RECORD, count=n, offset=84)["v"]  # the only copy
             return corners.reshape(-1, 3), None
+        return _read_ascii_stl(path, data), None
+    if fmt == "obj":
+        return _read_obj(path, data)
+    if fmt == "ply":
+        _check_ply(path, data)
+    elif fmt == "3mf":
+        _check_3mf(path, data)
     import trimesh
 
     try:
-        loaded = trimesh.load(io.BytesIO(data), file_type=fmt, force="mesh", process=False)
+        with warnings.catch_warnings(), np.errstate(all="ignore"):  # a warning on stderr is a second line
+            warnings.simplefilter("ignore")
+            loaded = trimesh.load(io.BytesIO(data), file_type=fmt, force="mesh", process=False)
     except Exception as exc:  # any reader failure on a user file is a user error
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise MeshError(f"{path}: cannot read as {fmt.upper()}: {msg}") from None

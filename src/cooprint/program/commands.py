@@ -10,8 +10,11 @@ The language (seed §4.3 and §5.1)::
                           robot's NOTIFYs from 1
     WAIT event [, event]  block until every named event has been announced (by any robot)
 
-Keywords are case-insensitive; numbers are decimal (``-1``, ``2.5``, ``.5``, ``1e3``) and must be
-finite; event names are letters, digits and ``_ : . -``.
+Keywords are case-insensitive; numbers are decimal in ASCII digits (``-1``, ``2.5``, ``.5``,
+``1e3``; Python's ``float()`` would also read full-width and other Unicode digits, ``1_000``,
+``nan`` and ``inf``, none of which is a number here), finite, and a coordinate at most
+``MAX_COORD_MM`` (1 km) from 0; event and chunk names are letters, digits and ``_ : . -``, at
+most ``MAX_NAME`` characters. An error message quotes at most ``CLIP`` characters of a token.
 
 Annotations are comments a robot ignores and the tools read (as slicers read ``;TYPE:`` in
 G-code): G-code export needs each extruding move's width and layer height, the simulator and the
@@ -24,6 +27,9 @@ viewers need to know which chunk a move prints::
     ;@facing -90          before the next command the robot turns round about its nozzle, the
                           shorter way, to face -90 degrees (the direction from its body to the
                           nozzle); a robot may act on it, other readers ignore it (Program.turns)
+
+Each field is checked: a layer index is a whole number from 0 to 2**31 - 1, a height above 0 and
+a width from 0, both at most ``ANNOTATION_MAX_MM``; a role is one of the five words.
 
 The writer emits an annotation wherever its value changes, so ``parse(write(p)) == p`` exactly:
 coordinates are kept on a 1 µm grid (``quantize``) and written with three decimals. The parser
@@ -45,6 +51,7 @@ from typing import Iterable, TextIO
 import numpy as np
 
 from cooprint.errors import UserError
+from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
 
 #: Command kinds.
@@ -57,6 +64,15 @@ _ROLE_OF_WORD = {w: r for r, w in ROLE_WORDS.items()}
 #: Coordinates of a program lie on this grid, mm (what the writer's three decimals hold).
 RESOLUTION = 1e-3
 FORMAT = "cooprint-coop/1"
+#: The largest layer height and path width an annotation may state, mm (no nozzle lays a layer
+#: or a line this thick; past it a file is wrong, and the G-code export would push absurd E).
+ANNOTATION_MAX_MM = 50.0
+#: The largest facing of a ``;@facing`` annotation, degrees (either way round).
+FACING_MAX_DEG = 360.0
+#: The longest event or chunk name.
+MAX_NAME = 64
+#: At most this many characters of an input token are quoted in an error message.
+CLIP = 40
 #: The per-command arrays of a :class:`Program`, in field order.
 COLUMNS = ("kind", "xyz", "role", "width", "layer", "height", "chunk", "event")
 
@@ -272,10 +288,20 @@ def coop_text(program: Program, header: Iterable[str] = ()) -> str:
 # ----------------------------------------------------------------------------------------------
 # parsing
 
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")  # ASCII digits only
+_INDEX = re.compile(r"[0-9]+")
 _NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
 _EVENT = re.compile(r"[A-Za-z0-9_:.\-]+")
 _TOKEN = re.compile(r"[^\s,]+|,")
+#: Characters no line holds: controls other than tab (a CR only at the end) and the Unicode line
+#: and paragraph separators.
+_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f\x85\u2028\u2029]")
+
+
+def _clip(text: str) -> str:
+    """A token of the input as a message quotes it: at most ``CLIP`` characters (a 10 MB token is
+    never echoed whole)."""
+    return text if len(text) <= CLIP else f"{text[:CLIP]}... ({len(text)} characters)"
 
 
 class _Lines:
@@ -292,6 +318,10 @@ class _Lines:
 
     def parse(self, line: str, lineno: int):
         """``None`` (blank or comment), ``("ann", key, value)`` or ``(kind, payload)``."""
+        bad = _CONTROL.search(line, 0, len(line) - line.endswith("\r"))
+        if bad:  # a file with CR (old Mac) line ends would otherwise read as one line
+            raise self.error(lineno, bad.start() + 1, f"control character U+{ord(bad.group()):04X} inside a line "
+                                                      "(lines end with LF or CRLF)")
         cut = min((i for i in (line.find(";"), line.find("#")) if i >= 0), default=len(line))
         code, comment = line[:cut], line[cut:]
         tokens = [(m.group(), m.start() + 1) for m in _TOKEN.finditer(code)]
@@ -306,13 +336,13 @@ class _Lines:
             words = [t for t in args if t[0] != ","]
             if len(words) != 1 or len(args) != 1 or words[0][0].upper() not in ("ON", "OFF"):
                 at = args[0][1] if args else len(code.rstrip()) + 2
-                got = f"'{' '.join(t for t, _ in args)}'" if args else "nothing"
+                got = f"'{_clip(' '.join(t for t, _ in args))}'" if args else "nothing"
                 raise self.error(lineno, at, f"TOOL needs ON or OFF, got {got}")
             return (TOOL_ON if words[0][0].upper() == "ON" else TOOL_OFF), None
         if w == "NOTIFY":
             if len(args) > 1 or (args and args[0][0] == ","):
                 bad = args[1] if len(args) > 1 else args[0]
-                raise self.error(lineno, bad[1], f"NOTIFY takes at most one event name, extra token '{bad[0]}'")
+                raise self.error(lineno, bad[1], f"NOTIFY takes at most one event name, extra token '{_clip(bad[0])}'")
             self.notifies += 1
             name = self.event_name(args[0], lineno) if args else f"{self.robot}:{self.notifies}"
             return NOTIFY, (name,)
@@ -321,7 +351,7 @@ class _Lines:
             if not names:
                 raise self.error(lineno, len(code.rstrip()) + 2, "WAIT needs at least one event name")
             return WAIT, tuple(names)
-        raise self.error(lineno, col, f"unknown word '{word}' (expected MOVE, TOOL, NOTIFY or WAIT)")
+        raise self.error(lineno, col, f"unknown word '{_clip(word)}' (expected MOVE, TOOL, NOTIFY or WAIT)")
 
     def separated(self, args, lineno, col, what, item, convert):
         """Items separated by whitespace or by single commas."""
@@ -339,14 +369,24 @@ class _Lines:
         return out
 
     def number(self, tok, lineno: int) -> float:
+        """A MOVE coordinate: an ASCII decimal number, finite, at most ``MAX_COORD_MM`` from 0."""
+        text, col = tok
+        value = self.decimal(tok, lineno, "")
+        if not abs(value) <= MAX_COORD_MM:
+            raise self.error(lineno, col, f"coordinate {_clip(text)} is beyond +-{MAX_COORD_MM:g} mm (the largest "
+                                          "coordinate cooprint accepts; wrong units?)")
+        return value
+
+    def decimal(self, tok, lineno: int, what: str) -> float:
+        """A finite ASCII decimal number (``what`` names the field in the message)."""
         text, col = tok
         if _NONFINITE.fullmatch(text):
-            raise self.error(lineno, col, f"'{text}' is not a finite number")
+            raise self.error(lineno, col, f"{what}'{text}' is not a finite number")
         if not _NUMBER.fullmatch(text):
-            raise self.error(lineno, col, f"'{text}' is not a number")
+            raise self.error(lineno, col, f"{what}'{_clip(text)}' is not a number (ASCII digits, e.g. -12.5)")
         value = float(text)
         if not math.isfinite(value):
-            raise self.error(lineno, col, f"'{text}' is not a finite number")
+            raise self.error(lineno, col, f"{what}'{_clip(text)}' is not a finite number")
         return value
 
     def numbers(self, args, lineno: int, col: int, end: int) -> tuple[float, float, float]:
@@ -355,44 +395,67 @@ class _Lines:
             raise self.error(lineno, end, f"MOVE needs 3 numbers (x, y, z), got {len(values)}")
         if len(values) > 3:
             extra = [t for t in args if t[0] != ","][3]
-            raise self.error(lineno, extra[1], f"MOVE takes 3 numbers (x, y, z), extra token '{extra[0]}'")
+            raise self.error(lineno, extra[1], f"MOVE takes 3 numbers (x, y, z), extra token '{_clip(extra[0])}'")
         return values[0], values[1], values[2]
 
     def event_name(self, tok, lineno: int) -> str:
         text, col = tok
-        if not _EVENT.fullmatch(text):
-            raise self.error(lineno, col, f"'{text}' is not an event name (letters, digits, _ : . -)")
+        if not _EVENT.fullmatch(text) or len(text) > MAX_NAME:
+            raise self.error(lineno, col, f"'{_clip(text)}' is not an event name (letters, digits, _ : . -; at "
+                                          f"most {MAX_NAME})")
         return text
 
     def annotation(self, comment: str, lineno: int, cut: int):
+        """``;@chunk``, ``;@layer``, ``;@path`` and ``;@facing`` checked field by field (any other ``;@`` word is
+        an annotation of a later version: a comment here)."""
         parts = comment[2:].split()
-        if not parts:
+        if not parts or parts[0].lower() not in ("chunk", "layer", "path", "facing"):
             return None
         key, vals = parts[0].lower(), parts[1:]
-        col = cut + 3
-        try:
-            if key == "chunk" and len(vals) == 1:
-                if vals[0] == "-":
-                    return "ann", "chunk", -1
-                if vals[0] not in self.chunks:
-                    self.chunks.append(vals[0])
-                return "ann", "chunk", self.chunks.index(vals[0])
-            if key == "layer" and vals == ["-"]:
+        form = {"chunk": "';@chunk ID' or ';@chunk -'", "layer": "';@layer INDEX HEIGHT' or ';@layer -'",
+                "facing": "';@facing DEGREES' (a finite number)",
+                "path": "';@path ROLE WIDTH' with ROLE one of " + ", ".join(_ROLE_OF_WORD)}[key]
+        if len(vals) != (1 if key in ("chunk", "facing") or vals == ["-"] else 2):
+            raise self.error(lineno, cut + 3, f"malformed annotation '{_clip(comment.strip())}': expected {form}")
+        at, pos = [], cut + 3 + len(parts[0])  # each field's column
+        for v in vals:
+            pos = comment.index(v, pos - cut - 1) + cut + 1
+            at.append((v, pos))
+            pos += len(v)
+        if key == "chunk":
+            if vals[0] == "-":
+                return "ann", "chunk", -1
+            if not _EVENT.fullmatch(vals[0]) or len(vals[0]) > MAX_NAME:
+                raise self.error(lineno, at[0][1], f";@chunk ID '{_clip(vals[0])}': expected a chunk name (letters, "
+                                                   f"digits, _ : . -; at most {MAX_NAME})")
+            if vals[0] not in self.chunks:
+                self.chunks.append(vals[0])
+            return "ann", "chunk", self.chunks.index(vals[0])
+        if key == "facing":
+            deg = self.decimal(at[0], lineno, ";@facing DEGREES ")
+            if not -FACING_MAX_DEG <= deg <= FACING_MAX_DEG:
+                raise self.error(lineno, at[0][1], f";@facing DEGREES {_clip(vals[0])}: expected degrees from "
+                                                   f"{-FACING_MAX_DEG:g} to {FACING_MAX_DEG:g}")
+            return "ann", "facing", deg
+        if key == "layer":
+            if vals == ["-"]:
                 return "ann", "layer", (-1, 0.0)
-            if key == "layer" and len(vals) == 2 and 0 <= int(vals[0]) < 2**31 and float(vals[1]) > 0:
-                return "ann", "layer", (int(vals[0]), float(vals[1]))
-            if key == "path" and len(vals) == 2 and vals[0] in _ROLE_OF_WORD and float(vals[1]) >= 0:
-                return "ann", "path", (_ROLE_OF_WORD[vals[0]], float(vals[1]))
-            if key == "facing" and len(vals) == 1 and _NUMBER.fullmatch(vals[0]) and math.isfinite(float(vals[0])):
-                return "ann", "facing", float(vals[0])
-        except ValueError:
-            pass
-        if key in ("chunk", "layer", "path", "facing"):
-            form = {"chunk": "';@chunk ID' or ';@chunk -'", "layer": "';@layer INDEX HEIGHT' or ';@layer -'",
-                    "facing": "';@facing DEGREES' (a finite number)",
-                    "path": "';@path ROLE WIDTH' with ROLE one of " + ", ".join(_ROLE_OF_WORD)}[key]
-            raise self.error(lineno, col, f"malformed annotation '{comment.strip()}': expected {form}")
-        return None  # an annotation of a later version: a comment here
+            if not _INDEX.fullmatch(vals[0]) or int(vals[0]) >= 2**31:
+                raise self.error(lineno, at[0][1], f";@layer INDEX '{_clip(vals[0])}': expected a whole number from "
+                                                   f"0 to {2**31 - 1}")
+            height = self.decimal(at[1], lineno, ";@layer HEIGHT ")
+            if not 0 < height <= ANNOTATION_MAX_MM:
+                raise self.error(lineno, at[1][1], f";@layer HEIGHT {_clip(vals[1])}: expected mm above 0 and at "
+                                                   f"most {ANNOTATION_MAX_MM:g}")
+            return "ann", "layer", (int(vals[0]), height)
+        if vals[0] not in _ROLE_OF_WORD:
+            raise self.error(lineno, at[0][1], f";@path ROLE '{_clip(vals[0])}': expected one of "
+                                               + ", ".join(_ROLE_OF_WORD))
+        width = self.decimal(at[1], lineno, ";@path WIDTH ")
+        if not 0 <= width <= ANNOTATION_MAX_MM:
+            raise self.error(lineno, at[1][1], f";@path WIDTH {_clip(vals[1])}: expected mm from 0 to "
+                                               f"{ANNOTATION_MAX_MM:g}")
+        return "ann", "path", (_ROLE_OF_WORD[vals[0]], width)
 
 
 def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<program>") -> Program:

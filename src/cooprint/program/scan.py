@@ -5,7 +5,8 @@ Nearly every line of a program is ``MOVE x, y, z``, ``TOOL ON`` / ``TOOL OFF`` o
 every other line (``;@chunk``, NOTIFY, WAIT, anything odd or wrong) to the line parser of
 :mod:`.commands`, which is the reference. A MOVE line is taken only in the plain form: the word
 ``MOVE`` at the start of the line, then three decimal numbers (``-12.5``, ``+3``, ``.25``, ``7.``; at most 15 significant digits, no exponent)
-separated by blanks or by single commas, nothing after them. Such a number is its digits as an
+separated by blanks or by single commas, nothing after them, each at most ``MAX_COORD_MM`` from 0
+(a MOVE past it goes to the line parser, which refuses it). Such a number is its digits as an
 integer (exact in float64) divided by a power of ten (exact up to 10^22): one correctly rounded
 division, the same double that ``float()`` gives.
 """
@@ -17,7 +18,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from cooprint.program.commands import MOVE, ROLE_WORDS, TOOL_OFF, TOOL_ON
+from cooprint.geometry import MAX_COORD_MM
+from cooprint.program.commands import ANNOTATION_MAX_MM, MOVE, ROLE_WORDS, TOOL_OFF, TOOL_ON
 
 #: Kinds of line the sweep tells apart.
 OTHER, MOVE_LINE, TOOL_ON_LINE, TOOL_OFF_LINE, SKIP, LAYER_LINE, PATH_LINE = range(7)
@@ -29,6 +31,8 @@ POW10 = np.array([10.0 ** k for k in range(23)])
 _WORD_LIST = [ROLE_WORDS[r].encode() for r in range(len(ROLE_WORDS))] + [b"path", b"layer"]
 _WORDS = np.frombuffer(b"".join(_WORD_LIST), np.uint8)
 _WORD_STARTS = np.cumsum([0] + [len(w) for w in _WORD_LIST])
+#: The largest coordinate and the largest annotation number the sweep takes.
+_LIMITS = np.array([MAX_COORD_MM, ANNOTATION_MAX_MM])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -107,10 +111,11 @@ def _word_end(buf, i, end):
 
 
 @numba.njit(cache=True, nogil=True)
-def _annotation(buf, a, end, pow10, words, word_starts):
+def _annotation(buf, a, end, pow10, words, word_starts, top):
     """The annotation at ``buf[a:end]`` (after its ``;@``) of a ``;@layer INDEX HEIGHT``,
     ``;@layer -`` or ``;@path ROLE WIDTH`` line in the plain form
-    (lower case, a plain index and decimal number, blanks between): ``(kind, value, number)``
+    (lower case, a plain index and decimal number, blanks between; the number at most ``top``
+    mm, a height above 0, a width at least 0): ``(kind, value, number)``
     with ``value`` the index (-1 for '-') or the role (the position of its word in ``words``),
     or ``(OTHER, 0, 0)``."""
     layer = _starts_with(buf, a, end, words[word_starts[-2]:word_starts[-1]])  # 'layer' is the last word
@@ -148,7 +153,7 @@ def _annotation(buf, a, end, pow10, words, word_starts):
     number = 0.0
     if value != -1 or not layer:
         number, i = _number(buf, i, end, pow10)
-        if i < 0 or not (number > 0 or (not layer and number == 0)):
+        if i < 0 or not (number > 0 or (not layer and number == 0)) or number > top:
             return OTHER, 0, 0.0
     while i < end and (_blank(buf[i]) or buf[i] == 13):
         i += 1
@@ -176,8 +181,9 @@ def _lines(buf):
 
 
 @numba.njit(cache=True, nogil=True)
-def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, xyz, other, ann, ann_val):
-    """Fill ``kind``/``xyz`` (one slot a command, or a line the line parser reads), ``other``
+def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, limits, kind, xyz, other, ann, ann_val):
+    """``limits``: the largest coordinate and annotation number taken (others go to the line
+    parser). Fill ``kind``/``xyz`` (one slot a command, or a line the line parser reads), ``other``
     (line, start, end, slot of each such line) and ``ann``/``ann_val`` (line, slot, key;
     value, number of each annotation read here); return how many of each."""
     n = len(buf)
@@ -201,7 +207,7 @@ def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, xyz, other, 
                     while i < end and _blank(buf[i]):
                         i += 1
                 v, i = _number(buf, i, end, pow10)
-                if i < 0:
+                if i < 0 or abs(v) > limits[0]:
                     ok = False
                     break
                 xyz[slots, j] = v
@@ -221,15 +227,15 @@ def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, kind, xyz, other, 
             if i == end:
                 k = SKIP
             elif i == a and end - a > 2 and buf[a] == 59 and buf[a + 1] == 64:  # ';@' at the start
-                k, value, number = _annotation(buf, a + 2, end, pow10, words, word_starts)
+                k, value, number = _annotation(buf, a + 2, end, pow10, words, word_starts, limits[1])
                 if k != OTHER:
                     ann[notes, 0], ann[notes, 1], ann[notes, 2] = li, slots, k
                     ann_val[notes, 0], ann_val[notes, 1] = value, number
                     notes += 1
             elif buf[i] == 35 or (buf[i] == 59 and not (i + 1 < end and buf[i + 1] == 64)):  # '#', ';' not ';@'
                 k = SKIP
-                for j in range(i, end):  # non-ASCII text: the line parser checks it is UTF-8
-                    if buf[j] >= 128:
+                for j in range(i, end):  # non-ASCII text (the line parser checks it is UTF-8), control characters
+                    if buf[j] >= 128 or (buf[j] < 32 and buf[j] != 9 and not (buf[j] == 13 and j == end - 1)):
                         k = OTHER
                         break
         if k == MOVE_LINE:
@@ -286,7 +292,7 @@ def sweep(data) -> Sweep:
     kind, xyz = np.empty(lines, np.int8), np.empty((lines, 3))
     other, notes, values = np.empty((lines, 4), np.int64), np.empty((lines, 3), np.int64), np.empty((lines, 2))
     slots, others, annotations = _sweep(buf, POW10, np.frombuffer(b"TOOL ON", np.uint8),
-                                        np.frombuffer(b"TOOL OFF", np.uint8), _WORDS, _WORD_STARTS, kind, xyz,
+                                        np.frombuffer(b"TOOL OFF", np.uint8), _WORDS, _WORD_STARTS, _LIMITS, kind, xyz,
                                         other, notes, values)
     del buf
     for arr, rows in ((kind, slots), (xyz, slots), (other, others), (notes, annotations), (values, annotations)):

@@ -4,11 +4,13 @@ nozzle), and a Gantt chart of who prints, travels and waits when."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
+from cooprint.errors import UserError
 from cooprint.render.chunks import BACKGROUND, _font, _view_basis
 from cooprint.render.paths import _fit
 from cooprint.simulation import SimResult
@@ -117,13 +119,41 @@ def render_snapshot(result: SimResult, t: float, path: str | Path, size: tuple[i
     return path
 
 
-def frame_times(makespan: float, fps: float, duration: float | None = None, speedup: float | None = None) -> np.ndarray:
+#: The most frames an animation may have: an MP4 is streamed (20,000 frames are 14 min at 24
+#: fps and take about as many seconds to draw), a GIF's frames are all held until it is written
+#: (1,000 of 640 x 360 are 230 MB).
+MAX_FRAMES = 20_000
+MAX_GIF_FRAMES = 1_000
+
+
+def frame_count(makespan: float, fps: float, duration: float | None = None, speedup: float | None = None,
+                gif: bool = False) -> int:
+    """How many frames an animation ``duration`` s long (or played ``speedup`` times faster than
+    real time) at ``fps`` has; a :class:`~cooprint.errors.UserError` naming the options when
+    that is not a finite count of at most ``MAX_FRAMES`` (``MAX_GIF_FRAMES`` for a GIF): the
+    options alone must not ask for unbounded work (``--speedup 0.001 --fps 120`` over a 50 min
+    plan is 360,000 frames)."""
+    for name, v in (("--fps", fps), ("--duration", duration), ("--speedup", speedup)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise UserError(f"{name} {v:g}: expected a positive number")
+    length = makespan / speedup if speedup is not None else (duration or 20.0)
+    frames = length * fps
+    limit = MAX_GIF_FRAMES if gif else MAX_FRAMES
+    if not frames <= limit:
+        how = (f"--speedup {speedup:g} over the {makespan:.3g} s plan is {length:.3g} s" if speedup is not None
+               else f"--duration {length:g} s")
+        raise UserError(f"{how} at --fps {fps:g}: {frames:,.0f} frames, more than {limit:,} for "
+                        f"{'a GIF' if gif else 'an animation'}; take a shorter --duration, a larger --speedup "
+                        f"or a lower --fps")
+    return max(2, int(round(frames)))
+
+
+def frame_times(makespan: float, fps: float, duration: float | None = None, speedup: float | None = None,
+                gif: bool = False) -> np.ndarray:
     """Times of the frames of an animation ``duration`` s long (or played ``speedup`` times
-    faster than real time), the last frame at the end of the plan."""
-    if speedup is not None:
-        duration = makespan / speedup
-    n = max(2, int(round((duration or 20.0) * fps)))
-    return np.linspace(0.0, makespan, n)
+    faster than real time), the last frame at the end of the plan (at most ``MAX_FRAMES``,
+    :func:`frame_count`)."""
+    return np.linspace(0.0, makespan, frame_count(makespan, fps, duration, speedup, gif))
 
 
 def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, duration: float | None = None,
@@ -137,7 +167,7 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
     if gif:
         size = (min(size[0], 640), min(size[1], 360))
     scene = _Scene(result, size, azimuth_deg, elevation_deg)
-    times = frame_times(result.makespan, fps, duration, speedup)
+    times = frame_times(result.makespan, fps, duration, speedup, gif)
     canvas = Image.new("RGB", size, BACKGROUND)
     draw = ImageDraw.Draw(canvas)
     done = {r.name: 0 for r in result.robots}  # moves drawn whole so far

@@ -44,6 +44,8 @@ TOLERANCE = 2.0
 #: raster (the cells grow on very large prints).
 MAX_SAMPLES = 8_000_000
 MAX_CELLS = 8_000_000
+#: At most this many instants of the collision check (its step grows past 8,000 h of plan).
+MAX_INSTANTS = 4_000_000
 #: The printhead check keeps the highest material over blocks of this many cells square too,
 #: and over blocks of this many blocks square.
 HEAD_BLOCK = 8
@@ -358,10 +360,14 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
 
 def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
                    dt: float = 0.5, tolerance: float = TOLERANCE) -> list[Finding]:
-    """Pairs of robots whose footprints overlap at the same instant (sampled every ``dt`` s),
-    each robot in the facing in force at that instant."""
+    """Pairs of robots whose footprints overlap at the same instant (sampled every ``dt`` s, or
+    at ``MAX_INSTANTS`` instants over a longer plan), each robot in the facing in force at that
+    instant."""
     findings = []
+    if len(robots) < 2:
+        return findings
     end = max((tl.end for tl in timelines.values()), default=0.0)
+    dt = max(dt, end / MAX_INSTANTS)  # a plan of years (a program that jumps kilometres) is looked at less often
     times = np.arange(0.0, end + dt, dt)
     nozzle = {r.name: _nozzle_xy(timelines[r.name], times) for r in robots}
     facing = {}  # per robot: its facings, and which is in force at each instant

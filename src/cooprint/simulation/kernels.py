@@ -491,14 +491,27 @@ def overhang_band(xyz, h, t, cell, ox, oy, ny, zmin, x0, x1, rec, heights, out):
             out[rec[j].p] = not found
 
 
-def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, budget: int = 1 << 21) -> np.ndarray:
+#: The most cells one band of :func:`overhang_flags` may have (two int64 per cell: 128 MB).
+OVERHANG_MAX_CELLS = 1 << 23
+
+
+def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, budget: int = 1 << 21,
+                   max_cells: int = OVERHANG_MAX_CELLS) -> np.ndarray:
     """(k,) bool: :func:`overhang_band`'s test of every point, band by band of columns of cells
     with at most about ``budget`` points each (and the two columns on each side), so that the
-    work space stays small whatever the print's size."""
+    work space stays small whatever the print's size.
+
+    A plan spread over a very large area (a program that jumps a kilometre) would need bands of
+    more than ``max_cells`` cells: then each band holds only its own points, with its own rows
+    (from its lowest to its highest point), and a band still too large is split in two, so that
+    the cells and the work stay proportional to the points, not to the area."""
     out = np.zeros(len(t), dtype=bool)
     if len(t) == 0:
         return out
     ox, oy, nx, ny, zmin, columns = overhang_grid(xyz, cell)
+    if (nx + 4) * ny > max_cells:
+        _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out)
+        return out
     counts = np.cumsum(columns)
     cuts = [0]
     while cuts[-1] < nx:  # at least one column a band
@@ -510,6 +523,38 @@ def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, b
     for a, b in zip(cuts[:-1], cuts[1:]):
         overhang_band(xyz, h, t, cell, ox, oy, ny, zmin, a, b, rec, heights, out)
     return out
+
+
+def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
+    """:func:`overhang_flags` over a very large area: bands of columns, each given only the
+    points of its columns and the two on each side (in their order, so times keep their order)
+    and rows from its lowest to its highest point; a band of too many cells or points is split
+    in two (a single column always fits: rows are bounded by the coordinates)."""
+    col = (np.floor(xyz[:, 0].astype(np.float64) / cell) - ox).astype(np.int64)  # as _column computes it
+    order = np.argsort(col, kind="stable")
+    sorted_col = col[order]
+    sorted_fy = np.floor(xyz[order, 1].astype(np.float64) / cell)  # each point's row, in the same order
+    todo = [(int(sorted_col[0]), int(sorted_col[-1]) + 1)]
+    while todo:
+        a, b = todo.pop()
+        lo, hi = np.searchsorted(sorted_col, [a, b])
+        if lo == hi:
+            continue  # no point of its own
+        first, last = np.searchsorted(sorted_col, [a - 2, b + 2])
+        fy = sorted_fy[first:last]
+        oy = int(fy.min()) - 2
+        ny = int(fy.max()) - oy + 3
+        # the kernel's work goes with its cells: a few dozen a point at most (sparse points, a
+        # long diagonal line, would otherwise make bands of millions of empty cells)
+        if b - a > 1 and ((b - a + 4) * ny > min(max_cells, 64 * (last - first) + 4096) or last - first > budget):
+            m = (a + b) // 2
+            todo += [(a, m), (m, b)]
+            continue
+        idx = np.sort(order[first:last])
+        sub = np.zeros(len(idx), dtype=bool)
+        overhang_band(np.ascontiguousarray(xyz[idx]), h[idx], t[idx], cell, ox, oy, ny, zmin, a, b,
+                      np.empty(len(idx), OVERHANG_POINT), np.empty(len(idx), OVERHANG_HEIGHT), sub)
+        out[idx] |= sub
 
 
 @_jit
