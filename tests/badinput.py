@@ -15,7 +15,9 @@ from cooprint.cli import main
 
 
 def snapshot(*folders: Path) -> dict[str, tuple[int, int]]:
-    """Every entry under ``folders`` (hidden ones too): path -> (size, mtime_ns)."""
+    """Every entry under ``folders`` (hidden ones too): path -> (size, mtime_ns) of a file, (0, 0)
+    of a folder (a folder's own time changes when a file is made and removed in it: the output
+    check's write probe does that before the work, and that writes nothing)."""
     seen: dict[str, tuple[int, int]] = {}
     for folder in folders:
         if not os.path.lexists(folder):
@@ -24,7 +26,7 @@ def snapshot(*folders: Path) -> dict[str, tuple[int, int]]:
             for name in dirs + files:
                 p = os.path.join(root, name)
                 st = os.lstat(p)
-                seen[p] = (st.st_size if not os.path.isdir(p) else 0, st.st_mtime_ns)
+                seen[p] = (0, 0) if os.path.isdir(p) else (st.st_size, st.st_mtime_ns)
     return seen
 
 

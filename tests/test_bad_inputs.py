@@ -313,6 +313,7 @@ def _write_program(folder, text: str) -> None:
 def test_a_broken_program_is_refused_in_one_line(tmp_path, capsys, case):
     _, text, needle = COOP_CASES[case]
     _write_program(tmp_path / "in", text)
+    (tmp_path / "out").mkdir()  # render --out FILE writes into a folder that exists
     if case % 4 == 3:  # render reads the same programs
         args = ["render", "--manifest", tmp_path / "in" / "m.toml", "--out", tmp_path / "out" / "x.png"]
     else:
@@ -361,6 +362,7 @@ RENDER_CASES = [
 @pytest.mark.parametrize("opts, needle", RENDER_CASES, ids=[" ".join(o) for o, _ in RENDER_CASES])
 def test_render_options_asking_for_unbounded_work_are_refused(tmp_path, capsys, opts, needle):
     _write_program(tmp_path / "in", COOP)
+    (tmp_path / "out").mkdir()
     suffix = next((opts[i + 1] for i, o in enumerate(opts) if o == "--format" and opts[i + 1] != "webm"), "png")
     out = tmp_path / "out" / f"x.{suffix}"
     assert_rejected(["render", "--manifest", tmp_path / "in" / "m.toml", "--out", out, *opts], capsys,
