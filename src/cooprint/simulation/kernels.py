@@ -545,7 +545,7 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
         if lo == hi:
             continue  # no point of its own
         first, last = np.searchsorted(sorted_col, [a - 2, b + 2])
-        idx = np.sort(order[first:last])
+        idx = order[first:last]
         rows, inverse = np.unique(row[idx], return_inverse=True)
         renumbered = np.concatenate([[0.0], np.cumsum(np.minimum(np.diff(rows), 3.0))])
         ny = int(renumbered[-1]) + 5  # two empty rows on each side
@@ -553,9 +553,11 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
             m = (a + b) // 2
             todo += [(a, m), (m, b)]
             continue
+        in_order = np.argsort(idx)  # the points in their order (times in order), once the band is kept
+        idx = idx[in_order]
         local = np.empty((len(idx), 3), np.float32)
         local[:, 0] = col[idx] - (a - 2) + 0.5  # columns from 0 (two before the band's first)
-        local[:, 1] = renumbered[inverse.ravel()] + 0.5
+        local[:, 1] = renumbered[inverse.ravel()[in_order]] + 0.5
         local[:, 2] = xyz[idx, 2]
         sub = np.zeros(len(idx), dtype=bool)
         overhang_band(local, h[idx], t[idx], 1.0, 0, -2, ny, zmin, 2, b - a + 2,
