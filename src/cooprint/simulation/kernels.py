@@ -527,13 +527,17 @@ def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, b
 
 def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
     """:func:`overhang_flags` over a very large area: bands of columns, each given only the
-    points of its columns and the two on each side (in their order, so times keep their order)
-    and rows from its lowest to its highest point; a band of too many cells or points is split
-    in two (a single column always fits: rows are bounded by the coordinates)."""
+    points of its columns and the two on each side (in their order, so times keep their order).
+
+    The kernel only asks which cell a point is in, and which cells lie within two of each other;
+    so a band's rows are renumbered with every gap of more than two empty rows closed to three
+    (neighbours within two rows stay so, points farther apart stay farther), and its points are
+    handed over at the centres of their renumbered cells, with cells of 1: the cells a band needs
+    go with its points, not with the area. A band of too many cells or points is split in two."""
     col = (np.floor(xyz[:, 0].astype(np.float64) / cell) - ox).astype(np.int64)  # as _column computes it
+    row = np.floor(xyz[:, 1].astype(np.float64) / cell)
     order = np.argsort(col, kind="stable")
     sorted_col = col[order]
-    sorted_fy = np.floor(xyz[order, 1].astype(np.float64) / cell)  # each point's row, in the same order
     todo = [(int(sorted_col[0]), int(sorted_col[-1]) + 1)]
     while todo:
         a, b = todo.pop()
@@ -541,18 +545,22 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
         if lo == hi:
             continue  # no point of its own
         first, last = np.searchsorted(sorted_col, [a - 2, b + 2])
-        fy = sorted_fy[first:last]
-        oy = int(fy.min()) - 2
-        ny = int(fy.max()) - oy + 3
-        # the kernel's work goes with its cells: a few dozen a point at most (sparse points, a
-        # long diagonal line, would otherwise make bands of millions of empty cells)
-        if b - a > 1 and ((b - a + 4) * ny > min(max_cells, 64 * (last - first) + 4096) or last - first > budget):
+        idx = order[first:last]
+        rows, inverse = np.unique(row[idx], return_inverse=True)
+        renumbered = np.concatenate([[0.0], np.cumsum(np.minimum(np.diff(rows), 3.0))])
+        ny = int(renumbered[-1]) + 5  # two empty rows on each side
+        if b - a > 1 and ((b - a + 4) * ny > min(max_cells, 64 * len(idx) + 4096) or len(idx) > budget):
             m = (a + b) // 2
             todo += [(a, m), (m, b)]
             continue
-        idx = np.sort(order[first:last])
+        in_order = np.argsort(idx)  # the points in their order (times in order), once the band is kept
+        idx = idx[in_order]
+        local = np.empty((len(idx), 3), np.float32)
+        local[:, 0] = col[idx] - (a - 2) + 0.5  # columns from 0 (two before the band's first)
+        local[:, 1] = renumbered[inverse.ravel()[in_order]] + 0.5
+        local[:, 2] = xyz[idx, 2]
         sub = np.zeros(len(idx), dtype=bool)
-        overhang_band(np.ascontiguousarray(xyz[idx]), h[idx], t[idx], cell, ox, oy, ny, zmin, a, b,
+        overhang_band(local, h[idx], t[idx], 1.0, 0, -2, ny, zmin, 2, b - a + 2,
                       np.empty(len(idx), OVERHANG_POINT), np.empty(len(idx), OVERHANG_HEIGHT), sub)
         out[idx] |= sub
 
