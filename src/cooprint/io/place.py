@@ -156,7 +156,7 @@ def place(solid: Solid, mesh: MeshSettings, slicing: SlicingSettings, *, bed: bo
     if bed and size[0] <= slicing.build_x and size[1] <= slicing.build_y:  # larger: the build volume check says so
         plo, phi = lo + moved, hi + moved
         if plo[0] < -1e-6 or plo[1] < -1e-6 or phi[0] > slicing.build_x + 1e-6 or phi[1] > slicing.build_y + 1e-6:
-            raise MeshError(f"{path}: placed at x {plo[0]:.1f}..{phi[0]:.1f}, y {plo[1]:.1f}..{phi[1]:.1f} mm the part "
+            raise MeshError(f"{path}: placed at x {plo[0]:.1f}..{phi[0]:.1f}, y {plo[1]:.1f}..{phi[1]:.1f} mm, the part "
                             f"is off the bed [0, {slicing.build_x:g}] x [0, {slicing.build_y:g}] mm "
                             "([slicing] build_x, build_y); use --center X,Y inside the bed")
     for w in warnings:
