@@ -92,6 +92,24 @@ def test_a_body_driven_over_fresh_material_is_found():
     assert f.robot == "A" and f.time > 100 / 40 and f.position[1] > 300 - 1
 
 
+def test_a_nozzle_below_the_floor_is_an_error(tmp_path):
+    """Issue 12: printing at z = -5 (a .coop program) or a G-code that lowers Z below 0 simulated
+    clean; the nozzle below the floor is an error finding, at the instant it crosses z = 0."""
+    text = "MOVE 0 0 2\nMOVE 0 0 -5\nTOOL ON\nMOVE 10 0 -5\n"
+    res = _sim(_robot("A", text, start=[0, 0, 2]))
+    (f,) = [f for f in res.findings if f.kind == "below-floor"]
+    assert f.severity == "error" and f.count == 2  # the move down and the line printed down there
+    assert f.position[2] == pytest.approx(0.0) and f.time == pytest.approx(2 / 120)
+    assert "below-floor" in res.checked
+    g = tmp_path / "low.gcode"
+    g.write_text("G21\nG90\nM83\nG1 X0 Y0 Z-3 F600\nG1 X10 E1\n")
+    res = simulate(SimInput([read_gcode(g)], PROFILE, SlicingSettings(), str(g)))
+    assert [f.kind for f in res.findings if f.severity == "error"] == ["below-floor"]
+    assert main(["simulate", str(g), "--out", str(tmp_path / "o"), "-q"]) == 1
+    # at the floor exactly (the G-code's homed start at z = 0) is not below it
+    assert not [f for f in _sim(_robot("B", "MOVE 0 0 0\nMOVE 0 0 0.2\n")).findings if f.kind == "below-floor"]
+
+
 def test_gcode_files_simulate_with_their_own_feed_rates(tmp_path):
     g = tmp_path / "p.gcode"
     g.write_text("G21\nG90\nM83\nG1 Z0.2 F600\nG1 X10 Y0 E0.5 F1200 ; 10 mm at 20 mm/s\n"

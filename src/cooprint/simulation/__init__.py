@@ -13,14 +13,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import STEP, Material, footprint_checks, overhangs, robots_collide
+from cooprint.simulation.checks import STEP, Material, below_floor, footprint_checks, overhangs, robots_collide
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
-#: Finding kinds, in the order of the issue's checks (a)-(e).
-KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "deadlock", "overhang")
+#: Finding kinds, in the order of the issue's checks (a)-(e), then the nozzle below the floor.
+KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "deadlock", "below-floor", "overhang")
 
 
 @dataclass(frozen=True)
@@ -54,6 +54,8 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
     timelines, findings = schedule(inp.robots, p.print_speed, p.travel_speed, limits)
     checked = ["deadlock"]
     if checks:
+        findings += below_floor(inp.robots, timelines)
+        checked.append("below-floor")
         material = Material.sample(inp.robots, timelines, STEP, inp.slicing.layer_height)
         # where a printer's body stands is not known: its G-code gets the printhead check only
         findings += footprint_checks(inp.robots, timelines, p, material, body=inp.placed)

@@ -413,6 +413,32 @@ def _chunk_of(r: SimRobot, tl: Timeline, t: float) -> str | None:
     return r.program.chunks[c] if c >= 0 else None
 
 
+#: How far below the floor (z = 0) a nozzle may go before it is a finding, mm: the programs'
+#: 1 µm grid.
+FLOOR_TOLERANCE = 1e-3
+
+
+def below_floor(robots: list[SimRobot], timelines: dict[str, Timeline]) -> list[Finding]:
+    """Moves that take the nozzle below the floor (z < 0): it would print into the floor, or
+    drive its printhead into it. One finding per robot and chunk: the first instant the nozzle
+    passes z = 0 (where a move crosses it), and how many moves go below."""
+    findings = []
+    for r in robots:
+        tl = timelines[r.name]
+        z0, z1 = tl.p0[:, 2], tl.p1[:, 2]
+        low = np.flatnonzero(np.minimum(z0, z1) < -FLOOR_TOLERANCE)
+        if not len(low):
+            continue
+        a, b = z0[low], z1[low]
+        # the fraction of the move done when it crosses z = 0 (0 when it starts below)
+        f = np.where(a < 0, 0.0, a / np.where(a - b > 0, a - b, 1.0))
+        t = tl.t0[low] + f * (tl.t1[low] - tl.t0[low])
+        xyz = tl.p0[low] + f[:, None] * (tl.p1[low] - tl.p0[low])
+        findings += _group([(t, xyz, low)], "below-floor", r, tl,
+                           "the nozzle goes below the floor (z < 0): it would print into the floor")
+    return findings
+
+
 def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: SimRobot, tl: Timeline,
            detail: str) -> list[Finding]:
     """One finding per chunk from hits ``(times (k,), positions (k, 3), moves (k,))``: the first
@@ -432,5 +458,5 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["Material", "body_box", "body_corners", "footprint_checks", "head_box", "overhangs", "path_samples",
+__all__ = ["FLOOR_TOLERANCE", "Material", "below_floor", "body_box", "body_corners", "footprint_checks", "head_box", "overhangs", "path_samples",
            "robots_collide"]

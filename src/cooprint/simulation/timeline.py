@@ -194,7 +194,7 @@ def severity(kind: str) -> str:
 class Finding:
     """A physical problem of a plan: what, which robot, when, where, in which chunk."""
 
-    kind: str  # body-on-material, robots-collide, printhead-hits-material, deadlock, overhang
+    kind: str  # body-on-material, robots-collide, printhead-hits-material, deadlock, below-floor, overhang
     robot: str
     time: float
     position: tuple[float, float, float]
