@@ -221,3 +221,6 @@ def test_streamed_gcode_equals_the_whole_model_written(tmp_path):
     used_b = write_gcode(sliced, tmp_path / "b.gcode", "t.stl")
     assert n == sliced.n_layers == 60 and used == pytest.approx(used_b)
     assert (tmp_path / "a.gcode").read_text() == (tmp_path / "b.gcode").read_text()
+    # the count is the layers the G-code prints (it said 39 for 38 ;LAYER lines when the slicer
+    # made an empty layer at the top)
+    assert n == (tmp_path / "a.gcode").read_text().count("\n;LAYER:")

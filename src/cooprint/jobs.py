@@ -212,14 +212,14 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
 
 
 class _Counted:
-    """An iterable that counts what went through it."""
+    """An iterable of layers that counts the non-empty ones that went through it."""
 
     def __init__(self, items: Iterable[Any]):
         self.items, self.n = items, 0
 
     def __iter__(self) -> Iterator[Any]:
         for item in self.items:
-            self.n += 1
+            self.n += bool(len(item))  # the layers with something to print (the G-code's ;LAYER lines)
             yield item
 
 

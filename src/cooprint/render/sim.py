@@ -38,8 +38,9 @@ class _Scene:
         self.basis = _view_basis(azimuth_deg, elevation_deg)
         extent = [np.vstack([tl.p0, tl.p1]) for tl in result.timelines.values() if len(tl.p0)]
         feet = [_footprint(result, r, p, t) for r in result.robots for tl in [result.timelines[r.name]]
-                for p, t in ([(tl.p0[0], tl.t0[0]), (tl.p1[-1], tl.t1[-1])] if len(tl.p0) else [])]
-        for r in result.robots:  # where a robot turns, in the facings before and after
+                for p, t in ([(tl.p0[0], tl.t0[0]), (tl.p1[-1], tl.t1[-1])] if len(tl.p0) else [])
+                if result.placed]
+        for r in result.robots if result.placed else []:  # where a robot turns, in the facings before and after
             spans = r.facing_spans(result.timelines[r.name]) if r.program.turns else []
             feet += [np.column_stack([sp.position[:2] + body_corners(result.profile, f), np.zeros(4)])
                      for before, sp in zip(spans, spans[1:]) for f in (before.facing, sp.facing)]
@@ -78,12 +79,14 @@ class _Scene:
             draw.line([(x0, y0), (x1, y1)], fill=tuple(c), width=1)
 
     def robots(self, draw: ImageDraw.ImageDraw, t: float, filled: bool) -> None:
-        """Footprints on the floor and nozzles (a mast from the floor and a dot)."""
+        """Footprints on the floor (where they are known: not for G-code printers) and nozzles (a
+        mast from the floor and a dot)."""
         for i, r in enumerate(self.result.robots):
             n = self.result.timelines[r.name].position(t)
-            foot = [tuple(q) for q in self.px(_footprint(self.result, r, n, t)).round(1).tolist()]
-            light = tuple(int(0.5 * x + 0.5 * 255) for x in _colour(i))
-            draw.polygon(foot, fill=light if filled else None, outline=_colour(i))
+            if self.result.placed:
+                foot = [tuple(q) for q in self.px(_footprint(self.result, r, n, t)).round(1).tolist()]
+                light = tuple(int(0.5 * x + 0.5 * 255) for x in _colour(i))
+                draw.polygon(foot, fill=light if filled else None, outline=_colour(i))
             a, b = self.px(np.array([n[0], n[1], 0.0])), self.px(n)
             draw.line([tuple(a), tuple(b)], fill=(60, 60, 60), width=2)
             draw.ellipse([b[0] - 5, b[1] - 5, b[0] + 5, b[1] + 5], fill=_colour(i), outline=(30, 30, 30))

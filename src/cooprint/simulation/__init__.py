@@ -36,6 +36,7 @@ class SimResult:
     accel: bool = False
     checked: tuple[str, ...] = ()  # the finding kinds that were looked for
     notes: tuple[str, ...] = ()  # what the input held and the simulation did not act on
+    placed: bool = True  # where the robots' bodies stand is known (not for G-code printers)
 
     @property
     def makespan(self) -> float:
@@ -66,7 +67,7 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
         checked += ["printhead-hits-material", "overhang"]
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source, accel,
-                     tuple(k for k in KINDS if k in checked), inp.notes)
+                     tuple(k for k in KINDS if k in checked), inp.notes, inp.placed)
 
 
 def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings) -> np.ndarray:
