@@ -40,6 +40,8 @@ SETTINGS_CASES = [
     (["--infill", "nan"], "--infill nan"),
     (["--infill", "%"], "--infill '%'"),
     (["--infill-pattern", "honeycomb"], "'honeycomb' is not one of"),
+    (["--perimeters", "0", "--infill", "0", "--top-layers", "0", "--bottom-layers", "0"],
+     "slicing.perimeters = 0, infill_density = 0, top_layers = 0 and bottom_layers = 0 print nothing"),
     (["--perimeters", "-1"], "slicing.perimeters = -1: expected a whole number >= 0 and <= 100"),
     (["--perimeters", "1000000000000000000"], "slicing.perimeters = 1e+18: expected a whole number"),
     (["--perimeters", "2.5"], "'2.5' is not a valid integer"),

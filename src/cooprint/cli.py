@@ -354,7 +354,7 @@ def _report_run(record: dict[str, Any], out: str, no_picture: bool) -> None:
     """The lines ``cooprint run`` prints about the plan it wrote."""
     for r in record["robots"]:
         st = r["stats"]
-        click.echo(f"  robot {r['name']} ({r['side']} side): {' -> '.join(r['chunks']) or '(idle)'}; "
+        click.echo(f"  robot {r['name']} ({'both sides' if r['side'] == 'both' else r['side'] + ' side'}): {' -> '.join(r['chunks']) or '(idle)'}; "
                    f"{st['commands']:,} commands, {st['print_mm'] / 1000:.1f} m printed, "
                    f"{st['volume_mm3'] / 1000:.1f} cm3, {st['wait']} WAIT, {st['notify']} NOTIFY")
     click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl, {out}/robots/*.coop, {out}/robots/*.gcode"
