@@ -3,7 +3,7 @@
 Exit codes: 0 success; 1 a plan whose own simulation (``run --simulate``, ``simulate``) finds
 error-level findings (bodies on material, robots colliding, the printhead meeting material,
 deadlocks), or with ``--strict`` any finding (overhang warnings too): one line on stderr says so,
-even with ``--quiet``; 2 bad input (one line on stderr, no traceback unless ``--verbose``);
+even with ``--quiet``; also 1 when ``info`` finds the part not feasible; 2 bad input (one line on stderr, no traceback unless ``--verbose``);
 130 interrupted.
 """
 
@@ -177,8 +177,10 @@ chunking_options = _with_flags(CHUNK_FLAGS, [], lambda kw, overrides: None)
               help="Number of robots (seed strategy).")
 def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: int) -> None:
     """Report a mesh (triangles, size, volume, repairs, placement) and whether the robot can print it:
-    the feasibility rule of `chunk` and `run`, the largest printable height, the number of chunks."""
+    the feasibility rule of `chunk` and `run`, the largest printable height, the number of chunks.
+    Exits 1 when the part is not feasible (0 when it is)."""
     from cooprint.chunking import feasibility
+    from cooprint.chunking.planes import mm
     from cooprint.io.mesh import fmt_report
     from cooprint.jobs import load_placed
 
@@ -188,12 +190,13 @@ def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: 
     click.echo(f"  {placement.describe()}")
     f = feasibility(solid.vertices, settings.robot, settings.chunking)
     click.echo(f"  robot '{settings.robot.name}': theta_min {f.theta_min_deg:.2f} deg, theta_max {f.theta_max_deg:.2f} "
-               f"deg, largest printable height {f.max_height:.1f} mm ({'one chunk' if f.mode == 'whole' else 'cut'})")
+               f"deg, largest printable height {mm(f.max_height)} mm ({'one chunk' if f.mode == 'whole' else 'cut'})")
     if f.feasible:
         idle = f" ({robots - 1} robot idle)" if f.chunks == 1 and robots > 1 else ""
         click.echo(f"  feasible: {f.chunks} chunk{'s' if f.chunks != 1 else ''} for {robots} robot{'s' if robots > 1 else ''}{idle}; {f.reason}")
     else:
         click.echo(f"  not feasible: {f.message()}")
+        raise click.exceptions.Exit(1)  # as `chunk` refuses it; scripts test the exit code
 
 
 def plan_options(command: Any) -> Any:
