@@ -112,7 +112,7 @@ class ChunkingSettings:
 class MeshSettings:
     """Mesh loading and repair."""
 
-    max_hole_fraction: float = field(default=0.15, metadata=_num(0, 1, doc="largest hole closed "
+    max_hole_fraction: float = field(default=0.15, metadata=_num(0, 10, doc="largest hole closed "
                                      "silently, as perimeter / bounding-box diagonal"))
     units: str = field(default="mm", metadata=_choice("mm", "cm", "m", "in", doc="unit of the file's coordinates"))
     scale: float = field(default=1.0, metadata=_num(0, 1e6, lo_open=True, doc="factor applied after units"))
