@@ -131,6 +131,23 @@ def test_a_part_in_metres_is_an_error_with_the_units_hint(tmp_path, capsys):
     assert code == 0 and "size 100.0 x 100.0 x 100.0 mm" in stdout
 
 
+def test_a_thin_wall_is_a_part_and_a_flat_sheet_gets_no_units_hint(tmp_path, capsys):
+    """A 100 x 0.5 x 20 mm wall is narrower than 3 lines in Y only: it is a part, printed; a
+    100 x 100 x 0.05 mm sheet is lower than the first layer, refused without a units hint (it is
+    large across); a 0.2 mm cube keeps the hint (the metres case above)."""
+    wall = stl(tmp_path / "wall.stl", cube(100, 0.5, 20))
+    code, stdout, err = cli(["info", wall], capsys)
+    assert code == 0 and "size 100.0 x 0.5 x 20.0 mm" in stdout and "--units" not in err
+    code, stdout, _ = cli(["slice", wall, "--out", tmp_path / "wall.gcode", "-q"], capsys)
+    assert code == 0 and (tmp_path / "wall.gcode").exists()
+    sheet = stl(tmp_path / "sheet.stl", cube(100, 100, 0.05))
+    line = assert_rejected(["info", sheet], capsys, [tmp_path])
+    assert "lower than the first layer (0.2 mm)" in line and "--units" not in line and "narrower" not in line
+    needle = stl(tmp_path / "needle.stl", cube(1, 1, 50))
+    line = assert_rejected(["info", needle], capsys, [tmp_path])
+    assert "narrower than 3 line widths (1.35 mm) in both X and Y" in line and "--units" not in line
+
+
 def test_a_small_part_gets_a_units_warning(tmp_path, capsys):
     nut = stl(tmp_path / "nut.stl", hexagon_nut())
     code, _, err = cli(["info", nut], capsys)
