@@ -180,6 +180,17 @@ def test_a_valid_slope_outside_the_robots_range_fails_the_plan(tmp_path, capsys,
                     [tmp_path, part.parent], contains="outside the printable range")
 
 
+def test_center_with_no_place_is_refused(tmp_path, capsys, part):
+    """--center puts the part on the bed, --no-place keeps its frame: one of them would be ignored."""
+    assert_rejected(["slice", part, "--out", tmp_path / "o.gcode", "-q", "--center", "100,100", "--no-place"], capsys,
+                    [tmp_path, part.parent], contains="--center 100,100 puts the part on the bed, --no-place")
+
+
+def test_strict_without_simulate_is_refused(tmp_path, capsys, part):
+    assert_rejected(["run", part, "--out", tmp_path / "out", "-q", "--strict"], capsys, [tmp_path, part.parent],
+                    contains="--strict needs --simulate")
+
+
 @pytest.mark.parametrize("center, needle", [
     ("abc", "--center 'abc': expected X,Y in mm"),
     ("1,2,3", "--center '1,2,3'"),

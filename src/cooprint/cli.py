@@ -289,6 +289,9 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str,
 
     _lean_malloc()
     settings = _settings(config, overrides)
+    if center is not None and not settings.mesh.place:  # one would be ignored
+        raise UserError(f"--center {center[:40]} puts the part on the bed, --no-place (mesh.place = false) keeps "
+                        "the file's frame: give one")
     xy = None if center is None else parse_center(center)
     check_file_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     where: list[Any] = []
@@ -336,6 +339,8 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
     """
     from cooprint.jobs import coop_job, write_coop_bundle
 
+    if strict and not then_simulate:  # --strict judges a simulation: without one it would be ignored
+        raise UserError("--strict needs --simulate (it makes warnings of the plan's simulation fail it)")
     record = _plan(coop_job, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
     if then_simulate:
@@ -469,6 +474,7 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
+    _check_render_options(fmt, at, duration, speedup)
     sources = (*inputs, manifest)
     if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
         check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
@@ -494,6 +500,18 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
         else:
             render_snapshot(result, t, tmp)
     click.echo(f"wrote {target}")
+
+
+def _check_render_options(fmt: str, at: float | None, duration: float | None, speedup: float | None) -> None:
+    """No option that the format ignores: ``--at`` is the png snapshot's time; ``--duration``,
+    ``--speedup`` and ``--fps`` (given on the command line) shape an mp4 / gif animation."""
+    if at is not None and fmt != "png":
+        raise UserError(f"--at is the time of a png snapshot; --format {fmt} does not use it")
+    fps_given = click.get_current_context().get_parameter_source("fps") == click.core.ParameterSource.COMMANDLINE
+    given = [o for o, v in (("--duration", duration), ("--speedup", speedup), ("--fps", fps_given or None))
+             if v is not None]
+    if given and fmt not in ("mp4", "gif"):
+        raise UserError(f"{given[0]} shapes an animation (--format mp4 or gif); --format {fmt} does not use it")
 
 
 def _lean_malloc() -> None:
