@@ -140,6 +140,9 @@ def test_a_thin_wall_is_a_part_and_a_flat_sheet_gets_no_units_hint(tmp_path, cap
     assert code == 0 and "size 100.0 x 0.5 x 20.0 mm" in stdout and "--units" not in err
     code, stdout, _ = cli(["slice", wall, "--out", tmp_path / "wall.gcode", "-q"], capsys)
     assert code == 0 and (tmp_path / "wall.gcode").exists()
+    foil = stl(tmp_path / "foil.stl", cube(100, 0.3, 20))  # thinner than a line: sliced to nothing, and said so
+    code, _, err = cli(["slice", foil, "--out", tmp_path / "foil.gcode", "-q"], capsys)
+    assert code == 0 and "cooprint: warning:" in err and "nothing to print" in err
     sheet = stl(tmp_path / "sheet.stl", cube(100, 100, 0.05))
     line = assert_rejected(["info", sheet], capsys, [tmp_path])
     assert "lower than the first layer (0.2 mm)" in line and "--units" not in line and "narrower" not in line
