@@ -164,6 +164,8 @@ JOB_CASES = [
      "robots[0].facings[0].from_chunk"),
     ("facings-nan", _set(R0 + ("facings",), [{"from_chunk": "L1", "facing_deg": float("nan")}]),
      "robots[0].facings[0].facing_deg"),
+    ("facings-key-typo", _set(R0 + ("facings",), [{"chunk": "L1", "facing_deg": 90.0}]),
+     "robots[0].facings[0].chunk: unknown key (did you mean 'from_chunk'?)"),
     ("facings-item-string", _set(R0 + ("facings",), ["L1"]), "robots[0].facings[0]: expected an object"),
     ("robot-chunks-unknown", _set(R0 + ("chunks",), ["Q7"]), "robots[0].chunks[0]: expected the id of one"),
 ]

@@ -221,7 +221,7 @@ def _check_robot_record(e: dict[str, Any], facing_deg: float, chunk_ids: set[str
     if "facings" in e:
         for k, f in enumerate(check_list(e["facings"], where, at + ".facings", what="facings")):
             fat = key_path(at + ".facings", k)
-            check_object(f, where, fat, required=("from_chunk", "facing_deg"))
+            check_object(f, where, fat, required=("from_chunk", "facing_deg"), unknown="typo")
             known = own if own is not None else chunk_ids
             if not isinstance(f["from_chunk"], str) or (known is not None and f["from_chunk"] not in known):
                 raise fail(where, fat + ".from_chunk", "expected the id of one of this robot's chunks",
