@@ -356,6 +356,14 @@ RENDER_CASES = [
     (["--fps", "0", "--format", "mp4"], None),
     (["--fps", "1e9", "--format", "mp4"], None),
     (["--format", "webm"], None),
+    # options the format does not use: refused, not ignored
+    (["--at", "5", "--format", "gantt"], "--at is the time of a png snapshot; --format gantt does not use it"),
+    (["--at", "1", "--format", "mp4"], "--format mp4 does not use it"),
+    (["--at", "1", "--format", "gif"], "--format gif does not use it"),
+    (["--duration", "5"], "--duration shapes an animation (--format mp4 or gif); --format png does not use it"),
+    (["--speedup", "2", "--format", "gantt"], "--speedup shapes an animation"),
+    (["--fps", "10"], "--fps shapes an animation"),
+    (["--fps", "24", "--format", "gantt"], "--fps shapes an animation"),
 ]
 
 

@@ -40,6 +40,8 @@ SETTINGS_CASES = [
     (["--infill", "nan"], "--infill nan"),
     (["--infill", "%"], "--infill '%'"),
     (["--infill-pattern", "honeycomb"], "'honeycomb' is not one of"),
+    (["--perimeters", "0", "--infill", "0", "--top-layers", "0", "--bottom-layers", "0"],
+     "slicing.perimeters = 0, infill_density = 0, top_layers = 0 and bottom_layers = 0 print nothing"),
     (["--perimeters", "-1"], "slicing.perimeters = -1: expected a whole number >= 0 and <= 100"),
     (["--perimeters", "1000000000000000000"], "slicing.perimeters = 1e+18: expected a whole number"),
     (["--perimeters", "2.5"], "'2.5' is not a valid integer"),
@@ -176,6 +178,17 @@ def test_bad_chunking_flags(tmp_path, capsys, part, name, flags, needle):
 def test_a_valid_slope_outside_the_robots_range_fails_the_plan(tmp_path, capsys, part):
     assert_rejected(["chunk", part, "--out", tmp_path / "out", "-q", "--theta", "89", "--shift", "5"], capsys,
                     [tmp_path, part.parent], contains="outside the printable range")
+
+
+def test_center_with_no_place_is_refused(tmp_path, capsys, part):
+    """--center puts the part on the bed, --no-place keeps its frame: one of them would be ignored."""
+    assert_rejected(["slice", part, "--out", tmp_path / "o.gcode", "-q", "--center", "100,100", "--no-place"], capsys,
+                    [tmp_path, part.parent], contains="--center 100,100 puts the part on the bed, --no-place")
+
+
+def test_strict_without_simulate_is_refused(tmp_path, capsys, part):
+    assert_rejected(["run", part, "--out", tmp_path / "out", "-q", "--strict"], capsys, [tmp_path, part.parent],
+                    contains="--strict needs --simulate")
 
 
 @pytest.mark.parametrize("center, needle", [

@@ -43,8 +43,7 @@ def test_default_theta_is_theta_max():
 
 def test_infeasible_robot_prints_the_numbers():
     robot = RobotProfile(build_depth=20, nozzle_height=10, nozzle_depth=20)
-    with pytest.raises(InfeasibleError, match=r"theta_min = atan\(h/bd\) = atan\(30.0/20\) = 56.31 deg.*"
-                                              r"theta_max = atan\(nh/nd\) = atan\(10/20\) = 26.57 deg"):
+    with pytest.raises(InfeasibleError, match=r"theta_min 56.3 > theta_max atan\(10/20\) = 26.6 deg"):
         chunked(box(), robot)
 
 
@@ -55,7 +54,7 @@ def test_theta_outside_range_is_refused_with_range(theta):
 
 
 def test_centre_chunk_wider_than_build_depth_is_refused():
-    with pytest.raises(InfeasibleError, match=r"centre chunk base .* = 305.0 mm > build depth 300 mm.*chunking.top_width <= 285.0"):
+    with pytest.raises(InfeasibleError, match=r"centre chunk base 305.0 mm > build depth 300 mm.*chunking.top_width <= 285.0"):
         chunked(box(y=400, z=30), top_width=290.0)  # 400 mm deep: it does not fit the build depth whole
 
 

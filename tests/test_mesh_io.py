@@ -180,3 +180,21 @@ def test_merging_a_soup_keeps_every_corner_and_leaves_no_duplicate(n_points, see
     assert faces.dtype == np.int32
     np.testing.assert_array_equal(verts[faces.ravel()], soup.astype(np.float64) + 0.0)
     assert len(np.unique(verts, axis=0)) == len(verts) == len(np.unique(soup + 0.0, axis=0))
+
+
+def test_a_box_missing_one_triangle_names_the_fraction_that_closes_it():
+    """The hole of one missing triangle of a 40 x 30 x 20 box's 40 x 20 side has a perimeter of
+    104.7 mm, 1.94 x the diagonal (53.9 mm): the refusal names the fraction that closes it, and
+    that fraction (allowed up to 10) closes it."""
+    tm = to_trimesh(box(40, 30, 20))
+    side = np.flatnonzero(np.abs(tm.face_normals[:, 1]) > 0.99)[0]
+    tm.update_faces(np.arange(len(tm.faces)) != side)
+    with pytest.raises(MeshError, match=r"largest perimeter 104\.7 mm.*set mesh\.max_hole_fraction >= 1\.95 "
+                                        r"\(--set mesh\.max_hole_fraction=2\) to close it"):
+        solid_from_trimesh(tm, MeshSettings(), path="box.stl")
+    s = solid_from_trimesh(tm, MeshSettings(max_hole_fraction=2.0), path="box.stl")
+    assert s.volume == pytest.approx(40 * 30 * 20)
+    from cooprint.io.mesh import _hole_hint
+
+    assert "more than mesh.max_hole_fraction allows (10)" in _hole_hint(12.0)  # beyond the field: no setting helps
+    assert _hole_hint(10.0).startswith("set mesh.max_hole_fraction >= 10.00 (--set mesh.max_hole_fraction=10)")

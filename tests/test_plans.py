@@ -360,3 +360,59 @@ def test_material_before_a_time_is_each_robots_prefix():
     assert mat.before(20.0) is mat
     one = Material(mat.xyz[:50], t[:50], mat.h[:50], np.array([0, 50]))
     assert np.shares_memory(one.before(5.0).xyz, one.xyz)  # one robot: a view
+
+
+SL303 = {"slicing.nozzle_diameter": 1.0, "slicing.layer_height": 0.8, "slicing.first_layer_height": 0.8,
+         "slicing.extrusion_width": 1.2}
+
+
+@pytest.mark.parametrize("offset", [-200.0, 200.0])
+def test_an_idle_robot_parks_on_its_own_side(offset, tmp_path):
+    """A centre offset that leaves one robot without work: it parks on its own side (A on the
+    -axis side facing +axis, B on the +axis side), clear of the part and of the other robot."""
+    import manifold3d as m3d
+
+    settings = load_settings(overrides={**SL303, "chunking.centre_offset": offset})
+    job = coop_job(as_solid(m3d.Manifold.cube((40.0, 303.0, 3.0)), "sl303"), settings, robots=2)
+    write_coop_bundle(job, tmp_path / "job", picture=False)
+    res = simulate(load_inputs([str(tmp_path / "job")]))
+    assert [f.kind for f in res.findings if f.severity == "error"] == []
+    seqs = job.chunked.assignment.sequences
+    idle = [r for r, seq in seqs.items() if not any(len(layer) for c in seq for _, layer in job.layers[c])]
+    assert idle == (["A"] if offset < 0 else ["B"])
+    ax = np.asarray(job.chunked.chunks.plan.axis)[:2]
+    p = job.placements[idle[0]]
+    along = np.asarray(p.start[:2]) @ ax
+    ends = [c.vertices[:, :2] @ ax for c in job.chunked.chunks.chunks]
+    lo, hi = min(e.min() for e in ends), max(e.max() for e in ends)
+    if idle[0] == "A":
+        assert p.side == "left" and along < lo and np.allclose(p.facing[:2], ax)
+    else:
+        assert p.side == "right" and along > hi and np.allclose(p.facing[:2], -ax)
+
+
+def test_robots_with_nothing_to_print_park_apart_and_write_gcode():
+    """With nothing printed at all (every layer empty), the robots park on either side of the
+    part, never both at the origin, and a program of WAITs and NOTIFYs alone writes G-code."""
+    import manifold3d as m3d
+
+    from cooprint.program.gcode import gcode_text
+
+    settings = load_settings(overrides=SL303)
+    job = coop_job(as_solid(m3d.Manifold.cube((60.0, 40.0, 30.0)), "block"), settings, robots=2)
+    chunks = job.chunked.chunks
+    material = build.MaterialIndex.of(chunks.chunks, margin=0.8)
+    programs, placements = build.robot_programs(
+        dict(job.chunked.assignment.sequences), {c.id: [] for c in chunks.chunks}, chunks.deps, material,
+        reach=settings.robot.nozzle_depth, clearance=settings.program.clearance, axis=chunks.plan.axis,
+        roles={c.id: c.role for c in chunks.chunks})
+    a, b = placements["A"], placements["B"]
+    assert (a.side, b.side) == ("left", "right")
+    ax = np.asarray(chunks.plan.axis)[:2]
+    ends = np.concatenate([c.vertices[:, :2] @ ax for c in chunks.chunks])
+    assert np.asarray(a.start[:2]) @ ax < ends.min() and np.asarray(b.start[:2]) @ ax > ends.max()
+    for robot in programs:
+        text = gcode_text([programs[robot]], settings.slicing)
+        assert "filament used [mm] = 0.00" in text
+    wait = build._sync("B", build.WAIT, ["A:1"])
+    assert "M0 WAIT A:1" in gcode_text([wait], settings.slicing)

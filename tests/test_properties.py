@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from hypothesis import HealthCheck, example, given, settings
@@ -55,6 +56,9 @@ def test_chunking_invariants(solids, name, theta_frac, shift_frac, angle, offset
         theta = tmax
         run = h / math.tan(math.radians(theta))
     shift = max((ROBOT.build_depth - run) * shift_frac, 15.0)
+    ang = math.radians(angle)  # the centre line stays within the part's extent along the axis (the rule)
+    extent = float(np.ptp(s.vertices[:, :2] @ np.array([-math.sin(ang), math.cos(ang)])))
+    offset = max(-extent, min(extent, offset))
     cfg = ChunkingSettings(theta_deg=theta, shift=shift, top_width=top, centre_angle_deg=angle,
                            centre_offset=offset)
     cs = cut_chunks(s, plan_chunks(s.vertices, ROBOT, cfg))

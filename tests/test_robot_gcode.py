@@ -219,7 +219,7 @@ def test_a_bundle_robot_may_carry_keys_a_newer_cooprint_writes(bundle, tmp_path)
     job = tmp_path / "job"
     shutil.copytree(bundle, job)
     record = json.loads((job / "job.json").read_text())
-    record["robots"][0]["facings"] = [{"chunk": "C", "facing_deg": 90.0}]
+    record["robots"][0]["facings"] = [{"from_chunk": "C", "facing_deg": 90.0, "way": "round"}]  # a key of a newer one
     record["robots"][0]["max_height_mm"] = 123.0  # unknown, not like a known key: ignored
     (job / "job.json").write_text(json.dumps(record))
     assert [r.name for r in load_inputs([str(job)]).robots] == ["A", "B"]

@@ -131,6 +131,26 @@ def test_a_part_in_metres_is_an_error_with_the_units_hint(tmp_path, capsys):
     assert code == 0 and "size 100.0 x 100.0 x 100.0 mm" in stdout
 
 
+def test_a_thin_wall_is_a_part_and_a_flat_sheet_gets_no_units_hint(tmp_path, capsys):
+    """A 100 x 0.5 x 20 mm wall is narrower than 3 lines in Y only: it is a part, printed; a
+    100 x 100 x 0.05 mm sheet is lower than the first layer, refused without a units hint (it is
+    large across); a 0.2 mm cube keeps the hint (the metres case above)."""
+    wall = stl(tmp_path / "wall.stl", cube(100, 0.5, 20))
+    code, stdout, err = cli(["info", wall], capsys)
+    assert code == 0 and "size 100.0 x 0.5 x 20.0 mm" in stdout and "--units" not in err
+    code, stdout, _ = cli(["slice", wall, "--out", tmp_path / "wall.gcode", "-q"], capsys)
+    assert code == 0 and (tmp_path / "wall.gcode").exists()
+    foil = stl(tmp_path / "foil.stl", cube(100, 0.3, 20))  # thinner than a line: sliced to nothing, and said so
+    code, _, err = cli(["slice", foil, "--out", tmp_path / "foil.gcode", "-q"], capsys)
+    assert code == 0 and "cooprint: warning:" in err and "nothing to print" in err
+    sheet = stl(tmp_path / "sheet.stl", cube(100, 100, 0.05))
+    line = assert_rejected(["info", sheet], capsys, [tmp_path])
+    assert "lower than the first layer (0.2 mm)" in line and "--units" not in line and "narrower" not in line
+    needle = stl(tmp_path / "needle.stl", cube(1, 1, 50))
+    line = assert_rejected(["info", needle], capsys, [tmp_path])
+    assert "narrower than 3 line widths (1.35 mm) in both X and Y" in line and "--units" not in line
+
+
 def test_a_small_part_gets_a_units_warning(tmp_path, capsys):
     nut = stl(tmp_path / "nut.stl", hexagon_nut())
     code, _, err = cli(["info", nut], capsys)
@@ -146,10 +166,10 @@ def test_a_small_part_gets_a_units_warning(tmp_path, capsys):
 def test_800_mm_block_info_and_chunk_agree_and_state_the_height_limit(tmp_path, capsys):
     block = stl(tmp_path / "block.stl", cube(800, 800, 800))
     code, stdout, _ = cli(["info", block], capsys)
-    assert code == 0 and "not feasible" in stdout and "largest printable height 600.0 mm" in stdout
+    assert code == 1 and "not feasible" in stdout and "largest printable height 600.0 mm" in stdout
     line = assert_rejected(["chunk", block, "--out", tmp_path / "o", "-q"], capsys, [tmp_path])
     assert "largest printable height 600.0 mm" in line and "steeper" not in line and "theta_deg" not in line
-    assert "robot.build_depth >= 400.0" in line and "robot.nozzle_height >= 133.3" in line
+    assert "robot.build_depth >= 400 or" in line and "robot.nozzle_height >= 133.4" in line
     assert "largest printable height 600.0 mm" in assert_rejected(["run", block, "--out", tmp_path / "o", "-q"], capsys,
                                                                    [tmp_path])
 
@@ -183,7 +203,7 @@ def test_a_tall_slender_tower_is_one_chunk_and_plans(tmp_path, capsys):
     assert job["chunks"][0]["layers"] == 1500
     line = assert_rejected(["chunk", tower, "--out", tmp_path / "o", "-q", "--set", "robot.max_z=1000"], capsys,
                            [tmp_path])
-    assert "robot.max_z = 1000" in line and "robot.max_z >= 1500.0" in line
+    assert "robot.max_z = 1000" in line and "robot.max_z >= 1500 mm" in line
 
 
 def test_a_nut_is_one_chunk_and_the_idle_robot_parks_off_it(tmp_path, capsys):
@@ -351,3 +371,57 @@ def test_check_slicing_is_the_rule_load_settings_applies():
 
     with pytest.raises(ConfigError, match="first_layer_height"):
         check_slicing(replace(s, first_layer_height=0.5))
+
+
+# --- fix hints that can be followed (a newcomer's trial of main) ---------------------------------
+
+def _every_hint_is_valid(f):
+    """Each ``field op value`` hint names a value the field accepts (re-checked through load_settings)."""
+    for hint in f.hints:
+        m = re.fullmatch(r"(robot|chunking)\.(\w+) (>=|<=) ([0-9.e+-]+)( mm)?", hint)
+        if m:
+            load_settings(overrides={f"{m[1]}.{m[2]}": float(m[4])})  # raises if outside the range
+        elif hint.startswith("--scale"):
+            assert float(hint.split()[1]) > 0
+
+
+def test_hints_outside_a_fields_range_are_left_out_and_small_values_keep_their_digits(tmp_path, capsys):
+    long = stl(tmp_path / "long.stl", cube(40, 500, 15))
+    code, stdout, _ = cli(["info", long, "--set", "robot.nozzle_height=0.001"], capsys)
+    assert code == 1 and "not feasible" in stdout
+    assert "<= 0.0 " not in stdout and "--scale 0 " not in stdout and not stdout.rstrip().endswith("--scale 0")
+    assert "robot.nozzle_height >= 2.5" in stdout and "robot.nozzle_depth <= 0.01" in stdout
+    assert "largest printable height 0.0055 mm" in stdout or "largest printable height 0.006 mm" in stdout
+    f = feasibility(np.array([[0, 0, 0], [40, 500, 15.0]]), RobotProfile(nozzle_height=0.001), ChunkingSettings())
+    assert f.hints and all("build_depth" not in h for h in f.hints)  # 750,000 mm: beyond the field's 1e5
+    _every_hint_is_valid(f)
+
+
+def test_a_centre_offset_beyond_the_part_is_named(tmp_path, capsys):
+    long = stl(tmp_path / "long.stl", cube(40, 500, 15))
+    code, stdout, _ = cli(["info", long, "--set", "chunking.centre_offset=1e6"], capsys)
+    assert code == 1 and "chunking.centre_offset = 1e+06 mm" in stdout and "within +-500 mm" in stdout
+    assert "chunking.shift" not in stdout
+    line = assert_rejected(["chunk", long, "--out", tmp_path / "o", "--set", "chunking.centre_offset=-600"], capsys,
+                           [tmp_path])
+    assert "chunking.centre_offset = -600 mm" in line
+
+
+@pytest.mark.parametrize("args", [["--theta", "90"], ["--theta", "2"], ["--set", "robot.nozzle_height=1"],
+                                  ["--set", "robot.build_depth=10", "--set", "robot.nozzle_height=0.5"],
+                                  ["--set", "robot.max_z=10"]])
+def test_every_refusal_line_is_whole_and_under_250_characters(tmp_path, capsys, args):
+    block = stl(tmp_path / "block.stl", cube(60, 400, 30))
+    line = assert_rejected(["chunk", block, "--out", tmp_path / "o", *args], capsys, [tmp_path])
+    assert len(line) < 250 and " ... " not in line and "fix: " in line
+
+
+def test_a_part_taller_than_max_z_and_deeper_than_the_build_depth_gives_the_cut_bound(tmp_path, capsys):
+    """40 m deep in metres: the cut's bound (600 mm), not max_z's one-chunk height."""
+    block = stl(tmp_path / "block.stl", cube(60, 40, 30))
+    code, stdout, _ = cli(["info", block, "--units", "m"], capsys)
+    assert code == 1 and "largest printable height 600.0 mm (cut)" in stdout and "(one chunk)" not in stdout
+    assert "robot.max_z >=" not in stdout and "--scale 0.02" in stdout
+    tower = stl(tmp_path / "tower.stl", cube(40, 40, 3))  # 3 m tall, 40 m... one chunk at 40 mm deep in mm units
+    code, stdout, _ = cli(["info", tower, "--units", "m", "--set", "robot.build_depth=50000"], capsys)
+    assert code == 1 and "(one chunk)" in stdout and "robot.max_z >= 3000 mm" in stdout

@@ -151,7 +151,7 @@ def test_bad_gcode_and_manifests_are_clear_errors(tmp_path):
     m = tmp_path / "m.toml"
     (tmp_path / "A.coop").write_text("MOVE 0 0 0\n")
     m.write_text('[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0]\n')
-    with pytest.raises(SchemaError, match=r"m.toml: robots\[1\].start: expected 3 finite numbers .*, got \[0, 0\]"):
+    with pytest.raises(SchemaError, match=r"m.toml: robots\[0\].start: expected 3 finite numbers .*, got \[0, 0\]"):
         load_inputs([], str(m))
     # without a manifest: robot A (the file's name) at its first MOVE
     (robot,) = load_inputs([str(tmp_path / "A.coop")]).robots

@@ -3,7 +3,7 @@
 Exit codes: 0 success; 1 a plan whose own simulation (``run --simulate``, ``simulate``) finds
 error-level findings (bodies on material, robots colliding, the printhead meeting material,
 deadlocks), or with ``--strict`` any finding (overhang warnings too): one line on stderr says so,
-even with ``--quiet``; 2 bad input (one line on stderr, no traceback unless ``--verbose``);
+even with ``--quiet``; also 1 when ``info`` finds the part not feasible; 2 bad input (one line on stderr, no traceback unless ``--verbose``);
 130 interrupted.
 """
 
@@ -177,8 +177,10 @@ chunking_options = _with_flags(CHUNK_FLAGS, [], lambda kw, overrides: None)
               help="Number of robots (seed strategy).")
 def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: int) -> None:
     """Report a mesh (triangles, size, volume, repairs, placement) and whether the robot can print it:
-    the feasibility rule of `chunk` and `run`, the largest printable height, the number of chunks."""
+    the feasibility rule of `chunk` and `run`, the largest printable height, the number of chunks.
+    Exits 1 when the part is not feasible (0 when it is)."""
     from cooprint.chunking import feasibility
+    from cooprint.chunking.planes import mm
     from cooprint.io.mesh import fmt_report
     from cooprint.jobs import load_placed
 
@@ -188,12 +190,13 @@ def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: 
     click.echo(f"  {placement.describe()}")
     f = feasibility(solid.vertices, settings.robot, settings.chunking)
     click.echo(f"  robot '{settings.robot.name}': theta_min {f.theta_min_deg:.2f} deg, theta_max {f.theta_max_deg:.2f} "
-               f"deg, largest printable height {f.max_height:.1f} mm ({'one chunk' if f.mode == 'whole' else 'cut'})")
+               f"deg, largest printable height {mm(f.max_height)} mm ({'one chunk' if f.mode == 'whole' else 'cut'})")
     if f.feasible:
         idle = f" ({robots - 1} robot idle)" if f.chunks == 1 and robots > 1 else ""
         click.echo(f"  feasible: {f.chunks} chunk{'s' if f.chunks != 1 else ''} for {robots} robot{'s' if robots > 1 else ''}{idle}; {f.reason}")
     else:
         click.echo(f"  not feasible: {f.message()}")
+        raise click.exceptions.Exit(1)  # as `chunk` refuses it; scripts test the exit code
 
 
 def plan_options(command: Any) -> Any:
@@ -286,6 +289,9 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str,
 
     _lean_malloc()
     settings = _settings(config, overrides)
+    if center is not None and not settings.mesh.place:  # one would be ignored
+        raise UserError(f"--center {center[:40]} puts the part on the bed, --no-place (mesh.place = false) keeps "
+                        "the file's frame: give one")
     xy = None if center is None else parse_center(center)
     check_file_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     where: list[Any] = []
@@ -333,6 +339,8 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
     """
     from cooprint.jobs import coop_job, write_coop_bundle
 
+    if strict and not then_simulate:  # --strict judges a simulation: without one it would be ignored
+        raise UserError("--strict needs --simulate (it makes warnings of the plan's simulation fail it)")
     record = _plan(coop_job, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
     if then_simulate:
@@ -354,7 +362,7 @@ def _report_run(record: dict[str, Any], out: str, no_picture: bool) -> None:
     """The lines ``cooprint run`` prints about the plan it wrote."""
     for r in record["robots"]:
         st = r["stats"]
-        click.echo(f"  robot {r['name']} ({r['side']} side): {' -> '.join(r['chunks']) or '(idle)'}; "
+        click.echo(f"  robot {r['name']} ({'both sides' if r['side'] == 'both' else r['side'] + ' side'}): {' -> '.join(r['chunks']) or '(idle)'}; "
                    f"{st['commands']:,} commands, {st['print_mm'] / 1000:.1f} m printed, "
                    f"{st['volume_mm3'] / 1000:.1f} cm3, {st['wait']} WAIT, {st['notify']} NOTIFY")
     click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl, {out}/robots/*.coop, {out}/robots/*.gcode"
@@ -466,6 +474,7 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
+    _check_render_options(fmt, at, duration, speedup)
     sources = (*inputs, manifest)
     if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
         check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
@@ -491,6 +500,18 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
         else:
             render_snapshot(result, t, tmp)
     click.echo(f"wrote {target}")
+
+
+def _check_render_options(fmt: str, at: float | None, duration: float | None, speedup: float | None) -> None:
+    """No option that the format ignores: ``--at`` is the png snapshot's time; ``--duration``,
+    ``--speedup`` and ``--fps`` (given on the command line) shape an mp4 / gif animation."""
+    if at is not None and fmt != "png":
+        raise UserError(f"--at is the time of a png snapshot; --format {fmt} does not use it")
+    fps_given = click.get_current_context().get_parameter_source("fps") == click.core.ParameterSource.COMMANDLINE
+    given = [o for o, v in (("--duration", duration), ("--speedup", speedup), ("--fps", fps_given or None))
+             if v is not None]
+    if given and fmt not in ("mp4", "gif"):
+        raise UserError(f"{given[0]} shapes an animation (--format mp4 or gif); --format {fmt} does not use it")
 
 
 def _lean_malloc() -> None:

@@ -208,6 +208,11 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     # whenever the generator is collected
     with closing(layers), atomic_file(out, force, inputs=(mesh,)) as tmp, open(tmp, "w", encoding="ascii") as fh:
         used = write_gcode(fh, layer_pieces(counted), s, Feeds.of_slicer(s), Path(mesh).name)
+    if used <= 0:  # valid, but surely not what was meant: a part thinner than one line everywhere
+        from cooprint.errors import warn
+
+        warn(f"{mesh}: nothing to print: no layer holds a line {s.extrusion_width:g} mm wide (the part is thinner "
+             f"than a line); the G-code only moves")
     return counted.n, used
 
 

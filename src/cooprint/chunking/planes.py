@@ -33,7 +33,7 @@ changes that would make a refused part printable.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -208,8 +208,59 @@ class Feasibility:
 
     def message(self) -> str:
         """The refusal line: reason, largest printable height, hints."""
-        text = f"{self.reason}; largest printable height {self.max_height:.1f} mm (part {self.height:.1f})"
-        return text + (f"; fix: {' or '.join(self.hints)}" if self.hints else "")
+        text = f"{self.reason}; largest printable height {mm(self.max_height)} mm (part {self.height:.1f})"
+        hints = list(self.hints)
+        while hints and len(text) + len("; fix: " + " or ".join(hints)) > MAX_MESSAGE:
+            hints.pop()  # the first hints are the nearest changes; the line stays whole
+        return text + (f"; fix: {' or '.join(hints)}" if hints else "")
+
+
+#: Longest refusal line (reason, largest height, hints): a message a terminal shows whole.
+MAX_MESSAGE = 230  # and "cooprint: error: " before it: under 250 characters
+
+
+def mm(x: float) -> str:
+    """A length for a message: one decimal, or 3 significant digits below 1 mm (0.00550, not 0.0)."""
+    return f"{x:.1f}" if abs(x) >= 1 or x == 0 else f"{x:.3g}"
+
+
+def _bound(x: float, up: bool) -> str:
+    """``x`` to 4 significant digits, rounded up (a ``>=`` hint) or down (a ``<=`` hint) so that
+    the value shown satisfies the hint; small values keep their digits (0.00916, not 0.0)."""
+    if x == 0 or not math.isfinite(x):
+        return f"{x:g}"
+    e = math.floor(math.log10(abs(x))) - 3
+    q = 10.0 ** e
+    v = (math.ceil(x / q - 1e-9) if up else math.floor(x / q + 1e-9)) * q
+    return f"{v:.10g}"
+
+
+def _in_range(cls: type, name: str, value: float) -> bool:
+    """Whether ``value`` is a valid value of settings field ``name`` of ``cls`` (its metadata
+    range): a fix hint outside it could not be followed."""
+    meta = next(f.metadata for f in fields(cls) if f.name == name)
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if lo is not None and (value <= lo if meta.get("lo_open") else value < lo):
+        return False
+    return hi is None or value <= hi
+
+
+def _hint(cls: type, field_name: str, section: str, op: str, value: float, now: float | None = None,
+          unit: str = "") -> tuple[str, ...]:
+    """``("robot.build_depth >= 751",)``, or ``()`` when the bound shown lies outside
+    the field's valid range (no hint that cannot be followed)."""
+    text = _bound(value, up=op == ">=")
+    if not math.isfinite(value) or not _in_range(cls, field_name, float(text)):
+        return ()
+    return (f"{section}.{field_name} {op} {text}{unit}",)  # (the value now: in the reason or the settings)
+
+
+def _scale_hint(max_h: float, h: float) -> tuple[str, ...]:
+    """``--scale F`` that brings a part ``h`` tall down to ``max_h`` (F rounded down, 3 digits)."""
+    if not 0 < max_h < h:
+        return ()
+    text = _bound(max_h / h, up=False)
+    return (f"--scale {text}",) if float(text) > 0 else ()
 
 
 def _axis(settings: ChunkingSettings) -> np.ndarray:
@@ -248,12 +299,23 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
 
     if h <= 0:
         return result(False, "whole", "the object has no height (all vertices at one z)", robot.max_z), None
-    if h > robot.max_z * (1 + 1e-9):
-        return result(False, "whole", f"the part is {h:.1f} mm tall, higher than robot '{robot.name}' prints "
-                      f"(robot.max_z = {robot.max_z:g} mm)", robot.max_z,
-                      hints=(f"robot.max_z >= {h:.1f} mm", f"a part at most {robot.max_z:g} mm tall")), None
-    centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) + settings.centre_offset * axis
     whole = settings.theta_deg is None and settings.shift is None
+    if h > robot.max_z * (1 + 1e-9):
+        # the mode the part would be printed in decides the largest height: one chunk up to max_z,
+        # a cut part up to the planes' bound (which max_z also caps)
+        one = whole and extent <= bd * (1 + 1e-9)
+        top = robot.max_z if one else cut_height
+        raise_z = _hint(RobotProfile, "max_z", "robot", ">=", h, robot.max_z, " mm") \
+            if one or h <= min(max(bd - tw, 0.0) * tan_max / 2, bd * tan_max) else ()
+        return result(False, "whole" if one else "cut", f"the part is {h:.1f} mm tall, higher than robot "
+                      f"'{robot.name}' prints (robot.max_z = {robot.max_z:g} mm)", top,
+                      hints=raise_z + _scale_hint(top, h)), None
+    if abs(settings.centre_offset) > extent:
+        return result(False, "whole" if whole and extent <= bd * (1 + 1e-9) else "cut",
+                      f"chunking.centre_offset = {settings.centre_offset:g} mm puts the centre beyond the part "
+                      f"({extent:.1f} mm along the chunking axis)", robot.max_z if extent <= bd else cut_height,
+                      hints=(f"chunking.centre_offset within +-{math.floor(extent * 10) / 10:g} mm",)), None
+    centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) + settings.centre_offset * axis
     if whole and extent <= bd * (1 + 1e-9):
         plan = ChunkPlan(theta_max, bd, 0.0, h, lim, tuple(float(x) for x in centre),  # type: ignore[arg-type]
                          tuple(float(x) for x in axis), extent / 2, 0, 0, bd, "whole")  # type: ignore[arg-type]
@@ -263,22 +325,21 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
     theta = theta_max if settings.theta_deg is None else settings.theta_deg
     tan_t = math.tan(math.radians(theta))
     max_h = min(cut_height, max(bd - tw, 0.0) * tan_t / 2) if theta <= theta_max + 1e-9 else cut_height
-    formula = (f"theta_min = atan(h/bd) = atan({h:.1f}/{bd:g}) = {lim.theta_min_deg:.2f} deg, "
-               f"theta_max = atan(nh/nd) = atan({nh:g}/{nd:g}) = {theta_max:.2f} deg")
+    formula = f"theta_min {lim.theta_min_deg:.3g} > theta_max atan({nh:g}/{nd:g}) = {theta_max:.3g} deg"
     fits = extent <= bd * (1 + 1e-9)
-    drop = (f"no --theta/--shift (the part is {extent:.1f} mm deep, within the build depth: one chunk)",) if fits else ()
+    drop = (f"no --theta/--shift ({extent:.1f} mm deep: one chunk)",) if fits else ()
     need_bd = 2 * h / tan_max + tw
     need_nh = 2 * h * nd / (bd - tw) if bd > tw else math.inf
-    robot_hints = (f"robot.build_depth >= {need_bd:.1f} (now {bd:g})",) + (
-        (f"robot.nozzle_height >= {need_nh:.1f} (now {nh:g})",
-         f"robot.nozzle_depth <= {nh * (bd - tw) / (2 * h):.1f} (now {nd:g})") if math.isfinite(need_nh) else ()) + (
-        (f"--scale {math.floor(cut_height / h * 1000) / 1000:g}",) if 0 < cut_height < h else ())
+    robot_hints = _hint(RobotProfile, "build_depth", "robot", ">=", need_bd, bd) + (
+        (_hint(RobotProfile, "nozzle_height", "robot", ">=", need_nh, nh) +
+         _hint(RobotProfile, "nozzle_depth", "robot", "<=", nh * (bd - tw) / (2 * h), nd))
+        if math.isfinite(need_nh) else ()) + _scale_hint(cut_height, h)
     if not lim.feasible:
-        return result(False, "cut", f"robot '{robot.name}' cannot print this part: {formula}; theta_min > theta_max",
+        return result(False, "cut", f"robot '{robot.name}' cannot print it: {formula}",
                       max_h, theta=theta, hints=drop + robot_hints), None
     if not lim.theta_min_deg < theta <= theta_max + 1e-9:
         return result(False, "cut", f"chunking.theta_deg = {theta:g} is outside the printable range "
-                      f"({lim.theta_min_deg:.2f}, {theta_max:.2f}] deg: {formula}", max_h, theta=theta,
+                      f"({lim.theta_min_deg:.2f}, {theta_max:.2f}] deg", max_h, theta=theta,
                       hints=drop + (f"chunking.theta_deg in ({lim.theta_min_deg:.2f}, {theta_max:.2f}]",)), None
     run = h / tan_t
     a = run + tw / 2
@@ -291,7 +352,7 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
             hints.append(f"chunking.top_width <= {bd - 2 * run:.1f} (now {tw:g})")
         hints += robot_hints
         at = f"theta_max {theta:.2f}" if theta >= theta_max - 1e-9 else f"theta {theta:.2f}"
-        return result(False, "cut", f"centre chunk base 2h/tan(theta) + top_width = {2 * a:.1f} mm > build depth "
+        return result(False, "cut", f"centre chunk base {2 * a:.1f} mm > build depth "
                       f"{bd:g} mm at {at} deg", max_h, theta=theta, hints=tuple(hints)), None
     s = bd - run if settings.shift is None else settings.shift
     if s + run > bd * (1 + 1e-9):
@@ -308,7 +369,8 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
     if n > MAX_CHUNKS:
         return result(False, "cut", f"a shift of {s:g} mm over {extent:.1f} mm gives {n:,} chunks, more than "
                       f"{MAX_CHUNKS:,}", max_h, theta=theta,
-                      hints=(f"chunking.shift >= {extent / MAX_CHUNKS:.1f} mm",)), None
+                      hints=tuple(f"chunking.shift >= {_bound(extent / MAX_CHUNKS, up=True)} mm"
+                                  for _ in (0,) if extent / MAX_CHUNKS <= bd - run)), None
     plan = replace(plan, n_right=counts["R"], n_left=counts["L"])
     return result(True, "cut", f"cut at theta {theta:.2f} deg into {n} chunks: centre chunk base {2 * a:.1f} mm and "
                   f"side reach {s + run:.1f} mm within the build depth {bd:g} mm", max_h, n, theta), plan

@@ -16,7 +16,9 @@ combination can make nonsense:
   nozzle diameter"; its variable-layer-height default of 0.75 x nozzle is a quality guide, not a
   limit);
 * ``extrusion_width`` is from ``nozzle_diameter`` to ``3 x nozzle_diameter`` (PrusaSlicer refuses
-  3 x nozzle and more; a line narrower than its nozzle is not a line it can lay).
+  3 x nozzle and more; a line narrower than its nozzle is not a line it can lay);
+* at least one of ``perimeters``, ``infill_density``, ``top_layers``, ``bottom_layers`` is non-zero
+  (otherwise every layer is empty and the plan prints nothing).
 
 Hence ``width >= nozzle >= height``, and the bead's cross-section
 ``(w - h) h + pi (h / 2)^2 >= pi h^2 / 4 > 0`` (:func:`cooprint.slicing.paths.extrusion_area`): E is
@@ -110,7 +112,7 @@ class ChunkingSettings:
 class MeshSettings:
     """Mesh loading and repair."""
 
-    max_hole_fraction: float = field(default=0.15, metadata=_num(0, 1, doc="largest hole closed "
+    max_hole_fraction: float = field(default=0.15, metadata=_num(0, 10, doc="largest hole closed "
                                      "silently, as perimeter / bounding-box diagonal"))
     units: str = field(default="mm", metadata=_choice("mm", "cm", "m", "in", doc="unit of the file's coordinates"))
     scale: float = field(default=1.0, metadata=_num(0, 1e6, lo_open=True, doc="factor applied after units"))
@@ -304,6 +306,11 @@ def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -
             raise ConfigError(f"{where}slicing.{name} = {h:g} mm is thicker than slicing.nozzle_diameter = "
                               f"{d:g} mm allows (at most {MAX_LAYER_PER_NOZZLE:g} x nozzle = "
                               f"{MAX_LAYER_PER_NOZZLE * d:g} mm); use a thinner layer or a larger nozzle")
+    if s.perimeters == 0 and s.infill_density == 0 and s.top_layers == 0 and s.bottom_layers == 0:
+        # nothing would be printed: no walls, no infill and no solid skins, so every plan is empty
+        where = where_of("perimeters", "infill_density", "top_layers", "bottom_layers")
+        raise ConfigError(f"{where}slicing.perimeters = 0, infill_density = 0, top_layers = 0 and bottom_layers = 0 "
+                          f"print nothing; expected at least one perimeter, some infill or a solid layer")
     w = s.extrusion_width
     lo, hi = MIN_WIDTH_PER_NOZZLE * d, MAX_WIDTH_PER_NOZZLE * d
     if not lo - 1e-12 <= w <= hi + 1e-12:

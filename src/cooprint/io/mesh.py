@@ -12,11 +12,12 @@ from __future__ import annotations
 import gzip
 import io
 import logging
+import math
 import re
 import warnings
 import zipfile
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from pathlib import Path
 
@@ -482,6 +483,19 @@ def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | 
     return np.asarray(loaded.vertices, dtype=np.float64), np.asarray(loaded.faces, dtype=np.int64)
 
 
+def _hole_hint(fraction: float) -> str:
+    """What closes a hole whose perimeter is ``fraction`` x the bounding-box diagonal: the least
+    ``mesh.max_hole_fraction`` (2 decimals, rounded up) and a round value to type; or, beyond the
+    field's largest value, that the mesh needs a repair elsewhere."""
+    hi = next(f.metadata["hi"] for f in fields(MeshSettings) if f.name == "max_hole_fraction")
+    need = math.ceil(fraction * 100 - 1e-9) / 100
+    if not need <= hi:
+        return f"a hole of {fraction:.3g} x the diagonal is more than mesh.max_hole_fraction allows ({hi:g}); " \
+               f"repair the mesh"
+    typed = min(hi, math.ceil(fraction * 10 - 1e-9) / 10)
+    return f"set mesh.max_hole_fraction >= {need:.2f} (--set mesh.max_hole_fraction={typed:g}) to close it"
+
+
 def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     """Ordered vertex loops of the open boundary, following the faces' own edge direction.
 
@@ -620,7 +634,8 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
             raise MeshError(
                 f"{path}: not watertight: {sum(len(lp) for lp in loops)} open edges in {len(loops)} "
                 f"holes; {big} too large to close (largest perimeter {max(perims):.1f} mm, limit "
-                f"mesh.max_hole_fraction {settings.max_hole_fraction:g} x diagonal = {limit:.1f} mm)")
+                f"mesh.max_hole_fraction {settings.max_hole_fraction:g} x diagonal = {limit:.1f} mm); "
+                + _hole_hint(max(perims) / diag if diag > 0 else math.inf))
         caps = [_fill_loop(verts, lp) for lp in loops]
         if any(c is None for c in caps):
             raise MeshError(f"{path}: not watertight: {len(loops)} holes, some cannot be triangulated")

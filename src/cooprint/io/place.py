@@ -13,8 +13,12 @@ Rules (every command: ``info``, ``chunk``, ``run``, ``slice``):
 
 Size checks, after scaling (they catch files in other units):
 
-* a part narrower than ``MIN_LINES`` (3) extrusion widths in X or Y, or lower than the first layer,
-  is refused: nothing meaningful can be printed from it (a 0.2 mm cube is a 200 mm cube in metres);
+* a part narrower than ``MIN_LINES`` (3) extrusion widths in both X and Y (its largest XY extent),
+  or lower than the first layer, is refused: nothing meaningful can be printed from it (a 0.2 mm
+  cube is a 200 mm cube in metres). A thin wall (100 x 0.5 x 20 mm) is a part: the slicer prints
+  it as one line, or nothing where it is thinner than a line. The units hint comes only with a
+  part small in all directions (below ``SUSPECT_MM``): a thin wall or a flat sheet is not a file
+  in other units;
 * a part whose largest extent is below ``SUSPECT_MM`` (10 mm) in a file read as millimetres is
   printed with a warning that names ``--units`` and ``--scale`` (an inch or centimetre file
   looks like that).
@@ -129,10 +133,12 @@ def place(solid: Solid, mesh: MeshSettings, slicing: SlicingSettings, *, bed: bo
                         "check --units / --scale")
     size = hi - lo
     min_xy = MIN_LINES * slicing.extrusion_width
-    if min(size[0], size[1]) < min_xy or size[2] < slicing.first_layer_height:
-        raise MeshError(f"{path}: the part is {_fmt_size(size)}, too small to print: narrower than {MIN_LINES} "
-                        f"line widths ({min_xy:g} mm) or lower than the first layer "
-                        f"({slicing.first_layer_height:g} mm); {_units_hint(size, mesh.units)}")
+    narrow, low = max(size[0], size[1]) < min_xy, size[2] < slicing.first_layer_height
+    if narrow or low:
+        why = " and ".join(([f"narrower than {MIN_LINES} line widths ({min_xy:g} mm) in both X and Y"] if narrow else [])
+                           + ([f"lower than the first layer ({slicing.first_layer_height:g} mm)"] if low else []))
+        hint = f"; {_units_hint(size, mesh.units)}" if size.max() < SUSPECT_MM else ""
+        raise MeshError(f"{path}: the part is {_fmt_size(size)}, too small to print: {why}{hint}")
     warnings = []
     if mesh.units == "mm" and mesh.scale == 1.0 and size.max() < SUSPECT_MM:
         warnings.append(f"{path}: the part is only {_fmt_size(size)}; {_units_hint(size, mesh.units)}")

@@ -312,12 +312,14 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         current = faces[printing[0]] if printing else (ax if side != "right" else -ax)
         facing = tuple(float(x) for x in current)
         first_point = _first_point(layers, seq)
-        if first_point is None:  # a robot with nothing to print parks off the part, on the +axis side,
+        if first_point is None:  # a robot with nothing to print parks off the part, on its own side,
             # and keeps its word (the WAITs and NOTIFYs of its empty chunks)
             programs[robot] = Program.concat(robot, [_sync(robot, k, ev) for k, ev in _syncs(seq, deps, owner, robot,
                                                                                             notify_after)])
-            placements[robot] = RobotPlacement(robot, "right", tuple(float(x) for x in -ax),  # type: ignore[arg-type]
-                                               _parking(layers, ax, clearance))
+            idle = _idle_side(robot, list(sequences), seq, roles)
+            placements[robot] = RobotPlacement(robot, idle,  # type: ignore[arg-type]
+                                               tuple(float(x) for x in (ax if idle == "left" else -ax)),
+                                               _parking(layers, material, ax, clearance, idle))
             continue
         facings = [(printing[0], facing_deg(current))]
         printed_before = [c for r, s in sequences.items() if r != robot for c in s]
@@ -360,20 +362,39 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
     return programs, placements
 
 
-def _parking(layers: dict, ax: np.ndarray, clearance: float) -> tuple[float, float, float]:
+def _parking(layers: dict, material: MaterialIndex, ax: np.ndarray, clearance: float,
+             side: str) -> tuple[float, float, float]:
     """Where an idle robot stands (a part that is one chunk leaves the second robot without
-    work): facing the part from the +axis side, its nozzle ``clearance`` beyond the farthest
-    printed point along ``ax``, level with the middle of the part across it, so that its body
-    (behind the nozzle) is clear of the part and of the robot that prints it."""
-    pts = [layer.points for chunk in layers.values() for _, layer in chunk if len(layer)]
+    work): on its own ``side`` of the part, facing it (from the -axis side along ``+ax`` for
+    ``"left"``, from the +axis side against it for ``"right"``), its nozzle ``clearance`` beyond
+    the printed point farthest towards that side, level with the middle of the part across it.
+    Its body (behind the nozzle) then stays clear of the part and of the robots that print it,
+    whose bodies stand on their own sides. With nothing printed at all, the part's own extent
+    (the chunks' triangle boxes) stands in for the printed points, so that two idle robots
+    still park apart, one on each side."""
+    pts = [layer.points[:, :2] for chunk in layers.values() for _, layer in chunk if len(layer)]
+    if not pts:  # nothing printed: the corners of the part's triangle boxes
+        pts = [b[:, [0, 1]] for b in material.boxes.values() if len(b)] + \
+              [b[:, [2, 3]] for b in material.boxes.values() if len(b)]
     if not pts:
-        return (0.0, 0.0, 0.0)
+        return (0.0, 0.0, float(clearance))
     allp = np.concatenate(pts)
     along = allp @ ax
     across = np.array([-ax[1], ax[0]])
-    side = allp @ across
-    p = ax * (float(along.max()) + clearance) + across * (float(side.min() + side.max()) / 2)
+    mid = allp @ across
+    edge = float(along.min()) - clearance if side == "left" else float(along.max()) + clearance
+    p = ax * edge + across * (float(mid.min() + mid.max()) / 2)
     return (float(p[0]), float(p[1]), float(clearance))
+
+
+def _idle_side(robot: str, robots: Sequence[str], seq: Sequence[str], roles: dict[str, str]) -> str:
+    """The side an idle robot parks on: the side of the (empty) chunks it was given if they are
+    all on one side; otherwise its own by order, the first robot (A) on the -axis side
+    ("left"), the others on the +axis side ("right"), as the scheduler hands out the sides."""
+    sides = {roles[c] for c in seq} - {"centre"}
+    if len(sides) == 1:
+        return sides.pop()
+    return "left" if robots and robot == robots[0] else "right"
 
 
 def _syncs(seq: Sequence[str], deps: dict[str, tuple[str, ...]], owner: dict[str, str], robot: str,

@@ -176,8 +176,9 @@ class GcodeWriter:
         on = p.tool_on(self.tool)
         mv = np.flatnonzero(kind == MOVE)
         prev = np.empty((len(mv), 3))
-        prev[1:] = xyz[mv[:-1]]
-        prev[0] = self.pos if self.pos is not None else np.nan
+        if len(mv):  # a piece may hold no move at all (only dwells or turns)
+            prev[1:] = xyz[mv[:-1]]
+            prev[0] = self.pos if self.pos is not None else np.nan
         length = np.linalg.norm(xyz[mv] - prev, axis=1)  # NaN for a first move from nowhere
         extr = on[mv] & (length > 0)
         e = np.zeros(len(mv))

@@ -54,9 +54,20 @@ ROBOT_NAME = re.compile(r"[A-Za-z0-9_:.\-]{1,64}")
 COORD_LIMIT, FACING_LIMIT = 1e6, 360.0
 #: Most robots in one simulation.
 MAX_ROBOTS = 1000
-#: A bundle's job.json: the keys the simulator reads (format, settings, robots) are checked; the
-#: other top-level keys (mesh, plan, chunks, schedule, stats, picture) are the plan's record.
+#: A bundle's job.json: the keys the simulator reads (format, settings, robots) are checked in
+#: full; the other top-level keys (mesh, plan, chunks, schedule, stats, picture) are the plan's
+#: record, checked for their types. A top-level key outside these is an error (did you mean ...).
 BUNDLE_FORMAT = re.compile(r"cooprint-job/([0-9]{1,6})")
+#: The job formats this cooprint writes and reads back (``cooprint-job/1`` is a chunk bundle).
+BUNDLE_VERSIONS = (2,)
+BUNDLE_REQUIRED = ("format", "settings", "robots")
+BUNDLE_OPTIONAL = ("mesh", "plan", "chunks", "schedule", "stats", "picture")
+#: The top-level keys that hold an object.
+BUNDLE_OBJECTS = ("mesh", "plan", "schedule", "stats")
+#: The sides a robot stands on (``both``: one robot prints both sides).
+BUNDLE_SIDES = ("left", "right", "both")
+#: How far a stored ``facing`` may be from the unit vector of ``facing_deg``.
+FACING_TOLERANCE = 1e-6
 #: Keys of an entry of job.json's ``robots``: those the simulator needs, and those cooprint writes
 #: besides (checked when they matter, ``facings`` for per-chunk facings). A key in neither is
 #: ignored (a newer cooprint may add one) unless it looks like a misspelt known key.
@@ -142,7 +153,16 @@ def load_bundle(folder: str | Path) -> SimInput:
     if int(version.group(1)) < 2 or "robots" in record and isinstance(record["robots"], list) and \
             record["robots"] and all(isinstance(r, dict) and "program" not in r for r in record["robots"]):
         raise SimInputError(f"{where}: a bundle of `cooprint chunk` (no robot programs); plan it with `cooprint run`")
-    check_object(record, where, "", required=("format", "settings", "robots"), unknown="ignore")
+    if int(version.group(1)) not in BUNDLE_VERSIONS:
+        raise fail(where, "format", f"written by a newer cooprint; this one reads "
+                   f"{', '.join(f'cooprint-job/{v}' for v in BUNDLE_VERSIONS)}", fmt)
+    check_object(record, where, "", required=BUNDLE_REQUIRED, optional=BUNDLE_OPTIONAL)
+    for key in BUNDLE_OBJECTS:
+        if key in record:
+            check_object(record[key], where, key, unknown="ignore")
+    if "picture" in record and record["picture"] is not None:
+        check_string(record["picture"], where, "picture", what="a file name or null")
+    chunk_ids = _chunk_ids(record, where)
     settings = check_settings(record["settings"], where, "settings")
     entries = check_list(record["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="robot objects")
     robots, names = [], set()
@@ -158,11 +178,56 @@ def load_bundle(folder: str | Path) -> SimInput:
         start = check_vector(e["start"], where, at + ".start", 3, COORD_LIMIT)
         facing = check_number(e["facing_deg"], where, at + ".facing_deg", lo=-FACING_LIMIT, hi=FACING_LIMIT,
                               unit="degrees")
-        if "facings" in e:
-            check_list(e["facings"], where, at + ".facings", what="facings")
+        _check_robot_record(e, facing, chunk_ids, where, at)
         program = read_coop(program_path, name)
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing)))
     return SimInput(robots, settings.robot, settings.slicing, str(d))
+
+
+def _chunk_ids(record: dict[str, Any], where: str) -> set[str] | None:
+    """The ids of job.json's ``chunks`` (a list of objects, each with a string ``id``); ``None``
+    when the record has no chunk list."""
+    if "chunks" not in record:
+        return None
+    ids = set()
+    for n, c in enumerate(check_list(record["chunks"], where, "chunks", what="chunk objects")):
+        at = key_path("chunks", n)
+        check_object(c, where, at, required=("id",), unknown="ignore")
+        ids.add(check_string(c["id"], where, at + ".id", what="a chunk id"))
+    return ids
+
+
+def _check_robot_record(e: dict[str, Any], facing_deg: float, chunk_ids: set[str] | None, where: str,
+                        at: str) -> None:
+    """The record fields of a job.json robot entry beside those the simulator needs: ``side``
+    one of :data:`BUNDLE_SIDES`; ``facing`` the unit vector of ``facing_deg`` (within
+    :data:`FACING_TOLERANCE`: an edit of one and not the other is a contradiction); ``chunks``
+    ids of the bundle's chunks; ``facings`` ``{from_chunk, facing_deg}`` entries whose chunk is
+    one of this robot's."""
+    if "side" in e and e["side"] not in BUNDLE_SIDES:
+        raise fail(where, at + ".side", f"expected one of {', '.join(BUNDLE_SIDES)}", e["side"])
+    if "facing" in e:
+        vec = check_vector(e["facing"], where, at + ".facing", 2, 1.0 + FACING_TOLERANCE)
+        want = _facing(facing_deg)
+        if float(np.abs(np.asarray(vec) - want).max()) > FACING_TOLERANCE:
+            raise fail(where, at + ".facing", f"expected [{want[0]:.6g}, {want[1]:.6g}], the unit vector of "
+                       f"facing_deg = {facing_deg:g}", e["facing"])
+    own = None
+    if "chunks" in e:
+        own = check_list(e["chunks"], where, at + ".chunks", what="chunk ids")
+        for k, cid in enumerate(own):
+            if not isinstance(cid, str) or (chunk_ids is not None and cid not in chunk_ids):
+                raise fail(where, key_path(at + ".chunks", k), "expected the id of one of the bundle's chunks", cid)
+    if "facings" in e:
+        for k, f in enumerate(check_list(e["facings"], where, at + ".facings", what="facings")):
+            fat = key_path(at + ".facings", k)
+            check_object(f, where, fat, required=("from_chunk", "facing_deg"), unknown="typo")
+            known = own if own is not None else chunk_ids
+            if not isinstance(f["from_chunk"], str) or (known is not None and f["from_chunk"] not in known):
+                raise fail(where, fat + ".from_chunk", "expected the id of one of this robot's chunks",
+                           f["from_chunk"])
+            check_number(f["facing_deg"], where, fat + ".facing_deg", lo=-FACING_LIMIT, hi=FACING_LIMIT,
+                         unit="degrees")
 
 
 def load_manifest(path: str | Path) -> SimInput:
@@ -186,7 +251,7 @@ def load_manifest(path: str | Path) -> SimInput:
         raise SimInputError(f"{where}: no [[robots]] entries")
     entries = check_list(data["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="[[robots]] entries")
     robots, names = [], set()
-    for n, e in enumerate(entries, start=1):
+    for n, e in enumerate(entries):  # counted from 0, as job.json's robots are
         at = key_path("robots", n)
         check_object(e, where, at, required=MANIFEST_ROBOT_REQUIRED, optional=MANIFEST_ROBOT_OPTIONAL)
         name = check_string(e["name"], where, at + ".name", pattern=ROBOT_NAME,
