@@ -273,3 +273,21 @@ def test_a_bundle_is_recognised_by_its_marker_only(world, tmp_path):
     assert is_derived_output(world["bundle"] / "sim" / "gantt.png")
     assert not is_derived_output(world["bundle"] / "sim" / "notes.png")
     assert not is_derived_output(tmp_path / "sim" / "summary.json")
+
+
+def test_a_line_break_in_the_mesh_name_stays_in_the_comment(world, tmp_path, capsys):
+    """A file name holding newlines (and a Unicode line separator) is escaped in the G-code and
+    .coop headers: no live G28/M104 line appears, and cooprint simulates its own bundle."""
+    evil = tmp_path / "evil\nG28 X0\nM104 S999\u2028M84 é.stl"
+    shutil.copy(world["mesh"], evil)
+    gcode, bundle = tmp_path / "part.gcode", tmp_path / "bundle"
+    assert main(["slice", str(evil), "--out", str(gcode), "-q"]) == 0
+    assert main(["run", str(evil), "--out", str(bundle), "-q", "--no-picture"]) == 0
+    for f in [gcode, *sorted((bundle / "robots").iterdir())]:
+        text = f.read_text(encoding="utf-8")
+        assert "\u2028" not in text and "\x85" not in text
+        lines = text.splitlines()
+        assert not any(ln.startswith(("G28 X0", "M104 S999", "M84 ")) for ln in lines), f
+        assert any("evil\\nG28 X0\\nM104 S999" in ln and ln.startswith(";") for ln in lines), f
+    capsys.readouterr()
+    assert main(["simulate", str(bundle), "-q"]) == 0

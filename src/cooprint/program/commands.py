@@ -53,6 +53,7 @@ import numpy as np
 from cooprint.errors import UserError
 from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
+from cooprint.program.comment import comment_safe
 
 #: Command kinds.
 MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT = range(5)
@@ -245,7 +246,7 @@ def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> Non
     """
     out.write(f"; {FORMAT} program for robot {program.robot}\n")
     for line in header:
-        out.write(f"; {line}\n")
+        out.write(f"; {comment_safe(line)}\n")
     p = program
     n = len(p)
     turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
