@@ -29,6 +29,7 @@ from cooprint.config import MeshSettings
 from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
                                open_edges, signed_volume, winding_consistent)
 from cooprint.errors import MeshError
+from cooprint.io.files import regular_file
 
 FORMATS = ("stl", "obj", "ply", "3mf")
 #: Largest decompressed input read, bytes (a 20M-triangle binary STL is 1 GB).
@@ -111,8 +112,7 @@ def _format(path: Path) -> tuple[str, bool]:
     if fmt not in FORMATS:
         raise MeshError(f"{path}: unknown mesh format {fmt or '(no extension)'!r}; expected one of "
                         + ", ".join(f".{f}" for f in FORMATS) + " (optionally .gz)")
-    if not path.is_file():
-        raise MeshError(f"{path}: no such file")
+    regular_file(path, "mesh file", MeshError)  # a FIFO would block the read for ever
     return fmt, gz
 
 

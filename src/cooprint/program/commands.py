@@ -53,6 +53,7 @@ import numpy as np
 from cooprint.errors import UserError
 from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
+from cooprint.io.files import regular_file
 from cooprint.program.comment import comment_safe
 
 #: Command kinds.
@@ -543,6 +544,7 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
     """Read a ``.coop`` file; the robot's name defaults to the file's stem. The file is mapped,
     not copied: its pages stay the page cache's."""
     p = Path(path)
+    regular_file(p, "command file", ProgramError)  # a FIFO would block the read for ever
     try:
         with open(p, "rb") as f:
             try:

@@ -17,6 +17,7 @@ import numpy as np
 from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path)
+from cooprint.io.files import regular_file
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
@@ -89,6 +90,7 @@ def check_settings(data: Any, where: str, path: str, sections: Iterable[str] | N
 
 def _read_structured(path: Path, kind: str, parse) -> Any:
     """The parsed content of a JSON or TOML file, or a one-line error naming it."""
+    regular_file(path, kind, SimInputError)  # a FIFO would block the read for ever
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -267,6 +269,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     from cooprint.simulation.gcode import gcode_rows  # numba: on first use
 
     p = Path(path)
+    regular_file(p, "G-code file", SimInputError)  # a FIFO would block the read for ever
     try:
         data = p.read_bytes()
     except FileNotFoundError:
