@@ -166,6 +166,22 @@ def _file_where_folder(tmp: Path, world: dict, name: str) -> Path:
     return job
 
 
+def _linked(tmp: Path, world: dict, name: str) -> Path:
+    """A bundle whose own entry ``name`` (a folder or a file) is a symlink to a copy elsewhere:
+    writing the bundle must not change the copy (the test folder is watched)."""
+    job = _bundle_copy(tmp, world)
+    (tmp / "elsewhere").mkdir()
+    away = tmp / "elsewhere" / Path(name).name
+    if (job / name).is_dir():
+        shutil.copytree(job / name, away)
+        shutil.rmtree(job / name)
+    else:
+        shutil.copy(job / name, away)
+        (job / name).unlink()
+    (job / name).symlink_to(away)
+    return job
+
+
 #: Folder destinations of `chunk` and `run`: (name, make(tmp, world) -> (destination, mesh or None), --force, words)
 PLAN = [
     ("file-where-folder-belongs", lambda t, w: (_plain_file(t), None), True, "plain.txt"),
@@ -179,6 +195,10 @@ PLAN = [
     ("chunks-is-a-file", lambda t, w: (_file_where_folder(t, w, "chunks"), None), True, "chunks: a file where"),
     ("robots-is-a-file", lambda t, w: (_file_where_folder(t, w, "robots"), None), True, "robots: a file where"),
     ("sim-is-a-file", lambda t, w: (_file_where_folder(t, w, "sim"), None), True, "sim: a file where"),
+    ("chunks-is-a-symlink", lambda t, w: (_linked(t, w, "chunks"), None), True, "chunks: is a symlink"),
+    ("robots-is-a-symlink", lambda t, w: (_linked(t, w, "robots"), None), True, "robots: is a symlink"),
+    ("job-json-is-a-symlink", lambda t, w: (_linked(t, w, "job.json"), None), True, "job.json: is a symlink"),
+    ("a-program-is-a-symlink", lambda t, w: (_linked(t, w, "robots/A.coop"), None), True, "A.coop: is a symlink"),
     ("input-folder-force", lambda t, w: (w["mesh"].parent, None), True, "an input of this command"),
     ("input-inside-bundle", lambda t, w: (_bundle_copy(t, w), "copy"), True, "an input of this command"),
 ]
@@ -210,6 +230,13 @@ def _sim_file(tmp: Path, world: dict, kind: str) -> Path:
         target.mkdir()
     elif kind == "summary-fifo":
         os.mkfifo(target)
+    elif kind == "summary-symlink":
+        (tmp / "away.json").write_text('{"format": "cooprint-sim/1"}')
+        target.symlink_to(tmp / "away.json")
+    elif kind == "sim-symlink":
+        sim.rmdir()
+        (tmp / "away").mkdir()
+        sim.symlink_to(tmp / "away")
     return job
 
 
@@ -222,6 +249,9 @@ DERIVED = [
     ("simulate-user-summary", "user-summary", lambda j: ["simulate", j, "-q"], "use --force"),
     ("simulate-summary-is-a-folder", "summary-folder", lambda j: ["simulate", j, "-q", "--force"], "is a folder"),
     ("simulate-summary-is-a-fifo", "summary-fifo", lambda j: ["simulate", j, "-q", "--force"], "FIFO"),
+    ("simulate-sim-is-a-symlink", "sim-symlink", lambda j: ["simulate", j, "-q", "--force"], "sim: is a symlink"),
+    ("render-sim-is-a-symlink", "sim-symlink", lambda j: ["render", j, "--format", "gantt"], "sim: is a symlink"),
+    ("simulate-summary-is-a-symlink", "summary-symlink", lambda j: ["simulate", j, "-q"], "summary.json: is a symlink"),
     ("render-into-job-json", "none", lambda j: ["render", j, "--out", j / "job.json", "--force"], "part of the cooprint bundle"),
     ("render-into-a-program", "none", lambda j: ["render", j, "--out", j / "robots" / "A.gcode", "--force"],
      "part of the cooprint bundle"),

@@ -308,6 +308,8 @@ def _files(tmp_path):
 MIX_CASES = [
     ("coop-and-gcode", ["A.coop", "B.gcode"], "both .coop and G-code files"),
     ("bundle-and-file", ["BUNDLE", "B.gcode"], "a bundle folder is simulated alone"),
+    ("two-bundles", ["BUNDLE", "BUNDLE"], "one bundle at a time"),
+    ("two-bundles-no-out", ["BUNDLE", "BUNDLE", "NO-OUT"], "one bundle at a time"),
     ("manifest-and-file", ["--manifest", "m.toml", "A.coop"], "give no input files with it"),
     ("text-file", ["notes.txt"], "notes.txt: expected a bundle folder"),
     ("same-file-twice", ["B.gcode", "B.gcode"], "the same file given twice"),
@@ -327,8 +329,9 @@ MIX_CASES = [
 def test_inputs_mixed_wrongly(bundle, tmp_path, capsys, monkeypatch, args, needle):
     _files(tmp_path)
     monkeypatch.chdir(tmp_path)
-    args = [str(bundle) if a == "BUNDLE" else a for a in args]
-    assert_rejected(["simulate", *args, "--out", tmp_path / "o"], capsys, watch=[tmp_path, bundle], contains=needle)
+    out = [] if "NO-OUT" in args else ["--out", tmp_path / "o"]
+    args = [str(bundle) if a == "BUNDLE" else a for a in args if a != "NO-OUT"]
+    assert_rejected(["simulate", *args, *out], capsys, watch=[tmp_path, bundle], contains=needle)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -379,6 +379,10 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
         return Path(out) / "sim"
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         return Path(inputs[0]) / "sim"
+    folders = [x for x in inputs if Path(x).is_dir()]
+    if folders:
+        raise UserError(f"{folders[0]}: a bundle folder is simulated alone (one bundle at a time), "
+                        f"not with other inputs (got {len(inputs)} inputs)")
     raise UserError("simulating files: give --out DIR for the results (DIR/sim/summary.json)")
 
 

@@ -412,7 +412,8 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     dirs = [x for x in paths if Path(x).is_dir()]
     if dirs:
         if len(paths) > 1:
-            raise SimInputError(f"{dirs[0]}: a bundle folder is simulated alone, not with other inputs")
+            raise SimInputError(f"{dirs[0]}: a bundle folder is simulated alone (one bundle at a time), "
+                                 "not with other inputs")
         return load_bundle(paths[0])
     missing = [x for x in paths if not Path(x).exists()]
     if missing:
