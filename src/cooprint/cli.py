@@ -556,6 +556,9 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     except (Interrupted, click.exceptions.Abort, KeyboardInterrupt):
         return _interrupted()
+    except click.exceptions.NoArgsIsHelpError as exc:  # `cooprint` alone: the help, as asked for
+        click.echo(exc.ctx.get_help() if exc.ctx is not None else cli.get_help(click.Context(cli)))
+        return 0
     except click.ClickException as exc:  # a bad option or argument: one line too, no usage block
         if verbose:
             raise
