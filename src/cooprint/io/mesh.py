@@ -177,6 +177,8 @@ def _check_stl(path: Path, data: bytes) -> int | None:
         if b"endsolid" not in data[-4096:].lower():
             raise MeshError(f"{path}: ASCII STL has no 'endsolid' line (truncated?)")
         return None
+    if head.startswith(b"solid") and b"endsolid" in data[-4096:].lower():
+        raise MeshError(f"{path}: empty file (an ASCII STL without triangles)")
     if len(data) < 84:
         raise MeshError(f"{path}: too short for a binary STL ({len(data)} bytes, need at least 84)")
     raise MeshError(f"{path}: binary STL header says {n} triangles ({84 + 50 * n} bytes) but the "

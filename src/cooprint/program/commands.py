@@ -460,6 +460,10 @@ class _Lines:
         return "ann", "path", (_ROLE_OF_WORD[vals[0]], width)
 
 
+#: The UTF-8 byte-order mark, which a ``.coop`` file may start with.
+UTF8_BOM = b"\xef\xbb\xbf"
+
+
 def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<program>") -> Program:
     """Read ``.coop`` text into a :class:`Program`.
 
@@ -478,6 +482,8 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
     from cooprint.program.scan import LAYER_LINE, PATH_LINE, sweep  # numba: on first use
 
     data = text.encode() if isinstance(text, str) else text
+    if bytes(data[:3]) == UTF8_BOM:  # Windows editors start UTF-8 text with one: it is not part of line 1
+        data = memoryview(data)[3:]  # for the compiled sweep and the line parser alike (no copy of an mmap)
     swept = sweep(data)
     kind_of, xyz_of = swept.kind, swept.xyz  # per slot: a command, or a line for the line parser
     lines = _Lines(source, robot)
