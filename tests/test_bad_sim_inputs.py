@@ -391,7 +391,9 @@ def _fifo_case(root, bundle, case):
         os.mkfifo(copy / case)
         return ["simulate", copy, "--out", root / "o"]
     os.mkfifo(root / case)
+    (root / "m2.toml").write_text(ROBOT.replace("A.coop", "A2.coop"))
     return {
+        "A2.coop": ["simulate", "--manifest", "m2.toml", "--out", "o"],
         "f.gcode": ["simulate", "f.gcode", "--out", "o"],
         "f.coop": ["simulate", "f.coop", "--out", "o"],
         "m.toml": ["simulate", "--manifest", "m.toml", "--out", "o"],
@@ -403,10 +405,11 @@ def _fifo_case(root, bundle, case):
 FIFO_CASES = [("f.gcode", "f.gcode: is a named pipe (FIFO), not a G-code file"),
               ("f.coop", "f.coop: is a named pipe (FIFO), not a command file"),
               ("m.toml", "m.toml: is a named pipe (FIFO), not a manifest"),
+              ("A2.coop", "A2.coop: is a named pipe (FIFO), not a command file"),
               ("f.stl", "f.stl: is a named pipe (FIFO), not a mesh file"),
               ("s.toml", "s.toml: is a named pipe (FIFO), not a settings file"),
               ("job.json", "job.json: is a named pipe (FIFO), not a job.json"),
-              ("robots/A.coop", "A.coop")]
+              ("robots/A.coop", "robots[0].program: expected a program file in the bundle, not a folder, a named pipe")]
 
 
 @pytest.mark.parametrize("case, needle", FIFO_CASES, ids=[c[0] for c in FIFO_CASES])

@@ -123,7 +123,8 @@ def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
     if not inside:
         raise fail(where, path, "expected a path inside the bundle (it leads outside)", value)
     if not full.is_file():
-        raise fail(where, path, "no such program file in the bundle", value)
+        raise fail(where, path, "no such program file in the bundle" if not full.exists() else
+                   "expected a program file in the bundle, not a folder, a named pipe (FIFO) or a device", value)
     return full
 
 
@@ -201,7 +202,7 @@ def load_manifest(path: str | Path) -> SimInput:
         facing = check_number(e.get("facing_deg", 90.0), where, at + ".facing_deg", lo=-FACING_LIMIT,
                               hi=FACING_LIMIT, unit="degrees")
         file = p.parent / prog
-        if not file.is_file():
+        if not file.exists():  # a FIFO or a folder: read_coop says which
             raise fail(where, at + ".program", f"no such .coop file ({file})", prog)
         program = read_coop(file, name)
         robots.append(SimRobot(name, program, None if start is None else np.asarray(start, float), _facing(facing)))
