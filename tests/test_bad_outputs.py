@@ -321,3 +321,16 @@ def test_a_line_break_in_the_mesh_name_stays_in_the_comment(world, tmp_path, cap
         assert any("evil\\nG28 X0\\nM104 S999" in ln and ln.startswith(";") for ln in lines), f
     capsys.readouterr()
     assert main(["simulate", str(bundle), "-q"]) == 0
+
+
+@pytest.mark.parametrize("text, ascii_only, expected", [
+    ("a\nb\rc\td", False, "a\\nb\\rc\\td"),
+    ("x\x85y\u2028z\u2029w\x1b\x00\x7f", False, "x\\x85y\\u2028z\\u2029w\\x1b\\x00\\x7f"),
+    ("pièce", False, "pièce"), ("pièce", True, "pi\\xe8ce"), ("\U0001f600", True, "\\U0001f600"),
+])
+def test_comment_safe_leaves_one_visible_line(text, ascii_only, expected):
+    from cooprint.program.comment import COMMENT_LIMIT, comment_safe
+
+    assert comment_safe(text, ascii_only=ascii_only) == expected
+    long = comment_safe("\n" * 5000)
+    assert len(long) == COMMENT_LIMIT and long.endswith("...") and "\n" not in long

@@ -245,7 +245,7 @@ def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> Non
 
     Runs of MOVEs with the same annotations are formatted in one operation each.
     """
-    out.write(f"; {FORMAT} program for robot {program.robot}\n")
+    out.write(f"; {FORMAT} program for robot {comment_safe(program.robot)}\n")
     for line in header:
         out.write(f"; {comment_safe(line)}\n")
     p = program
