@@ -202,8 +202,9 @@ def load_manifest(path: str | Path) -> SimInput:
         facing = check_number(e.get("facing_deg", 90.0), where, at + ".facing_deg", lo=-FACING_LIMIT,
                               hi=FACING_LIMIT, unit="degrees")
         file = p.parent / prog
-        if not file.exists():  # a FIFO or a folder: read_coop says which
-            raise fail(where, at + ".program", f"no such .coop file ({file})", prog)
+        if not file.is_file():
+            raise fail(where, at + ".program", f"no such .coop file ({file})" if not file.exists() else
+                       f"expected a .coop file, not a folder, a named pipe (FIFO) or a device ({file})", prog)
         program = read_coop(file, name)
         robots.append(SimRobot(name, program, None if start is None else np.asarray(start, float), _facing(facing)))
     return SimInput(robots, settings.robot, settings.slicing, where)
