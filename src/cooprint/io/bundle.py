@@ -20,7 +20,10 @@ Writing a bundle (:func:`atomic_dir`):
   write: ...").
 
 ``--force`` is refused on a non-empty folder that is not a bundle, and on a folder that holds
-an input of the command. Single files (:func:`atomic_file`) are written beside their
+an input of the command. cooprint never writes through a symlink: a bundle whose own entries
+(``chunks/``, ``robots/``, ``sim/``, ``job.json``, any file it would replace, ``sim/summary.json``
+...) are symlinks is refused before any work, since following them would change files outside
+the bundle while reporting them as "kept". Single files (:func:`atomic_file`) are written beside their
 destination and renamed over it; an existing file is replaced only with ``force``, or when it
 is one of cooprint's derived outputs in a bundle's ``sim/``.
 """
