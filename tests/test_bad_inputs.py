@@ -123,6 +123,7 @@ def _mesh_cases() -> list[tuple[str, str, bytes, str | None]]:
         ("astl-four-vertices", "m.stl", text.replace("endloop", "vertex 1 1 1\nendloop", 1).encode(),
          "a loop of 4 vertices"),
         ("astl-no-endsolid", "m.stl", text.rsplit("endsolid", 1)[0].encode(), "no 'endsolid'"),
+        ("astl-no-facet", "m.stl", b"solid x\nendsolid x\n", "m.stl: empty file (an ASCII STL without triangles)"),
         ("astl-one-facet", "m.stl", b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
          b"vertex 0 1 0\nendloop\nendfacet\nendsolid x\n", "not a solid"),
         ("astl-not-utf8", "m.stl", text.encode()[:60] + b"\xff\xfe" + text.encode()[62:], "not UTF-8"),
@@ -296,6 +297,10 @@ def _coop_cases() -> list[tuple[str, str, str | None]]:
         ("form-feed", COOP.replace(";@chunk C", ";@chunk C\f"), "control character U+000C"),
         ("line-separator", COOP.replace("\n", "\u2028", 2), "control character U+2028"),
         ("binary", GARBAGE.decode("latin-1"), None),
+        # a leading byte-order mark is skipped; one anywhere else is a character of the line
+        ("bom-then-bad-word", "\ufeff" + COOP + "JUMP 1\n", "A.coop:11:1: unknown word 'JUMP'"),
+        ("bom-then-bad-move", "\ufeff" + "MOVE 1, 2\n" + COOP, "A.coop:1:10: MOVE needs 3 numbers"),
+        ("second-bom", "\ufeff\ufeff" + COOP, "A.coop:1:1: unknown word"),
     ]
     return cases
 
@@ -320,6 +325,19 @@ def test_a_broken_program_is_refused_in_one_line(tmp_path, capsys, case):
         args = ["simulate", "--manifest", tmp_path / "in" / "m.toml", "--out", tmp_path / "out", "-q"]
     line = assert_rejected(args, capsys, watch=[tmp_path], contains=needle)
     assert "A.coop" in line
+
+
+def test_a_program_with_a_byte_order_mark_reads_as_without(tmp_path):
+    """Windows editors start UTF-8 files with a BOM: the compiled sweep and the line parser
+    (an annotation with an odd spacing goes to the latter) both read past it."""
+    from cooprint.program.commands import parse_coop, read_coop
+
+    for text in (COOP, COOP.replace(";@layer 0 0.2", ";@layer  0   0.2"), ";@chunk C\n" + COOP):
+        plain = parse_coop(text, "A")
+        (tmp_path / "A.coop").write_bytes(b"\xef\xbb\xbf" + text.encode())
+        marked = read_coop(tmp_path / "A.coop")
+        assert parse_coop("\ufeff" + text, "A") == plain and marked == plain
+        assert len(plain) == 7
 
 
 def test_a_program_spanning_two_kilometres_simulates(tmp_path, capsys):

@@ -166,6 +166,22 @@ def _file_where_folder(tmp: Path, world: dict, name: str) -> Path:
     return job
 
 
+def _linked(tmp: Path, world: dict, name: str) -> Path:
+    """A bundle whose own entry ``name`` (a folder or a file) is a symlink to a copy elsewhere:
+    writing the bundle must not change the copy (the test folder is watched)."""
+    job = _bundle_copy(tmp, world)
+    (tmp / "elsewhere").mkdir()
+    away = tmp / "elsewhere" / Path(name).name
+    if (job / name).is_dir():
+        shutil.copytree(job / name, away)
+        shutil.rmtree(job / name)
+    else:
+        shutil.copy(job / name, away)
+        (job / name).unlink()
+    (job / name).symlink_to(away)
+    return job
+
+
 #: Folder destinations of `chunk` and `run`: (name, make(tmp, world) -> (destination, mesh or None), --force, words)
 PLAN = [
     ("file-where-folder-belongs", lambda t, w: (_plain_file(t), None), True, "plain.txt"),
@@ -179,6 +195,10 @@ PLAN = [
     ("chunks-is-a-file", lambda t, w: (_file_where_folder(t, w, "chunks"), None), True, "chunks: a file where"),
     ("robots-is-a-file", lambda t, w: (_file_where_folder(t, w, "robots"), None), True, "robots: a file where"),
     ("sim-is-a-file", lambda t, w: (_file_where_folder(t, w, "sim"), None), True, "sim: a file where"),
+    ("chunks-is-a-symlink", lambda t, w: (_linked(t, w, "chunks"), None), True, "chunks: is a symlink"),
+    ("robots-is-a-symlink", lambda t, w: (_linked(t, w, "robots"), None), True, "robots: is a symlink"),
+    ("job-json-is-a-symlink", lambda t, w: (_linked(t, w, "job.json"), None), True, "job.json: is a symlink"),
+    ("a-program-is-a-symlink", lambda t, w: (_linked(t, w, "robots/A.coop"), None), True, "A.coop: is a symlink"),
     ("input-folder-force", lambda t, w: (w["mesh"].parent, None), True, "an input of this command"),
     ("input-inside-bundle", lambda t, w: (_bundle_copy(t, w), "copy"), True, "an input of this command"),
 ]
@@ -210,6 +230,13 @@ def _sim_file(tmp: Path, world: dict, kind: str) -> Path:
         target.mkdir()
     elif kind == "summary-fifo":
         os.mkfifo(target)
+    elif kind == "summary-symlink":
+        (tmp / "away.json").write_text('{"format": "cooprint-sim/1"}')
+        target.symlink_to(tmp / "away.json")
+    elif kind == "sim-symlink":
+        sim.rmdir()
+        (tmp / "away").mkdir()
+        sim.symlink_to(tmp / "away")
     return job
 
 
@@ -222,6 +249,9 @@ DERIVED = [
     ("simulate-user-summary", "user-summary", lambda j: ["simulate", j, "-q"], "use --force"),
     ("simulate-summary-is-a-folder", "summary-folder", lambda j: ["simulate", j, "-q", "--force"], "is a folder"),
     ("simulate-summary-is-a-fifo", "summary-fifo", lambda j: ["simulate", j, "-q", "--force"], "FIFO"),
+    ("simulate-sim-is-a-symlink", "sim-symlink", lambda j: ["simulate", j, "-q", "--force"], "sim: is a symlink"),
+    ("render-sim-is-a-symlink", "sim-symlink", lambda j: ["render", j, "--format", "gantt"], "sim: is a symlink"),
+    ("simulate-summary-is-a-symlink", "summary-symlink", lambda j: ["simulate", j, "-q"], "summary.json: is a symlink"),
     ("render-into-job-json", "none", lambda j: ["render", j, "--out", j / "job.json", "--force"], "part of the cooprint bundle"),
     ("render-into-a-program", "none", lambda j: ["render", j, "--out", j / "robots" / "A.gcode", "--force"],
      "part of the cooprint bundle"),
@@ -273,3 +303,34 @@ def test_a_bundle_is_recognised_by_its_marker_only(world, tmp_path):
     assert is_derived_output(world["bundle"] / "sim" / "gantt.png")
     assert not is_derived_output(world["bundle"] / "sim" / "notes.png")
     assert not is_derived_output(tmp_path / "sim" / "summary.json")
+
+
+def test_a_line_break_in_the_mesh_name_stays_in_the_comment(world, tmp_path, capsys):
+    """A file name holding newlines (and a Unicode line separator) is escaped in the G-code and
+    .coop headers: no live G28/M104 line appears, and cooprint simulates its own bundle."""
+    evil = tmp_path / "evil\nG28 X0\nM104 S999\u2028M84 é.stl"
+    shutil.copy(world["mesh"], evil)
+    gcode, bundle = tmp_path / "part.gcode", tmp_path / "bundle"
+    assert main(["slice", str(evil), "--out", str(gcode), "-q"]) == 0
+    assert main(["run", str(evil), "--out", str(bundle), "-q", "--no-picture"]) == 0
+    for f in [gcode, *sorted((bundle / "robots").iterdir())]:
+        text = f.read_text(encoding="utf-8")
+        assert "\u2028" not in text and "\x85" not in text
+        lines = text.splitlines()
+        assert not any(ln.startswith(("G28 X0", "M104 S999", "M84 ")) for ln in lines), f
+        assert any("evil\\nG28 X0\\nM104 S999" in ln and ln.startswith(";") for ln in lines), f
+    capsys.readouterr()
+    assert main(["simulate", str(bundle), "-q"]) == 0
+
+
+@pytest.mark.parametrize("text, ascii_only, expected", [
+    ("a\nb\rc\td", False, "a\\nb\\rc\\td"),
+    ("x\x85y\u2028z\u2029w\x1b\x00\x7f", False, "x\\x85y\\u2028z\\u2029w\\x1b\\x00\\x7f"),
+    ("pièce", False, "pièce"), ("pièce", True, "pi\\xe8ce"), ("\U0001f600", True, "\\U0001f600"),
+])
+def test_comment_safe_leaves_one_visible_line(text, ascii_only, expected):
+    from cooprint.program.comment import COMMENT_LIMIT, comment_safe
+
+    assert comment_safe(text, ascii_only=ascii_only) == expected
+    long = comment_safe("\n" * 5000)
+    assert len(long) == COMMENT_LIMIT and long.endswith("...") and "\n" not in long

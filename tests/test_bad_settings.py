@@ -143,7 +143,7 @@ def test_a_fifo_as_config_is_refused_without_blocking(tmp_path, capsys, part, na
     fifo = tmp_path / "settings.toml"
     os.mkfifo(fifo)  # nobody ever writes to it: reading it would block forever
     assert_rejected(command(name, part, tmp_path / "out", ["--config", fifo]), capsys, [part.parent],
-                    contains="is a FIFO; expected a TOML settings file")
+                    contains="settings.toml: is a named pipe (FIFO), not a settings file")
 
 
 @pytest.mark.parametrize("name", COMMANDS)

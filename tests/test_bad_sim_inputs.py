@@ -5,10 +5,15 @@ line naming the file and the field, no traceback, and leave the bundle or folder
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 import shutil
 
 import pytest
 
+import cooprint
 from badinput import assert_rejected
 from cooprint.jobs import run
 
@@ -122,7 +127,8 @@ JOB_CASES = [
     ("program-dotdot", _set(R1 + ("program",), "robots/../../x.coop"), "robots[1].program"),
     ("program-backslash", _set(R1 + ("program",), "robots\\B.coop"), "robots[1].program"),
     ("program-missing", _set(R0 + ("program",), "robots/nope.coop"), "no such program file"),
-    ("program-folder", _set(R0 + ("program",), "robots"), "no such program file"),
+    ("program-folder", _set(R0 + ("program",), "robots"),
+     "robots[0].program: expected a program file in the bundle, not a folder"),
     ("program-number", _set(R0 + ("program",), 7), "robots[0].program: expected a path"),
     ("program-empty", _set(R0 + ("program",), ""), "robots[0].program"),
     ("program-nul", _set(R0 + ("program",), "robots/A.coop\x00"), "robots[0].program"),
@@ -328,6 +334,8 @@ def _files(tmp_path):
 MIX_CASES = [
     ("coop-and-gcode", ["A.coop", "B.gcode"], "both .coop and G-code files"),
     ("bundle-and-file", ["BUNDLE", "B.gcode"], "a bundle folder is simulated alone"),
+    ("two-bundles", ["BUNDLE", "BUNDLE"], "one bundle at a time"),
+    ("two-bundles-no-out", ["BUNDLE", "BUNDLE", "NO-OUT"], "one bundle at a time"),
     ("manifest-and-file", ["--manifest", "m.toml", "A.coop"], "give no input files with it"),
     ("text-file", ["notes.txt"], "notes.txt: expected a bundle folder"),
     ("same-file-twice", ["B.gcode", "B.gcode"], "the same file given twice"),
@@ -347,8 +355,9 @@ MIX_CASES = [
 def test_inputs_mixed_wrongly(bundle, tmp_path, capsys, monkeypatch, args, needle):
     _files(tmp_path)
     monkeypatch.chdir(tmp_path)
-    args = [str(bundle) if a == "BUNDLE" else a for a in args]
-    assert_rejected(["simulate", *args, "--out", tmp_path / "o"], capsys, watch=[tmp_path, bundle], contains=needle)
+    out = [] if "NO-OUT" in args else ["--out", tmp_path / "o"]
+    args = [str(bundle) if a == "BUNDLE" else a for a in args if a != "NO-OUT"]
+    assert_rejected(["simulate", *args, *out], capsys, watch=[tmp_path, bundle], contains=needle)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -393,3 +402,51 @@ def test_any_value_anywhere_in_job_json_loads_or_is_a_user_error(bundle, tmp_pat
         assert "\n" not in str(exc) and len(str(exc)) < 600 and "job.json" in str(exc)
     else:
         assert [r.name for r in inp.robots] == [r["name"] for r in record["robots"]]
+
+
+# ------------------------------------------------------------------------------------------------
+# named pipes (FIFOs) as inputs: opening one for reading would block for ever, so each case runs
+# the CLI in a subprocess with a timeout (a hang fails the test instead of hanging the suite)
+
+def _fifo_case(root, bundle, case):
+    """Make the FIFO of ``case`` under ``root``; return the arguments of ``cooprint``."""
+    if case in ("job.json", "robots/A.coop"):
+        copy = root / "job"
+        shutil.copytree(bundle, copy)
+        (copy / case).unlink()
+        os.mkfifo(copy / case)
+        return ["simulate", copy, "--out", root / "o"]
+    os.mkfifo(root / case)
+    (root / "m2.toml").write_text(ROBOT.replace("A.coop", "A2.coop"))
+    return {
+        "A2.coop": ["simulate", "--manifest", "m2.toml", "--out", "o"],
+        "f.gcode": ["simulate", "f.gcode", "--out", "o"],
+        "f.coop": ["simulate", "f.coop", "--out", "o"],
+        "m.toml": ["simulate", "--manifest", "m.toml", "--out", "o"],
+        "f.stl": ["run", "f.stl", "--out", "o"],
+        "s.toml": ["chunk", "f2.stl", "--config", "s.toml", "--out", "o"],
+    }[case]
+
+
+FIFO_CASES = [("f.gcode", "f.gcode: is a named pipe (FIFO), not a G-code file"),
+              ("f.coop", "f.coop: is a named pipe (FIFO), not a command file"),
+              ("m.toml", "m.toml: is a named pipe (FIFO), not a manifest"),
+              ("A2.coop", "robots[1].program: expected a .coop file, not a folder, a named pipe (FIFO)"),
+              ("f.stl", "f.stl: is a named pipe (FIFO), not a mesh file"),
+              ("s.toml", "s.toml: is a named pipe (FIFO), not a settings file"),
+              ("job.json", "job.json: is a named pipe (FIFO), not a job.json"),
+              ("robots/A.coop", "robots[0].program: expected a program file in the bundle, not a folder, a named pipe")]
+
+
+@pytest.mark.parametrize("case, needle", FIFO_CASES, ids=[c[0] for c in FIFO_CASES])
+def test_a_fifo_input_is_refused_at_once(bundle, tmp_path, case, needle):
+    to_trimesh(box(10, 10, 10)).export(tmp_path / "f2.stl")
+    args = [str(a) for a in _fifo_case(tmp_path, bundle, case)]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(cooprint.__file__).parents[1]),
+                                                       os.environ.get("PYTHONPATH", "")]))
+    done = subprocess.run([sys.executable, "-m", "cooprint", *args], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=20)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr[-800:]
+    assert lines[0].startswith("cooprint: error: ") and needle in lines[0], lines[0]
+    assert not (tmp_path / "o").exists()

@@ -140,6 +140,16 @@ def test_info_reports_mesh_and_limits(car_stl, capsys):
     assert "triangles" in out and "volume" in out and "theta_max 75.96 deg" in out
 
 
+def test_no_arguments_prints_the_help(capsys):
+    """`cooprint` alone prints the usual multi-line help on stdout, exit 0; a command missing its
+    argument stays a one-line usage error, exit 2."""
+    code, out, err = run_cli([], capsys)
+    assert code == 0 and out.startswith("Usage: cooprint") and "Commands:" in out and not err
+    assert len(out.splitlines()) > 5
+    code, out, err = run_cli(["run"], capsys)
+    assert code == 2 and err.strip().splitlines() == ["cooprint: error: Missing argument 'MESH'."]
+
+
 def test_help_on_every_command(capsys):
     for args in (["--help"], ["chunk", "--help"], ["info", "--help"]):
         code, out, _ = run_cli(args, capsys)

@@ -141,7 +141,7 @@ def test_non_finite_and_absurd_coordinates(tmp_path, cube_tm, value, needle):
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(MeshError, match="no such file"):
+    with pytest.raises(MeshError, match="nope.stl: no such mesh file"):
         load_mesh(tmp_path / "nope.stl")
 
 

@@ -338,3 +338,37 @@ def test_ctrl_c_leaves_no_process_and_no_temporary_file(tmp_path):
                 else:
                     assert out.stat().st_size > 0
     assert sum(code == 130 for _, _, code in outcomes) >= len(outcomes) // 2, outcomes
+
+
+def test_an_mp4_is_written_quietly(planned, tmp_path, capfd):
+    """ffmpeg's own output (a warning for a 2-frame video) never reaches the terminal."""
+    out = tmp_path / "short.mp4"
+    assert main(["render", str(planned), "--format", "mp4", "--duration", "0.5", "--fps", "4", "--out", str(out)]) == 0
+    captured = capfd.readouterr()
+    assert captured.err == "" and f"wrote {out}" in captured.out
+    assert out.stat().st_size > 0 and os.listdir(tmp_path) == ["short.mp4"]
+
+
+FFMPEG_FAILURES = [  # (what the fake ffmpeg says last, the one line expected)
+    ("av_interleaved_write_frame(): No space left on device", "a.mp4: cannot write: No space left on device (ENOSPC)"),
+    ("Unknown encoder 'libx264'", "a.mp4: cannot write: ffmpeg failed (exit 1): Unknown encoder 'libx264'"),
+]
+
+
+@pytest.mark.parametrize("said, expected", FFMPEG_FAILURES, ids=["full-disk", "no-encoder"])
+def test_an_mp4_that_ffmpeg_cannot_write_is_one_line(planned, tmp_path, capfd, monkeypatch, said, expected):
+    """ffmpeg failing (a full disk, faked by an ffmpeg that prints six lines and stops) is one
+    line naming the file and ffmpeg's reason; nothing is left behind, nothing reaches stderr else."""
+    import imageio_ffmpeg
+
+    fake = tmp_path / "bin" / "ffmpeg"
+    fake.parent.mkdir()
+    fake.write_text("#!/bin/sh\nfor i in 1 2 3 4 5; do echo \"ffmpeg line $i\" >&2; done\n"
+                    f"echo \"{said}\" >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setattr(imageio_ffmpeg, "get_ffmpeg_exe", lambda: str(fake))
+    (tmp_path / "out").mkdir()
+    code = main(["render", str(planned), "--format", "mp4", "--duration", "2", "--out", str(tmp_path / "out" / "a.mp4")])
+    err = capfd.readouterr().err
+    assert code == 2 and err.splitlines() == [f"cooprint: error: {tmp_path / 'out'}/{expected}"], err
+    assert os.listdir(tmp_path / "out") == []

@@ -387,6 +387,10 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
         return Path(out) / "sim"
     if len(inputs) == 1 and Path(inputs[0]).is_dir():
         return Path(inputs[0]) / "sim"
+    folders = [x for x in inputs if Path(x).is_dir()]
+    if folders:
+        raise UserError(f"{folders[0]}: a bundle folder is simulated alone (one bundle at a time), "
+                        f"not with other inputs (got {len(inputs)} inputs)")
     raise UserError("simulating files: give --out DIR for the results (DIR/sim/summary.json)")
 
 
@@ -573,6 +577,9 @@ def main(argv: list[str] | None = None) -> int:
         return exc.exit_code
     except (Interrupted, click.exceptions.Abort, KeyboardInterrupt):
         return _interrupted()
+    except click.exceptions.NoArgsIsHelpError as exc:  # `cooprint` alone: the help, as asked for
+        click.echo(exc.ctx.get_help() if exc.ctx is not None else cli.get_help(click.Context(cli)))
+        return 0
     except click.ClickException as exc:  # a bad option or argument: one line too, no usage block
         if verbose:
             raise

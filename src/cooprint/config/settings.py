@@ -30,8 +30,6 @@ from __future__ import annotations
 
 import difflib
 import math
-import os
-import stat
 import tomllib
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -387,16 +385,9 @@ def parse_fraction(text: str, option: str = "--infill") -> float:
 def _read_toml(path: Path) -> dict[str, Any]:
     """A settings file, which must be a regular file (a FIFO or a device would block the read or
     never end) of at most ``MAX_SETTINGS_BYTES``."""
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such settings file") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read settings file ({exc.strerror})") from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = ("a folder" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode)
-                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a plain file")
-        raise ConfigError(f"{path}: is {kind}; expected a TOML settings file")
+    from cooprint.io.files import regular_file
+
+    st = regular_file(path, "settings file", ConfigError)
     if st.st_size > MAX_SETTINGS_BYTES:
         raise ConfigError(f"{path}: {st.st_size:,} bytes; a settings file is at most {MAX_SETTINGS_BYTES:,}")
     try:

@@ -20,7 +20,10 @@ Writing a bundle (:func:`atomic_dir`):
   write: ...").
 
 ``--force`` is refused on a non-empty folder that is not a bundle, and on a folder that holds
-an input of the command. Single files (:func:`atomic_file`) are written beside their
+an input of the command. cooprint never writes through a symlink: a bundle whose own entries
+(``chunks/``, ``robots/``, ``sim/``, ``job.json``, any file it would replace, ``sim/summary.json``
+...) are symlinks is refused before any work, since following them would change files outside
+the bundle while reporting them as "kept". Single files (:func:`atomic_file`) are written beside their
 destination and renamed over it; an existing file is replaced only with ``force``, or when it
 is one of cooprint's derived outputs in a bundle's ``sim/``.
 """
@@ -154,15 +157,30 @@ def _check_replaceable(p: Path, out: str | Path, force: bool) -> None:
     if not force:
         raise OutputError(f"{out}: holds a cooprint bundle; use --force to replace it "
                           "(files cooprint did not write are kept)")
+    listed = _listed_files(bundle_record(p))
+    _refuse_links(p, out, [*BUNDLE_FOLDERS, *(f for f in _walk(p)[0] if owned(f, listed))])
     _check_layout(p, out, BUNDLE_FOLDERS, ("job.json", "chunks.png"))
+
+
+def _refuse_links(p: Path, shown: str | Path, names: Iterable[str]) -> None:
+    """Refuse a symlink among the entries of ``p`` that cooprint replaces or writes into (a
+    bundle's ``chunks/``, ``robots/``, ``sim/``, ``job.json`` ...): writing there would change
+    files outside the bundle, which cooprint never does."""
+    for name in names:
+        if os.path.islink(p / name):
+            raise OutputError(f"{Path(shown) / name}: is a symlink (to {os.readlink(p / name)}) where cooprint "
+                              "writes its own output; cooprint never writes through symlinks: replace it "
+                              "by a real file or folder, or choose another --out")
 
 
 def check_sim_folder(folder: str | Path, need_bytes: int = 0) -> Path:
     """Check ``DIR/sim`` before writing derived outputs into it: it may be missing (it is made),
     must be a folder if it exists, and its parent must exist and be writable."""
     p = check_output(folder, folder=True, probe=False)
+    _refuse_links(p.parent, Path(folder).parent, [p.name])  # a bundle's sim/ linked elsewhere
     if p.exists():
         _check_layout(p, folder, (), ())
+        _refuse_links(p, folder, [n for n in os.listdir(p) if SIM_NAMES.fullmatch(n)])
     check_writable(folder, folder=True, need_bytes=need_bytes)
     return p
 
@@ -171,7 +189,7 @@ def _check_layout(p: Path, shown: str | Path, folders: Iterable[str], files: Ite
     """Refuse plain files where cooprint writes folders, and folders where it writes files."""
     for name in folders:
         q = p / name
-        if os.path.lexists(q) and not q.is_dir():
+        if os.path.lexists(q) and not os.path.islink(q) and not q.is_dir():
             raise OutputError(f"{Path(shown) / name}: a file where cooprint writes a folder; move it away")
     for name in files:
         q = p / name
@@ -319,6 +337,9 @@ def check_file_destination(out: str | Path, force: bool = False, inputs: Iterabl
     not an input of the command, and not an existing file unless ``force`` or it is one of
     cooprint's derived outputs (:func:`is_derived_output`). Returns the absolute path."""
     p = check_output(out, folder=False, create_parents=create_parents, probe=False)
+    if p.parent.name == "sim" and SIM_NAMES.fullmatch(p.name):  # a derived output: never through a link
+        _refuse_links(p.parent.parent, Path(out).parent.parent, ["sim"])
+        _refuse_links(p.parent, Path(out).parent, [p.name])
     same = same_file_as_input(p, inputs)
     if same is not None:
         raise OutputError(f"{out}: is {same}, an input of this command; choose another --out")

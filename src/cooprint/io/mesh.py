@@ -30,6 +30,7 @@ from cooprint.config import MeshSettings
 from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
                                open_edges, signed_volume, winding_consistent)
 from cooprint.errors import MeshError
+from cooprint.io.files import regular_file
 
 FORMATS = ("stl", "obj", "ply", "3mf")
 #: Largest decompressed input read, bytes (a 20M-triangle binary STL is 1 GB).
@@ -112,8 +113,7 @@ def _format(path: Path) -> tuple[str, bool]:
     if fmt not in FORMATS:
         raise MeshError(f"{path}: unknown mesh format {fmt or '(no extension)'!r}; expected one of "
                         + ", ".join(f".{f}" for f in FORMATS) + " (optionally .gz)")
-    if not path.is_file():
-        raise MeshError(f"{path}: no such file")
+    regular_file(path, "mesh file", MeshError)  # a FIFO would block the read for ever
     return fmt, gz
 
 
@@ -178,6 +178,8 @@ def _check_stl(path: Path, data: bytes) -> int | None:
         if b"endsolid" not in data[-4096:].lower():
             raise MeshError(f"{path}: ASCII STL has no 'endsolid' line (truncated?)")
         return None
+    if head.startswith(b"solid") and b"endsolid" in data[-4096:].lower():
+        raise MeshError(f"{path}: empty file (an ASCII STL without triangles)")
     if len(data) < 84:
         raise MeshError(f"{path}: too short for a binary STL ({len(data)} bytes, need at least 84)")
     raise MeshError(f"{path}: binary STL header says {n} triangles ({84 + 50 * n} bytes) but the "

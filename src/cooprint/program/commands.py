@@ -53,6 +53,8 @@ import numpy as np
 from cooprint.errors import UserError
 from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
+from cooprint.io.files import regular_file
+from cooprint.program.comment import comment_safe
 
 #: Command kinds.
 MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT = range(5)
@@ -243,9 +245,9 @@ def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> Non
 
     Runs of MOVEs with the same annotations are formatted in one operation each.
     """
-    out.write(f"; {FORMAT} program for robot {program.robot}\n")
+    out.write(f"; {FORMAT} program for robot {comment_safe(program.robot)}\n")
     for line in header:
-        out.write(f"; {line}\n")
+        out.write(f"; {comment_safe(line)}\n")
     p = program
     n = len(p)
     turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
@@ -458,6 +460,10 @@ class _Lines:
         return "ann", "path", (_ROLE_OF_WORD[vals[0]], width)
 
 
+#: The UTF-8 byte-order mark, which a ``.coop`` file may start with.
+UTF8_BOM = b"\xef\xbb\xbf"
+
+
 def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<program>") -> Program:
     """Read ``.coop`` text into a :class:`Program`.
 
@@ -476,6 +482,8 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
     from cooprint.program.scan import LAYER_LINE, PATH_LINE, sweep  # numba: on first use
 
     data = text.encode() if isinstance(text, str) else text
+    if bytes(data[:3]) == UTF8_BOM:  # Windows editors start UTF-8 text with one: it is not part of line 1
+        data = memoryview(data)[3:]  # for the compiled sweep and the line parser alike (no copy of an mmap)
     swept = sweep(data)
     kind_of, xyz_of = swept.kind, swept.xyz  # per slot: a command, or a line for the line parser
     lines = _Lines(source, robot)
@@ -542,6 +550,7 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
     """Read a ``.coop`` file; the robot's name defaults to the file's stem. The file is mapped,
     not copied: its pages stay the page cache's."""
     p = Path(path)
+    regular_file(p, "command file", ProgramError)  # a FIFO would block the read for ever
     try:
         with open(p, "rb") as f:
             try:

@@ -4,7 +4,11 @@ nozzle), and a Gantt chart of who prints, travels and waits when."""
 
 from __future__ import annotations
 
+import errno
 import math
+import os
+import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -159,6 +163,88 @@ def frame_times(makespan: float, fps: float, duration: float | None = None, spee
     return np.linspace(0.0, makespan, frame_count(makespan, fps, duration, speedup, gif))
 
 
+class Mp4Encoder:
+    """ffmpeg (from imageio-ffmpeg) encoding raw RGB frames from its stdin into an H.264 MP4.
+
+    Quiet: ffmpeg runs at log level ``error`` and its stderr goes to a temporary file, never to
+    the user's terminal (a 2-frame video would otherwise print a warning, a full disk six
+    lines). A failure (ffmpeg gone, a broken pipe, a non-zero exit) becomes one ``OSError``
+    whose text is ffmpeg's last error line, with the errno of a full disk, a read-only file
+    system, a permission or quota problem when ffmpeg names one; the atomic writer turns it
+    into ``OUT: cannot write: ...`` naming the user's file."""
+
+    #: The OS errors ffmpeg reports by their text (``No space left on device``).
+    ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EFBIG, errno.EIO)
+
+    def __init__(self, path: str | Path, size: tuple[int, int], fps: float, crf: int = 15):
+        import imageio_ffmpeg
+
+        w, h = size
+        cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-f", "rawvideo", "-vcodec", "rawvideo",
+               "-s", f"{w}x{h}", "-pix_fmt", "rgb24", "-r", f"{fps:.02f}", "-i", "-", "-an",
+               "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf)]
+        if w % 8 or h % 8:  # players want whole macro blocks (as imageio-ffmpeg's default)
+            cmd += ["-vf", f"scale={-(-w // 8) * 8}:{-(-h // 8) * 8}"]
+        cmd += ["-v", "error", "-f", "mp4", str(path)]
+        self.log = tempfile.TemporaryFile()
+        try:  # its own session: a Ctrl-C reaches cooprint, which stops it, not ffmpeg half-way
+            self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                                         stderr=self.log, start_new_session=True)
+        except OSError as exc:
+            self.log.close()
+            raise OSError(exc.errno, f"cannot start ffmpeg ({exc.strerror or exc})") from None
+
+    def send(self, frame: bytes) -> None:
+        """Encode one frame (``w * h * 3`` bytes, RGB)."""
+        try:
+            self.proc.stdin.write(frame)  # type: ignore[union-attr]
+        except OSError as exc:  # ffmpeg stopped (a full disk): its own reason is the better one
+            self._fail(exc)
+
+    def close(self) -> None:
+        """Finish the file; an ``OSError`` if ffmpeg did not."""
+        try:
+            self.proc.stdin.close()  # type: ignore[union-attr]
+        except OSError as exc:
+            self._fail(exc)
+        if self.proc.wait() != 0:
+            self._fail(None)
+        self.log.close()
+
+    def abort(self) -> None:
+        """Stop ffmpeg (on an error or a Ctrl-C elsewhere); the caller removes the file."""
+        self._stop(kill=True)
+        self.log.close()
+
+    def _stop(self, kill: bool) -> None:
+        """Close ffmpeg's input and wait for it (killed at once with ``kill``, else after 10 s)."""
+        try:
+            self.proc.stdin.close()  # type: ignore[union-attr]
+        except OSError:  # a broken pipe: ffmpeg is gone already
+            pass
+        if kill and self.proc.poll() is None:
+            self.proc.kill()
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+    def _fail(self, exc: OSError | None) -> None:
+        """Raise ffmpeg's own last error line as one ``OSError`` (see the class docstring)."""
+        self._stop(kill=False)
+        self.log.seek(0)
+        lines = [ln.strip() for ln in self.log.read().decode("utf-8", "replace").splitlines() if ln.strip()]
+        self.log.close()
+        said = lines[-1][:200] if lines else None
+        for code in self.ERRNOS:
+            if said and os.strerror(code) in said:
+                raise OSError(code, os.strerror(code)) from None
+        if exc is not None and said is None:
+            raise OSError(exc.errno, f"ffmpeg stopped ({exc.strerror or exc})") from None
+        raise OSError(None, f"ffmpeg failed (exit {self.proc.returncode}): {said or 'no message'}") from None
+
+
 def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, duration: float | None = None,
                      speedup: float | None = None, size: tuple[int, int] = (1280, 720),
                      azimuth_deg: float = -35.0, elevation_deg: float = 30.0) -> Path:
@@ -177,11 +263,7 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
     frames: list[Image.Image] = []
     writer = None
     if not gif:
-        import imageio_ffmpeg
-
-        writer = imageio_ffmpeg.write_frames(str(path), size, fps=fps, codec="libx264", quality=7,
-                                             macro_block_size=8, output_params=["-f", "mp4"])
-        writer.send(None)
+        writer = Mp4Encoder(path, size, fps)
     try:
         for t in times.tolist():
             partial = []
@@ -203,9 +285,12 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
                 frames.append(frame.quantize(colors=128))
             else:
                 writer.send(np.asarray(frame).tobytes())  # type: ignore[union-attr]
-    finally:
         if writer is not None:
             writer.close()
+            writer = None
+    finally:
+        if writer is not None:  # an error or a Ctrl-C while drawing: ffmpeg stops, the file is removed
+            writer.abort()
     if gif:
         frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps),
                        loop=0)

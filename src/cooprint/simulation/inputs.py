@@ -17,6 +17,7 @@ import numpy as np
 from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path)
+from cooprint.io.files import regular_file
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
@@ -100,6 +101,7 @@ def check_settings(data: Any, where: str, path: str, sections: Iterable[str] | N
 
 def _read_structured(path: Path, kind: str, parse) -> Any:
     """The parsed content of a JSON or TOML file, or a one-line error naming it."""
+    regular_file(path, kind, SimInputError)  # a FIFO would block the read for ever
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -132,7 +134,8 @@ def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
     if not inside:
         raise fail(where, path, "expected a path inside the bundle (it leads outside)", value)
     if not full.is_file():
-        raise fail(where, path, "no such program file in the bundle", value)
+        raise fail(where, path, "no such program file in the bundle" if not full.exists() else
+                   "expected a program file in the bundle, not a folder, a named pipe (FIFO) or a device", value)
     return full
 
 
@@ -265,7 +268,8 @@ def load_manifest(path: str | Path) -> SimInput:
                               hi=FACING_LIMIT, unit="degrees")
         file = p.parent / prog
         if not file.is_file():
-            raise fail(where, at + ".program", f"no such .coop file ({file})", prog)
+            raise fail(where, at + ".program", f"no such .coop file ({file})" if not file.exists() else
+                       f"expected a .coop file, not a folder, a named pipe (FIFO) or a device ({file})", prog)
         program = read_coop(file, name)
         robots.append(SimRobot(name, program, None if start is None else np.asarray(start, float), _facing(facing)))
     return SimInput(robots, settings.robot, settings.slicing, where)
@@ -332,6 +336,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     from cooprint.simulation.gcode import gcode_rows  # numba: on first use
 
     p = Path(path)
+    regular_file(p, "G-code file", SimInputError)  # a FIFO would block the read for ever
     try:
         data = p.read_bytes()
     except FileNotFoundError:
@@ -474,7 +479,8 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     dirs = [x for x in paths if Path(x).is_dir()]
     if dirs:
         if len(paths) > 1:
-            raise SimInputError(f"{dirs[0]}: a bundle folder is simulated alone, not with other inputs")
+            raise SimInputError(f"{dirs[0]}: a bundle folder is simulated alone (one bundle at a time), "
+                                 "not with other inputs")
         return load_bundle(paths[0])
     missing = [x for x in paths if not Path(x).exists()]
     if missing:
