@@ -431,7 +431,7 @@ def _fifo_case(root, bundle, case):
 FIFO_CASES = [("f.gcode", "f.gcode: is a named pipe (FIFO), not a G-code file"),
               ("f.coop", "f.coop: is a named pipe (FIFO), not a command file"),
               ("m.toml", "m.toml: is a named pipe (FIFO), not a manifest"),
-              ("A2.coop", "robots[1].program: expected a .coop file, not a folder, a named pipe (FIFO)"),
+              ("A2.coop", "robots[0].program: expected a .coop file, not a folder, a named pipe (FIFO)"),
               ("f.stl", "f.stl: is a named pipe (FIFO), not a mesh file"),
               ("s.toml", "s.toml: is a named pipe (FIFO), not a settings file"),
               ("job.json", "job.json: is a named pipe (FIFO), not a job.json"),
