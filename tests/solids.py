@@ -87,3 +87,18 @@ def hollow(x: float = 120.0, y: float = 300.0, z: float = 50.0, wall: float = 10
 def sheet(x: float = 300.0, y: float = 600.0, z: float = 1.6) -> m3d.Manifold:
     """A sheet two coarse layers thick: its centre chunk (a thin wedge) has nothing to print."""
     return box(x, y, z)
+
+
+#: Thick lines and layers for plans in tests: the same plan logic, a fraction of the work.
+COARSE = {"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0, "slicing.extrusion_width": 1.6,
+          "slicing.nozzle_diameter": 1.2}
+
+
+def bar_bundle(root, height: float):
+    """A real two-robot bundle of `cooprint run` in ``root / "job"``: a 40 x 420 mm bar
+    (deeper than the build depth, so cut: A prints C then L1, B waits for C, then prints R1)."""
+    from cooprint.jobs import run
+
+    to_trimesh(box(40, 420, height)).export(root / "bar.stl")
+    run(root / "bar.stl", root / "job", overrides=COARSE, picture=False)
+    return root / "job"

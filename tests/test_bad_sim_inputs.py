@@ -15,21 +15,16 @@ import pytest
 
 import cooprint
 from badinput import assert_rejected
-from cooprint.jobs import run
 
-from solids import box, to_trimesh
+from solids import bar_bundle, box, to_trimesh
 
-COARSE = {"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0, "slicing.extrusion_width": 1.6,
-          "slicing.nozzle_diameter": 1.2}
 
 
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory):
     """A real two-robot bundle of `cooprint run`, written once for the module."""
     root = tmp_path_factory.mktemp("badsim")
-    to_trimesh(box(40, 420, 6)).export(root / "bar.stl")
-    run(root / "bar.stl", root / "job", overrides=COARSE, picture=False)
-    return root / "job"
+    return bar_bundle(root, 6)
 
 
 def _set(path, value):

@@ -23,20 +23,15 @@ from cooprint.simulation.gcode import gcode_rows
 from cooprint.simulation.inputs import coop_facing
 from cooprint.simulation.timeline import wait_estimates
 
-from solids import box, to_trimesh
+from solids import COARSE, bar_bundle, box, to_trimesh
 
-# thick lines and layers: the same plan logic, a fraction of the work
-COARSE = {"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0, "slicing.extrusion_width": 1.6,
-          "slicing.nozzle_diameter": 1.2}
 
 
 @pytest.fixture(scope="module")
 def bundle(tmp_path_factory):
     """A two-robot plan of a 300 mm bar: A prints C then L1, B waits for C, then prints R1."""
     root = tmp_path_factory.mktemp("robotgcode")
-    to_trimesh(box(40, 420, 20)).export(root / "bar.stl")
-    run(root / "bar.stl", root / "job", overrides=COARSE, picture=False)
-    return root / "job"
+    return bar_bundle(root, 20)
 
 
 def _lines(path):

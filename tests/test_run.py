@@ -14,9 +14,7 @@ from cooprint.program.commands import MOVE, NOTIFY, WAIT, read_coop
 from cooprint.slicing import extrusion_area, iter_layers
 from cooprint.slicing.sections import LayerSlicer
 
-# thick lines and layers (like the seed's Fig. 9): the same logic, a fraction of the work
-COARSE = {"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0, "slicing.extrusion_width": 1.6,
-          "slicing.nozzle_diameter": 1.2}
+from solids import COARSE
 
 
 @pytest.fixture(scope="module")
