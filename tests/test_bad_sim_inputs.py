@@ -445,3 +445,20 @@ def test_a_fifo_input_is_refused_at_once(bundle, tmp_path, case, needle):
     assert done.returncode == 2 and len(lines) == 1, done.stderr[-800:]
     assert lines[0].startswith("cooprint: error: ") and needle in lines[0], lines[0]
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("make", ["long-name", "symlink-loop", "manifest-long-program"])
+def test_paths_that_cannot_be_looked_at_are_one_line(tmp_path, capsys, make):
+    """A name longer than the file system allows, or a symlink loop, is an input error (the
+    fuzz found `Path.is_file()` letting the OSError through for a manifest's program)."""
+    long = "a" * 300
+    if make == "long-name":
+        args = ["simulate", tmp_path / f"{long}.gcode", "--out", tmp_path / "o"]
+    elif make == "symlink-loop":
+        (tmp_path / "l1.coop").symlink_to(tmp_path / "l2.coop")
+        (tmp_path / "l2.coop").symlink_to(tmp_path / "l1.coop")
+        args = ["simulate", tmp_path / "l1.coop", "--out", tmp_path / "o"]
+    else:
+        (tmp_path / "m.toml").write_text(f'[[robots]]\nname = "A"\nprogram = "{long}.coop"\n')
+        args = ["simulate", "--manifest", tmp_path / "m.toml", "--out", tmp_path / "o"]
+    assert_rejected(args, capsys, watch=[tmp_path], contains="cannot use this path")

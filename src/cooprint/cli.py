@@ -607,8 +607,10 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-#: OS errors that mean "not possible on this machine, here", not a bug.
-_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG}
+#: OS errors that mean "not possible on this machine, here", not a bug (a path too long or a
+#: symlink loop is the user's path, not cooprint's).
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG,
+                 errno.ENAMETOOLONG, errno.ELOOP}
 
 
 def _interrupted() -> int:

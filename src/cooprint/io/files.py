@@ -42,4 +42,20 @@ def regular_file(path: str | Path, what: str = "file",
     return st
 
 
-__all__ = ["InputFileError", "regular_file"]
+def path_kind(path: str | Path, error: type[UserError] = InputFileError) -> str:
+    """What ``path`` names (symlinks followed): ``"file"`` (regular), ``"folder"``, ``"missing"``
+    or ``"other"`` (a FIFO, a device, a socket). A path that cannot be looked at (a name too
+    long, a symlink loop, no permission on a folder above) is ``error`` in one line, never the
+    ``OSError`` that ``Path.exists()`` lets through."""
+    try:
+        st = os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return "missing"
+    except OSError as exc:
+        raise error(f"{str(path)[:80]}: cannot use this path ({exc.strerror or exc})") from None
+    except ValueError:
+        raise error(f"{str(path)[:80]!r}: not a valid path") from None
+    return "file" if stat.S_ISREG(st.st_mode) else "folder" if stat.S_ISDIR(st.st_mode) else "other"
+
+
+__all__ = ["InputFileError", "path_kind", "regular_file"]

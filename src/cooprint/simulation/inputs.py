@@ -17,7 +17,7 @@ import numpy as np
 from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path)
-from cooprint.io.files import regular_file
+from cooprint.io.files import path_kind, regular_file
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
@@ -133,8 +133,9 @@ def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
         inside = False
     if not inside:
         raise fail(where, path, "expected a path inside the bundle (it leads outside)", value)
-    if not full.is_file():
-        raise fail(where, path, "no such program file in the bundle" if not full.exists() else
+    kind = path_kind(full, SimInputError)
+    if kind != "file":
+        raise fail(where, path, "no such program file in the bundle" if kind == "missing" else
                    "expected a program file in the bundle, not a folder, a named pipe (FIFO) or a device", value)
     return full
 
@@ -267,8 +268,9 @@ def load_manifest(path: str | Path) -> SimInput:
         facing = check_number(e.get("facing_deg", 90.0), where, at + ".facing_deg", lo=-FACING_LIMIT,
                               hi=FACING_LIMIT, unit="degrees")
         file = p.parent / prog
-        if not file.is_file():
-            raise fail(where, at + ".program", f"no such .coop file ({file})" if not file.exists() else
+        kind = path_kind(file, SimInputError)
+        if kind != "file":
+            raise fail(where, at + ".program", f"no such .coop file ({file})" if kind == "missing" else
                        f"expected a .coop file, not a folder, a named pipe (FIFO) or a device ({file})", prog)
         program = read_coop(file, name)
         robots.append(SimRobot(name, program, None if start is None else np.asarray(start, float), _facing(facing)))
@@ -468,7 +470,8 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     moves at its file's feed rates, a ``.coop`` robot at the profile's speeds where it is placed;
     simulating both kinds together would compare two different time and body models. ``settings``
     (``--robot``/``--config``) give the profile of ``.coop`` and G-code robots."""
-    if settings is not None and (manifest or any(Path(x).is_dir() for x in paths)):
+    found = {x: path_kind(x, SimInputError) for x in paths}  # file, folder, missing or other
+    if settings is not None and (manifest or "folder" in found.values()):
         raise SimInputError("--robot/--config apply to .coop and G-code files; a bundle or a manifest "
                             "carries its own settings")
     if manifest:
@@ -476,13 +479,13 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
             raise SimInputError(f"--manifest {manifest} names the programs; give no input files with it "
                                 f"(got {paths[0]})")
         return load_manifest(manifest)
-    dirs = [x for x in paths if Path(x).is_dir()]
+    dirs = [x for x in paths if found[x] == "folder"]
     if dirs:
         if len(paths) > 1:
             raise SimInputError(f"{dirs[0]}: a bundle folder is simulated alone (one bundle at a time), "
                                  "not with other inputs")
         return load_bundle(paths[0])
-    missing = [x for x in paths if not Path(x).exists()]
+    missing = [x for x in paths if found[x] == "missing"]
     if missing:
         raise SimInputError(f"{missing[0]}: no such file or folder")
     kinds = {x: ("gcode" if Path(x).suffix.lower() in GCODE_SUFFIXES else
