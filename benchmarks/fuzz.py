@@ -266,17 +266,24 @@ def _coop_target(tally: Tally, tmp: Path):
     return inputs([COOP]), one
 
 
+def _file_reader(tally: Tally, tmp: Path, name: str, read, seed: bytes):
+    """Each input written to ``tmp / name`` and read by ``read(path)``; one warm-up read of
+    ``seed`` first (imports and compiled code are not timed)."""
+    (tmp / f"warm_{name}").write_bytes(seed)
+    read(tmp / f"warm_{name}")
+
+    def one(data: bytes):
+        path = tmp / name
+        path.write_bytes(data)
+        tally.run(lambda: read(path), data, name)
+
+    return inputs([seed]), one
+
+
 def _gcode_target(tally: Tally, tmp: Path):
     from cooprint.simulation.inputs import read_gcode
 
-    (tmp / "warm.gcode").write_bytes(GCODE)
-    read_gcode(tmp / "warm.gcode")
-    def one(data: bytes):
-        path = tmp / "A.gcode"
-        path.write_bytes(data)
-        tally.run(lambda: read_gcode(path), data, "A.gcode")
-
-    return inputs([GCODE]), one
+    return _file_reader(tally, tmp, "A.gcode", read_gcode, GCODE)
 
 
 def _manifest_target(tally: Tally, tmp: Path):
@@ -284,15 +291,7 @@ def _manifest_target(tally: Tally, tmp: Path):
 
     (tmp / "A.coop").write_bytes(COOP)
     (tmp / "B.coop").write_bytes(b"WAIT C\nMOVE 0, 0, 5\n")
-    (tmp / "warm.toml").write_bytes(MANIFEST)
-    load_manifest(tmp / "warm.toml")
-
-    def one(data: bytes):
-        path = tmp / "m.toml"
-        path.write_bytes(data)
-        tally.run(lambda: load_manifest(path), data, "m.toml")
-
-    return inputs([MANIFEST]), one
+    return _file_reader(tally, tmp, "m.toml", load_manifest, MANIFEST)
 
 
 MAKERS = {"mesh": _mesh_target, "coop": _coop_target, "gcode": _gcode_target, "manifest": _manifest_target}
