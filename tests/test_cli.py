@@ -148,6 +148,8 @@ def test_no_arguments_prints_the_help(capsys):
     assert len(out.splitlines()) > 5
     code, out, err = run_cli(["run"], capsys)
     assert code == 2 and err.strip().splitlines() == ["cooprint: error: Missing argument 'MESH'."]
+    code, out, err = run_cli(["-v"], capsys)  # it raised "Missing command" with a traceback
+    assert code == 0 and out.startswith("Usage: cooprint") and not err
 
 
 def test_help_on_every_command(capsys):

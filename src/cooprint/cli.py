@@ -563,7 +563,8 @@ def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
     verbose = "-v" in args or "--verbose" in args
     if verbose:  # accepted anywhere on the line, not only before the subcommand
-        args = ["--verbose"] + [a for a in args if a not in ("-v", "--verbose")]
+        rest = [a for a in args if a not in ("-v", "--verbose")]
+        args = ["--verbose"] + rest if rest else []  # `cooprint -v` alone: the help, as `cooprint` alone
     try:
         # Ctrl-C while a compiled library loads: after it, not inside it; and never lost
         with held_imports(), sticky_sigint():
