@@ -198,3 +198,38 @@ def test_a_box_missing_one_triangle_names_the_fraction_that_closes_it():
 
     assert "more than mesh.max_hole_fraction allows (10)" in _hole_hint(12.0)  # beyond the field: no setting helps
     assert _hole_hint(10.0).startswith("set mesh.max_hole_fraction >= 10.00 (--set mesh.max_hole_fraction=10)")
+
+
+
+def _cube_3mf(path, edit_model):
+    """A 2 mm cube as a 3MF file at ``path``, its model part's bytes passed through ``edit_model``."""
+    import io
+    import zipfile
+
+    from solids import box, to_trimesh
+
+    src = zipfile.ZipFile(io.BytesIO(to_trimesh(box(2, 2, 2)).export(file_type="3mf")))
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        for name in src.namelist():
+            data = src.read(name)
+            z.writestr(name, edit_model(data) if name.endswith(".model") else data)
+    path.write_bytes(out.getvalue())
+    return path
+
+
+@pytest.mark.parametrize("unit, mm", [("inch", 25.4), ("centimeter", 10.0), ("millimeter", 1.0), (None, 1.0)])
+def test_a_3mf_is_read_in_its_own_unit(tmp_path, unit, mm):
+    """A 3MF states its unit on <model> (millimeter when absent): an inch model was read as mm."""
+    import re
+
+    attr = b"" if unit is None else b' unit="%s"' % unit.encode()
+    solid = load_mesh(_cube_3mf(tmp_path / "m.3mf", lambda d: re.sub(rb'\sunit="[^"]*"', attr, d)))
+    assert np.ptp(solid.bounds, axis=0) == pytest.approx([2 * mm] * 3)
+    assert solid.volume == pytest.approx(8 * mm ** 3)
+
+
+def test_a_3mf_in_an_unknown_unit_is_refused(tmp_path):
+    path = _cube_3mf(tmp_path / "m.3mf", lambda d: d.replace(b'unit="millimeter"', b'unit="furlong"'))
+    with pytest.raises(MeshError, match="3MF model unit 'furlong'; expected one of micron, millimeter"):
+        load_mesh(path)

@@ -438,20 +438,34 @@ def _check_ply(path: Path, data: bytes) -> None:
                         + f": more than the {body} bytes after it hold (truncated?)")
 
 
-def _check_3mf(path: Path, data: bytes) -> None:
+#: The units of the 3MF specification (the ``unit`` attribute of ``<model>``), in mm.
+UNITS_3MF = {"micron": 1e-3, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4, "foot": 304.8, "meter": 1000.0}
+_UNIT_3MF = re.compile(rb"<(?:\w+:)?model\b[^>]*?\sunit\s*=\s*[\"']([^\"']*)[\"']", re.S)
+
+
+def _check_3mf(path: Path, data: bytes) -> float:
     """Refuse a 3MF that is not a zip, has no model part, or would decompress past
-    :data:`MAX_BYTES` (a zip bomb), before a reader unpacks it."""
+    :data:`MAX_BYTES` (a zip bomb), before a reader unpacks it; return the model's unit in mm
+    (its ``<model unit="...">``, millimeter when absent, as the specification says)."""
     try:
         with zipfile.ZipFile(io.BytesIO(data)) as z:
             infos = z.infolist()
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError) as exc:
+            models = [i for i in infos if i.filename.lower().endswith(".model")]
+            if not models:
+                raise MeshError(f"{path}: 3MF archive has no model part (3D/3dmodel.model)")
+            size = sum(i.file_size for i in infos)
+            if size > MAX_BYTES:
+                raise MeshError(f"{path}: 3MF archive unpacks to {size / 1024**2:.0f} MiB, more than "
+                                f"{MAX_BYTES // 1024**2} MiB; refusing to load")
+            with z.open(models[0]) as fh:
+                head = fh.read(4096)  # the <model> element opens the part
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError, zlib.error) as exc:
         raise MeshError(f"{path}: not a 3MF file (not a readable zip archive: {exc})") from None
-    if not any(i.filename.lower().endswith(".model") for i in infos):
-        raise MeshError(f"{path}: 3MF archive has no model part (3D/3dmodel.model)")
-    size = sum(i.file_size for i in infos)
-    if size > MAX_BYTES:
-        raise MeshError(f"{path}: 3MF archive unpacks to {size / 1024**2:.0f} MiB, more than "
-                        f"{MAX_BYTES // 1024**2} MiB; refusing to load")
+    m = _UNIT_3MF.search(head)
+    unit = m.group(1).decode("ascii", "replace").strip().lower() if m else "millimeter"
+    if unit not in UNITS_3MF:
+        raise MeshError(f"{path}: 3MF model unit {_clip(unit)!r}; expected one of " + ", ".join(UNITS_3MF))
+    return UNITS_3MF[unit]
 
 
 def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | None]:
@@ -469,8 +483,9 @@ def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | 
         return _read_obj(path, data)
     if fmt == "ply":
         _check_ply(path, data)
-    elif fmt == "3mf":
-        _check_3mf(path, data)
+    unit = 1.0
+    if fmt == "3mf":
+        unit = _check_3mf(path, data)
     import trimesh
 
     try:
@@ -482,7 +497,10 @@ def _parse(path: Path, data: bytes, fmt: str) -> tuple[np.ndarray, np.ndarray | 
         raise MeshError(f"{path}: cannot read as {fmt.upper()}: {msg}") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f"{path}: contains no triangles")
-    return np.asarray(loaded.vertices, dtype=np.float64), np.asarray(loaded.faces, dtype=np.int64)
+    vertices = np.asarray(loaded.vertices, dtype=np.float64)
+    if unit != 1.0:  # a 3MF says its unit: read in mm (`--units`/`--scale` apply after)
+        vertices = vertices * unit
+    return vertices, np.asarray(loaded.faces, dtype=np.int64)
 
 
 def _hole_hint(fraction: float) -> str:
