@@ -37,3 +37,13 @@ def warn(message: str) -> None:
 class OutputError(UserError):
     """An output path cannot be written: a special file, a folder of someone else's, no room, a
     read-only file system. One line naming the path and the reason; nothing is left behind."""
+
+
+#: At most this many characters of an input token are quoted in an error message.
+CLIP = 40
+
+
+def clip(text: str, limit: int = CLIP) -> str:
+    """A token of the input as an error message quotes it: at most ``limit`` characters, and how
+    long it was (a 10 MB token is never echoed whole)."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"

@@ -7,12 +7,11 @@ Python API both call these.
 
 from __future__ import annotations
 
+import os
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Sequence
-
-import os
-from contextlib import closing
 
 import numpy as np
 
@@ -74,12 +73,19 @@ def chunk_job(mesh: str | Path | Solid, settings: JobSettings | None = None, rob
         Number of robots (the seed strategy: 1 or 2).
     """
     settings = settings or load_settings()
+    solid, placement = _load_with_progress(mesh, settings, progress)
+    return _chunk_placed(solid, placement, settings, robots, progress)
+
+
+def _load_with_progress(mesh: str | Path | Solid, settings: JobSettings,
+                        progress: Progress | None) -> tuple[Solid, Placement]:
+    """:func:`load_placed` on the floor, as the ``load`` stage of the progress bars."""
     if progress:
         progress("load", 0, 1)
     solid, placement = load_placed(mesh, settings)
     if progress:
         progress("load", 1, 1)
-    return _chunk_placed(solid, placement, settings, robots, progress)
+    return solid, placement
 
 
 def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, robots: int,
@@ -154,6 +160,23 @@ def _input_paths(solid: Solid) -> tuple[str, ...]:
     return (path,) if isinstance(path, str) and os.path.exists(path) else ()
 
 
+def _check_work(solid: Solid, s: SlicingSettings) -> None:
+    """Refuse a part whose slicing would ask for unbounded work (:func:`~cooprint.config.settings.work_estimate`)."""
+    from cooprint.config.settings import work_estimate
+
+    work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, s)
+
+
+def _placed_on_bed(mesh: str | Path | Solid, settings: JobSettings,
+                   center: Sequence[float] | None) -> tuple[Solid, Placement]:
+    """A part loaded and placed on a single printer's bed (at ``center``, default the bed
+    centre), checked against its build volume and the work it asks for."""
+    solid, placement = load_placed(mesh, settings, bed=True, center=center)
+    check_build_volume(solid, settings.slicing)
+    _check_work(solid, settings.slicing)
+    return solid, placement
+
+
 def check_build_volume(solid: Solid, s: SlicingSettings) -> None:
     """Refuse a model that does not fit the single printer's build volume, naming both sizes."""
     size = np.ptp(solid.bounds, axis=0)
@@ -168,13 +191,10 @@ def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
               progress: Progress | None = None, center: Sequence[float] | None = None) -> tuple[Solid, "SlicedModel"]:
     """Load (unless given a Solid), place on the bed (at ``center``, default the bed centre) and
     slice a whole model for one printer."""
-    from cooprint.config.settings import work_estimate
     from cooprint.slicing import slice_solid
 
     settings = settings or load_settings()
-    solid, _ = load_placed(mesh, settings, bed=True, center=center)
-    check_build_volume(solid, settings.slicing)
-    work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, settings.slicing)
+    solid, _ = _placed_on_bed(mesh, settings, center)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     return solid, slice_solid(solid, settings.slicing, layer_progress)
 
@@ -187,16 +207,13 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     ``--center``), slice and write G-code to ``out`` atomically, layer block by layer block (the
     model is never held whole); return the number of layers and the filament used, mm.
     ``placed(placement)`` is told where the part was put before the slicing starts."""
-    from cooprint.config.settings import work_estimate
     from cooprint.io.bundle import atomic_file
     from cooprint.program.build import layer_pieces
     from cooprint.program.gcode import Feeds, write_gcode
     from cooprint.slicing import iter_layers
 
     settings = settings or load_settings()
-    solid, placement = load_placed(mesh, settings, bed=True, center=center)
-    check_build_volume(solid, settings.slicing)
-    work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, settings.slicing)
+    solid, placement = _placed_on_bed(mesh, settings, center)
     if placed:
         placed(placement)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
@@ -280,15 +297,9 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     from cooprint.slicing import iter_layers
     from cooprint.slicing.slicer import layer_range
 
-    from cooprint.config.settings import work_estimate
-
     settings = settings or load_settings()
-    if progress:
-        progress("load", 0, 1)
-    solid, placement = load_placed(mesh, settings)
-    if progress:
-        progress("load", 1, 1)
-    work_estimate(np.ptp(solid.bounds, axis=0), solid.volume, settings.slicing)  # before the cuts
+    solid, placement = _load_with_progress(mesh, settings, progress)
+    _check_work(solid, settings.slicing)  # before the cuts
     chunked = _chunk_placed(solid, placement, settings, robots, progress)
     s = settings.slicing
     base = float(chunked.solid.bounds[0, 2])
@@ -392,7 +403,7 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
             if progress:
                 progress("write", n + 2 * k + 1, n + 2 * len(job.programs))
             with open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as fh:
-                write_gcode(fh, [program], s, Feeds.of_robot(settings.robot, s), f"{name}, robot {robot}",
+                write_gcode(fh, [program], s, feeds, f"{name}, robot {robot}",
                             notes=header[:2], home=False,
                             heating=Heating.of_robot(settings.robot, s, settings.program.heater_idle_limit_s,
                                                      waits[robot]))

@@ -29,7 +29,7 @@ import numpy as np
 from cooprint.config import MeshSettings
 from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
                                open_edges, signed_volume, winding_consistent)
-from cooprint.errors import MeshError
+from cooprint.errors import MeshError, clip
 from cooprint.io.files import regular_file
 
 FORMATS = ("stl", "obj", "ply", "3mf")
@@ -195,11 +195,6 @@ _NUMBER_BYTES = re.compile(_NUMBER.pattern.encode())
 _INDEX = re.compile(r"[+-]?[0-9]+")
 
 
-def _clip(text: str, limit: int = 40) -> str:
-    """A token of the input as an error message shows it: at most ``limit`` characters."""
-    return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
-
-
 def _text(path: Path, data: bytes, fmt: str) -> str:
     """The text of a text mesh file (UTF-8), or a :class:`MeshError` naming the line of the first
     byte that is not UTF-8."""
@@ -217,10 +212,10 @@ def _coordinate(path: Path, lineno: int, tok: str) -> float:
     if not _NUMBER.fullmatch(tok):
         if _NONFINITE.fullmatch(tok):
             raise MeshError(f"{path}:{lineno}: coordinate '{tok}' is NaN or infinite")
-        raise MeshError(f"{path}:{lineno}: '{_clip(tok)}' is not a number")
+        raise MeshError(f"{path}:{lineno}: '{clip(tok)}' is not a number")
     x = float(tok)
     if not abs(x) <= MAX_COORD:
-        raise MeshError(f"{path}:{lineno}: coordinate {_clip(tok)} is beyond {MAX_COORD:.0e} mm (wrong units?)")
+        raise MeshError(f"{path}:{lineno}: coordinate {clip(tok)} is beyond {MAX_COORD:.0e} mm (wrong units?)")
     return x
 
 
@@ -268,7 +263,7 @@ def _read_obj(path: Path, data: bytes) -> tuple[np.ndarray, np.ndarray]:
             for w in words[1:]:
                 ref, *rest = w.split("/")
                 if not _INDEX.fullmatch(ref) or len(rest) > 2 or any(r and not _INDEX.fullmatch(r) for r in rest):
-                    raise MeshError(f"{path}:{lineno}: '{_clip(w)}' is not a vertex index")
+                    raise MeshError(f"{path}:{lineno}: '{clip(w)}' is not a vertex index")
                 k = int(ref)
                 if k == 0:
                     raise MeshError(f"{path}:{lineno}: vertex index 0: OBJ indices start at 1 (a 0-based file?)")
@@ -286,7 +281,7 @@ def _read_obj(path: Path, data: bytes) -> tuple[np.ndarray, np.ndarray]:
             for j in range(1, len(ring) - 1):
                 tris += (ring[0], ring[j], ring[j + 1])
         elif key not in _OBJ_IGNORED:
-            raise MeshError(f"{path}:{lineno}: unknown OBJ statement '{_clip(key)}'")
+            raise MeshError(f"{path}:{lineno}: unknown OBJ statement '{clip(key)}'")
     for k, lineno in pending:
         if k > len(vlines):
             raise MeshError(f"{path}:{lineno}: vertex index {k} but the file has {len(vlines)} vertices")
@@ -404,11 +399,11 @@ def _check_ply(path: Path, data: bytes) -> None:
             continue
         if w[0] == "format":
             if len(w) < 2 or w[1] not in ("ascii", "binary_little_endian", "binary_big_endian"):
-                raise MeshError(f"{path}:{lineno}: unknown PLY format '{_clip(line.strip())}'")
+                raise MeshError(f"{path}:{lineno}: unknown PLY format '{clip(line.strip())}'")
             fmt = w[1]
         elif w[0] == "element":
             if len(w) != 3 or not w[2].isascii() or not w[2].isdigit():
-                raise MeshError(f"{path}:{lineno}: expected 'element NAME COUNT', got '{_clip(line.strip())}'")
+                raise MeshError(f"{path}:{lineno}: expected 'element NAME COUNT', got '{clip(line.strip())}'")
             elements.append([w[1], int(w[2]), 0, False])
         elif w[0] == "property":
             if not elements:
@@ -416,14 +411,14 @@ def _check_ply(path: Path, data: bytes) -> None:
             types = w[2:4] if len(w) >= 2 and w[1] == "list" else w[1:2]
             if len(w) < (5 if w[1:2] == ["list"] else 3) or any(t not in _PLY_SIZES for t in types):
                 raise MeshError(f"{path}:{lineno}: expected 'property TYPE NAME' with a PLY type, got "
-                                f"'{_clip(line.strip())}'")
+                                f"'{clip(line.strip())}'")
             if w[1] == "list":
                 elements[-1][2] += _PLY_SIZES[w[2]]
                 elements[-1][3] = True
             else:
                 elements[-1][2] += _PLY_SIZES[w[1]]
         else:
-            raise MeshError(f"{path}:{lineno}: unknown PLY header line '{_clip(line.strip())}'")
+            raise MeshError(f"{path}:{lineno}: unknown PLY header line '{clip(line.strip())}'")
     if fmt is None:
         raise MeshError(f"{path}: PLY header has no 'format' line")
     body = len(data) - body_at
@@ -464,7 +459,7 @@ def _check_3mf(path: Path, data: bytes) -> float:
     m = _UNIT_3MF.search(head)
     unit = m.group(1).decode("ascii", "replace").strip().lower() if m else "millimeter"
     if unit not in UNITS_3MF:
-        raise MeshError(f"{path}: 3MF model unit {_clip(unit)!r}; expected one of " + ", ".join(UNITS_3MF))
+        raise MeshError(f"{path}: 3MF model unit {clip(unit)!r}; expected one of " + ", ".join(UNITS_3MF))
     return UNITS_3MF[unit]
 
 

@@ -14,7 +14,8 @@ Keywords are case-insensitive; numbers are decimal in ASCII digits (``-1``, ``2.
 ``1e3``; Python's ``float()`` would also read full-width and other Unicode digits, ``1_000``,
 ``nan`` and ``inf``, none of which is a number here), finite, and a coordinate at most
 ``MAX_COORD_MM`` (1 km) from 0; event and chunk names are letters, digits and ``_ : . -``, at
-most ``MAX_NAME`` characters. An error message quotes at most ``CLIP`` characters of a token.
+most ``MAX_NAME`` characters. An error message quotes at most ``cooprint.errors.CLIP``
+characters of a token.
 
 Annotations are comments a robot ignores and the tools read (as slicers read ``;TYPE:`` in
 G-code): G-code export needs each extruding move's width and layer height, the simulator and the
@@ -50,7 +51,7 @@ from typing import Iterable, TextIO
 
 import numpy as np
 
-from cooprint.errors import UserError
+from cooprint.errors import UserError, clip
 from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
 from cooprint.io.files import regular_file
@@ -73,8 +74,6 @@ ANNOTATION_MAX_MM = 50.0
 FACING_MAX_DEG = 360.0
 #: The longest event or chunk name.
 MAX_NAME = 64
-#: At most this many characters of an input token are quoted in an error message.
-CLIP = 40
 #: The per-command arrays of a :class:`Program`, in field order.
 COLUMNS = ("kind", "xyz", "role", "width", "layer", "height", "chunk", "event")
 
@@ -300,12 +299,6 @@ _TOKEN = re.compile(r"[^\s,]+|,")
 _CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f\x85\u2028\u2029]")
 
 
-def _clip(text: str) -> str:
-    """A token of the input as a message quotes it: at most ``CLIP`` characters (a 10 MB token is
-    never echoed whole)."""
-    return text if len(text) <= CLIP else f"{text[:CLIP]}... ({len(text)} characters)"
-
-
 class _Lines:
     """Parses lines one at a time (the reference parser), keeping the annotation state and the
     NOTIFY count."""
@@ -338,13 +331,13 @@ class _Lines:
             words = [t for t in args if t[0] != ","]
             if len(words) != 1 or len(args) != 1 or words[0][0].upper() not in ("ON", "OFF"):
                 at = args[0][1] if args else len(code.rstrip()) + 2
-                got = f"'{_clip(' '.join(t for t, _ in args))}'" if args else "nothing"
+                got = f"'{clip(' '.join(t for t, _ in args))}'" if args else "nothing"
                 raise self.error(lineno, at, f"TOOL needs ON or OFF, got {got}")
             return (TOOL_ON if words[0][0].upper() == "ON" else TOOL_OFF), None
         if w == "NOTIFY":
             if len(args) > 1 or (args and args[0][0] == ","):
                 bad = args[1] if len(args) > 1 else args[0]
-                raise self.error(lineno, bad[1], f"NOTIFY takes at most one event name, extra token '{_clip(bad[0])}'")
+                raise self.error(lineno, bad[1], f"NOTIFY takes at most one event name, extra token '{clip(bad[0])}'")
             self.notifies += 1
             name = self.event_name(args[0], lineno) if args else f"{self.robot}:{self.notifies}"
             return NOTIFY, (name,)
@@ -353,7 +346,7 @@ class _Lines:
             if not names:
                 raise self.error(lineno, len(code.rstrip()) + 2, "WAIT needs at least one event name")
             return WAIT, tuple(names)
-        raise self.error(lineno, col, f"unknown word '{_clip(word)}' (expected MOVE, TOOL, NOTIFY or WAIT)")
+        raise self.error(lineno, col, f"unknown word '{clip(word)}' (expected MOVE, TOOL, NOTIFY or WAIT)")
 
     def separated(self, args, lineno, col, what, item, convert):
         """Items separated by whitespace or by single commas."""
@@ -375,7 +368,7 @@ class _Lines:
         text, col = tok
         value = self.decimal(tok, lineno, "")
         if not abs(value) <= MAX_COORD_MM:
-            raise self.error(lineno, col, f"coordinate {_clip(text)} is beyond +-{MAX_COORD_MM:g} mm (the largest "
+            raise self.error(lineno, col, f"coordinate {clip(text)} is beyond +-{MAX_COORD_MM:g} mm (the largest "
                                           "coordinate cooprint accepts; wrong units?)")
         return value
 
@@ -385,10 +378,10 @@ class _Lines:
         if _NONFINITE.fullmatch(text):
             raise self.error(lineno, col, f"{what}'{text}' is not a finite number")
         if not _NUMBER.fullmatch(text):
-            raise self.error(lineno, col, f"{what}'{_clip(text)}' is not a number (ASCII digits, e.g. -12.5)")
+            raise self.error(lineno, col, f"{what}'{clip(text)}' is not a number (ASCII digits, e.g. -12.5)")
         value = float(text)
         if not math.isfinite(value):
-            raise self.error(lineno, col, f"{what}'{_clip(text)}' is not a finite number")
+            raise self.error(lineno, col, f"{what}'{clip(text)}' is not a finite number")
         return value
 
     def numbers(self, args, lineno: int, col: int, end: int) -> tuple[float, float, float]:
@@ -397,13 +390,13 @@ class _Lines:
             raise self.error(lineno, end, f"MOVE needs 3 numbers (x, y, z), got {len(values)}")
         if len(values) > 3:
             extra = [t for t in args if t[0] != ","][3]
-            raise self.error(lineno, extra[1], f"MOVE takes 3 numbers (x, y, z), extra token '{_clip(extra[0])}'")
+            raise self.error(lineno, extra[1], f"MOVE takes 3 numbers (x, y, z), extra token '{clip(extra[0])}'")
         return values[0], values[1], values[2]
 
     def event_name(self, tok, lineno: int) -> str:
         text, col = tok
         if not _EVENT.fullmatch(text) or len(text) > MAX_NAME:
-            raise self.error(lineno, col, f"'{_clip(text)}' is not an event name (letters, digits, _ : . -; at "
+            raise self.error(lineno, col, f"'{clip(text)}' is not an event name (letters, digits, _ : . -; at "
                                           f"most {MAX_NAME})")
         return text
 
@@ -418,7 +411,7 @@ class _Lines:
                 "facing": "';@facing DEGREES' (a finite number)",
                 "path": "';@path ROLE WIDTH' with ROLE one of " + ", ".join(_ROLE_OF_WORD)}[key]
         if len(vals) != (1 if key in ("chunk", "facing") or vals == ["-"] else 2):
-            raise self.error(lineno, cut + 3, f"malformed annotation '{_clip(comment.strip())}': expected {form}")
+            raise self.error(lineno, cut + 3, f"malformed annotation '{clip(comment.strip())}': expected {form}")
         at, pos = [], cut + 3 + len(parts[0])  # each field's column
         for v in vals:
             pos = comment.index(v, pos - cut - 1) + cut + 1
@@ -428,7 +421,7 @@ class _Lines:
             if vals[0] == "-":
                 return "ann", "chunk", -1
             if not _EVENT.fullmatch(vals[0]) or len(vals[0]) > MAX_NAME:
-                raise self.error(lineno, at[0][1], f";@chunk ID '{_clip(vals[0])}': expected a chunk name (letters, "
+                raise self.error(lineno, at[0][1], f";@chunk ID '{clip(vals[0])}': expected a chunk name (letters, "
                                                    f"digits, _ : . -; at most {MAX_NAME})")
             if vals[0] not in self.chunks:
                 self.chunks.append(vals[0])
@@ -436,26 +429,26 @@ class _Lines:
         if key == "facing":
             deg = self.decimal(at[0], lineno, ";@facing DEGREES ")
             if not -FACING_MAX_DEG <= deg <= FACING_MAX_DEG:
-                raise self.error(lineno, at[0][1], f";@facing DEGREES {_clip(vals[0])}: expected degrees from "
+                raise self.error(lineno, at[0][1], f";@facing DEGREES {clip(vals[0])}: expected degrees from "
                                                    f"{-FACING_MAX_DEG:g} to {FACING_MAX_DEG:g}")
             return "ann", "facing", deg
         if key == "layer":
             if vals == ["-"]:
                 return "ann", "layer", (-1, 0.0)
             if not _INDEX.fullmatch(vals[0]) or int(vals[0]) >= 2**31:
-                raise self.error(lineno, at[0][1], f";@layer INDEX '{_clip(vals[0])}': expected a whole number from "
+                raise self.error(lineno, at[0][1], f";@layer INDEX '{clip(vals[0])}': expected a whole number from "
                                                    f"0 to {2**31 - 1}")
             height = self.decimal(at[1], lineno, ";@layer HEIGHT ")
             if not 0 < height <= ANNOTATION_MAX_MM:
-                raise self.error(lineno, at[1][1], f";@layer HEIGHT {_clip(vals[1])}: expected mm above 0 and at "
+                raise self.error(lineno, at[1][1], f";@layer HEIGHT {clip(vals[1])}: expected mm above 0 and at "
                                                    f"most {ANNOTATION_MAX_MM:g}")
             return "ann", "layer", (int(vals[0]), height)
         if vals[0] not in _ROLE_OF_WORD:
-            raise self.error(lineno, at[0][1], f";@path ROLE '{_clip(vals[0])}': expected one of "
+            raise self.error(lineno, at[0][1], f";@path ROLE '{clip(vals[0])}': expected one of "
                                                + ", ".join(_ROLE_OF_WORD))
         width = self.decimal(at[1], lineno, ";@path WIDTH ")
         if not 0 <= width <= ANNOTATION_MAX_MM:
-            raise self.error(lineno, at[1][1], f";@path WIDTH {_clip(vals[1])}: expected mm from 0 to "
+            raise self.error(lineno, at[1][1], f";@path WIDTH {clip(vals[1])}: expected mm from 0 to "
                                                f"{ANNOTATION_MAX_MM:g}")
         return "ann", "path", (_ROLE_OF_WORD[vals[0]], width)
 
