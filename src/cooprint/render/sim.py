@@ -46,7 +46,7 @@ class _Scene:
                 if result.placed]
         for r in result.robots if result.placed else []:  # where a robot turns, in the facings before and after
             spans = r.facing_spans(result.timelines[r.name]) if r.program.turns else []
-            feet += [np.column_stack([sp.position[:2] + body_corners(result.profile, f), np.zeros(4)])
+            feet += [np.column_stack([sp.position[:2] + body_corners(r.profile or result.profile, f), np.zeros(4)])
                      for before, sp in zip(spans, spans[1:]) for f in (before.facing, sp.facing)]
         every = np.vstack(extent + feet) if extent else np.zeros((1, 3))
         self.lo, self.scale, self.off = _fit((every @ self.basis.T)[:, :2], size, 40, 90)
@@ -301,7 +301,7 @@ def _footprint(result: SimResult, r, nozzle: np.ndarray, t: float) -> np.ndarray
     """(4, 3) corners of a robot's body on the floor with its nozzle at ``nozzle`` at time ``t``
     (in the facing in force then: a robot that turns round is drawn as it stands)."""
     facing = r.facing_at(result.timelines[r.name], t) if r.program.turns else r.facing
-    xy = nozzle[:2] + body_corners(result.profile, facing)
+    xy = nozzle[:2] + body_corners(r.profile or result.profile, facing)
     return np.column_stack([xy, np.zeros(4)])
 
 

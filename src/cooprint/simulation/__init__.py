@@ -25,7 +25,8 @@ KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "deadl
 
 @dataclass(frozen=True)
 class SimResult:
-    """A simulated plan: the robots, their timelines, the findings."""
+    """A simulated plan: the robots (each with its own ``profile``), their timelines, the
+    findings; ``profile`` is the input's (the fleet's default)."""
 
     robots: list[SimRobot]
     timelines: dict[str, Timeline]
@@ -51,22 +52,24 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
     profile's ``acceleration`` and ``jerk``; otherwise each move takes length / speed.
     """
     p = inp.profile
-    limits = (inp.limits or MachineLimits.planar(p.acceleration, p.jerk)) if accel else None
-    timelines, findings = schedule(inp.robots, p.print_speed, p.travel_speed, limits)
+    robots = inp.fleet()  # each robot with its own profile
+    limits = ({r.name: inp.limits or MachineLimits.planar(r.profile.acceleration, r.profile.jerk) for r in robots}
+              if accel else None)
+    timelines, findings = schedule(robots, p.print_speed, p.travel_speed, limits)
     checked = ["deadlock"]
     if checks:
-        findings += below_floor(inp.robots, timelines)
+        findings += below_floor(robots, timelines)
         checked.append("below-floor")
-        material = Material.sample(inp.robots, timelines, STEP, inp.slicing.layer_height)
+        material = Material.sample(robots, timelines, STEP, inp.slicing.layer_height)
         # where a printer's body stands is not known: its G-code gets the printhead check only
-        findings += footprint_checks(inp.robots, timelines, p, material, body=inp.placed)
+        findings += footprint_checks(robots, timelines, p, material, body=inp.placed)
         if inp.placed:
-            findings += robots_collide(inp.robots, timelines, p)
+            findings += robots_collide(robots, timelines, p)
             checked += ["body-on-material", "robots-collide"]
-        findings += overhangs(inp.robots, timelines, material, inp.slicing)
+        findings += overhangs(robots, timelines, material, inp.slicing)
         checked += ["printhead-hits-material", "overhang"]
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
-    return SimResult(inp.robots, timelines, findings, p, inp.slicing, inp.source, accel,
+    return SimResult(robots, timelines, findings, p, inp.slicing, inp.source, accel,
                      tuple(k for k in KINDS if k in checked), inp.notes, inp.placed)
 
 

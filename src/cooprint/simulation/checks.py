@@ -200,7 +200,9 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
     there, a span without moves)."""
     n_step = _step(timelines, step, deposits_only=False)
     findings = []
+    fleet_profile = profile
     for r in robots:
+        profile = r.profile or fleet_profile  # each robot's own body and printhead
         tl = timelines[r.name]
         if len(tl.t0) == 0:
             continue
@@ -378,16 +380,17 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
             (fa, ka), (fb, kb) = facing[a.name], facing[b.name]
+            pa, pb = a.profile or profile, b.profile or profile  # each robot's own body
             if len(fa) == len(fb) == 1:
-                hit = kernels.rects_overlap(nozzle[a.name], nozzle[b.name], body_corners(profile, fa[0], tolerance),
-                                            body_corners(profile, fb[0], tolerance))
+                hit = kernels.rects_overlap(nozzle[a.name], nozzle[b.name], body_corners(pa, fa[0], tolerance),
+                                            body_corners(pb, fb[0], tolerance))
             else:  # the instants of each pair of facings in force
                 hit = np.zeros(len(times), dtype=bool)
                 for ja, jb in sorted(set(zip(ka.tolist(), kb.tolist()))):
                     sel = (ka == ja) & (kb == jb)
                     hit[sel] = kernels.rects_overlap(nozzle[a.name][sel], nozzle[b.name][sel],
-                                                     body_corners(profile, fa[ja], tolerance),
-                                                     body_corners(profile, fb[jb], tolerance))
+                                                     body_corners(pa, fa[ja], tolerance),
+                                                     body_corners(pb, fb[jb], tolerance))
             if hit.any():
                 k = np.flatnonzero(hit)
                 t = float(times[k[0]])

@@ -8,7 +8,7 @@ import json
 import math
 import re
 import tomllib
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import Any, Iterable
 
@@ -40,6 +40,10 @@ class SimInput:
     limits: MachineLimits | None = None  # for the acceleration model; None: the robot profile's
     placed: bool = True  # the robots' starts and facings are known: the body checks apply
     notes: tuple[str, ...] = ()  # what was read and not acted on (for the summary)
+
+    def fleet(self) -> list[SimRobot]:
+        """The robots, each with its own profile (the input's ``profile`` for those without)."""
+        return [r if r.profile is not None else replace(r, profile=self.profile) for r in self.robots]
 
 
 def _facing(deg: float) -> np.ndarray:

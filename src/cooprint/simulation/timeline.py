@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program
 
 if TYPE_CHECKING:
+    from cooprint.config import RobotProfile
     from cooprint.simulation.kinematics import MachineLimits
 
 
@@ -46,6 +47,9 @@ class SimRobot:
         ``|E| / speed``, and the acceleration model limits the E axis too.
     notes : tuple of str
         What the reader found and did not act on (a G-code file's operator pauses), for the summary.
+    profile : RobotProfile or None
+        This robot's own profile (speeds, body, printhead: a mixed fleet); ``None``: the input's
+        (:meth:`SimInput.fleet` fills it in, so that every check sees each robot's own geometry).
     """
 
     name: str
@@ -55,6 +59,7 @@ class SimRobot:
     speed: np.ndarray | None = None
     de: np.ndarray | None = None
     notes: tuple[str, ...] = ()
+    profile: "RobotProfile | None" = None
 
     def facing_spans(self, tl: "Timeline") -> list["FacingSpan"]:
         """The robot's timeline cut where its facing changes: one span per facing in force, in
@@ -215,7 +220,8 @@ class Finding:
 def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per MOVE of robot ``r``: start and end positions, whether it deposits, and its duration:
-    length / speed, or with ``limits`` the trapezoidal profile of :mod:`.kinematics`.
+    length / speed, or with ``limits`` the trapezoidal profile of :mod:`.kinematics`. The speeds
+    are the robot's own profile's when it has one, else ``print_speed`` and ``travel_speed``.
 
     Returns ``(index (k,), p0 (k, 3), p1 (k, 3), on (k,), length (k,), duration (k,))``: the
     moves' command indices, ends, whether they deposit, lengths and durations.
@@ -227,6 +233,8 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     k = int(np.count_nonzero(program.kind == MOVE))
     mv, p0, p1, on, length = np.empty(k, np.int64), np.empty((k, 3)), np.empty((k, 3)), np.empty(k, bool), np.empty(k)
     move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
+    if r.profile is not None:
+        print_speed, travel_speed = r.profile.print_speed, r.profile.travel_speed
     v = np.where(on, print_speed, travel_speed) if r.speed is None else r.speed[mv]
     de = np.zeros(len(mv)) if r.de is None else r.de[mv]
     if limits is None:
@@ -238,16 +246,19 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     return mv, p0, p1, on, length, dur
 
 
-def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
+def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
+             limits: "MachineLimits | dict[str, MachineLimits] | None" = None
              ) -> tuple[dict[str, Timeline], list[Finding]]:
-    """Every robot's :class:`Timeline`, WAITs resolved against the NOTIFYs of all robots.
+    """Every robot's :class:`Timeline`, WAITs resolved against the NOTIFYs of all robots
+    (``limits``: one for all, or per robot name).
 
     A robot stuck at a WAIT that can never end (its events are never announced, or only by
     robots stuck themselves) is a ``deadlock`` finding; its timeline stops there.
     """
     prep = {}
     for r in robots:
-        mv, p0, p1, on, length, dur = move_durations(r, print_speed, travel_speed, limits)
+        mv, p0, p1, on, length, dur = move_durations(r, print_speed, travel_speed,
+                                                     limits.get(r.name) if isinstance(limits, dict) else limits)
         kind = r.program.kind
         cmd_dur = np.zeros(len(kind))
         cmd_dur[mv] = dur
