@@ -297,7 +297,7 @@ def robot_profile(values: Any, where: str, label: str, base: RobotProfile | None
     over ``base`` (a fleet's shared profile; the defaults when ``None``), each value checked as a
     [robot] field of a settings file is. Messages name the table as ``where`` + ``label``
     (``"job/job.json: robots[1]."`` + ``"profile"``: ``job/job.json: robots[1].profile.nozzle_depth
-    = -1: expected a number > 0 (mm)``); a misspelt field gets a did-you-mean."""
+    = -1: expected a number > 0 and <= 10000 (mm)``); a misspelt field gets a did-you-mean."""
     if not isinstance(values, Mapping):
         raise ConfigError(f"{where}{label} = {_shown(values)}: expected a table of [robot] fields")
     given = _build("robot", RobotProfile, values, where, label)  # every value checked, in its own type
