@@ -459,7 +459,7 @@ def chunk_order(robots: list[SimRobot], timelines: dict[str, Timeline],
         early = [(d, end.get(d, announced.get(d, 0.0)) - t) for d in needs]
         early = [(d, dt) for d, dt in early if dt > ORDER_TOLERANCE]
         if early:
-            detail = f"chunk {c} laid down before chunks it depends on are finished: " + \
+            detail = "laid down before the chunks it depends on are finished: " + \
                 ", ".join(f"{d} ({dt:.3f} s early)" for d, dt in early)
             findings.append(Finding("chunk-order", robot, t, tuple(float(x) for x in where), c, detail, len(early)))
     return sorted(findings, key=lambda f: (f.time, f.chunk))
