@@ -247,3 +247,19 @@ def test_every_dependency_not_finished_is_named_and_counted():
     (g,) = _order(a, "", {"X": ("Y",)})
     assert (g.chunk, g.robot, g.count) == ("X", "A", 1)
 
+
+
+def test_a_profile_table_takes_robot_fields_only():
+    from cooprint.config import RobotProfile, robot_profile
+    from cooprint.errors import ConfigError
+
+    base = RobotProfile(print_speed=10.0)
+    assert robot_profile({"jerk": 5}, "x: ", "profile", base) == RobotProfile(print_speed=10.0, jerk=5.0)
+    assert robot_profile({}, "x: ", "profile") == RobotProfile()
+    with pytest.raises(ConfigError, match=r"^x: unknown field profile.layer_height \(a \[slicing\] field; it takes "
+                                          r"\[robot\] fields only\)$"):
+        robot_profile({"layer_height": 0.2}, "x: ", "profile", base)
+    with pytest.raises(ConfigError, match=r"^x: unknown field profile.jrek; did you mean 'jerk'\?$"):
+        robot_profile({"jrek": 5}, "x: ", "profile", base)
+    with pytest.raises(ConfigError, match=r"^x: profile = 5: expected a table of \[robot\] fields$"):
+        robot_profile(5, "x: ", "profile", base)
