@@ -203,6 +203,17 @@ def test_a_robot_that_does_not_wait_for_the_chunk_it_leans_on_is_caught(bundle, 
     assert json.loads((job / "sim" / "summary.json").read_text())["finding_counts"]["chunk-order"] == 1
 
 
+def test_a_notify_announced_too_early_is_caught(bundle, tmp_path):
+    # A announces C before printing it: B's WAIT ends at once, and B's R1 leans on nothing
+    job = _copy(bundle, tmp_path)
+    program = job / "robots" / "A.coop"
+    lines = program.read_text().splitlines(keepends=True)
+    lines.remove("NOTIFY C\n")
+    program.write_text("NOTIFY C\n" + "".join(lines))
+    (f,) = [f for f in simulate(load_inputs([str(job)])).findings if f.kind == "chunk-order"]
+    assert (f.robot, f.chunk) == ("B", "R1") and "C (" in f.detail
+
+
 def test_the_plan_as_written_keeps_its_chunk_order(bundle):
     res = simulate(load_inputs([str(bundle)]))
     assert "chunk-order" in res.checked
