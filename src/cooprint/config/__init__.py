@@ -12,5 +12,4 @@ from cooprint.config.settings import (
 )
 
 __all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "ProgramSettings", "RobotProfile", "SlicingSettings",
-           "load_settings",
-           "robot_profile"]
+           "load_settings", "robot_profile"]

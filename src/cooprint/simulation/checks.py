@@ -510,5 +510,5 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "Material", "below_floor", "chunk_order", "body_box", "body_corners", "footprint_checks", "head_box", "overhangs", "path_samples",
-           "robots_collide"]
+__all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "Material", "below_floor", "body_box", "body_corners", "chunk_order",
+           "footprint_checks", "head_box", "overhangs", "path_samples", "robots_collide"]
