@@ -7,6 +7,8 @@
   of half-side ``nozzle_depth`` around the nozzle, in the robot's frame) that rises above the
   printhead's underside (``nozzle_height`` above the nozzle tip), seed Fig. 3b: a chunk whose
   slope is steeper than theta_max = atan(nh / nd) reaches it.
+* ``chunk-order``: material of a chunk laid down before every chunk it depends on is finished
+  (a bundle's ``chunks[].deps``; :func:`chunk_order`).
 * ``overhang`` (a warning): material laid down with nothing below it: no material whose top is
   at most one layer of air lower (between 2.5 and 0.5 layer heights below) within ``radius``, and
   not on the floor.
