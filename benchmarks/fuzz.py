@@ -100,6 +100,9 @@ facing_deg = 90.0
 name = "B"
 program = "B.coop"
 facing_deg = 270
+[profiles.B]
+print_speed = 20.0
+body_width = 400.0
 """
 
 

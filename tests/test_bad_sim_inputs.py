@@ -169,6 +169,25 @@ JOB_CASES = [
      "robots[0].facings[0].chunk: unknown key (did you mean 'from_chunk'?)"),
     ("facings-item-string", _set(R0 + ("facings",), ["L1"]), "robots[0].facings[0]: expected an object"),
     ("robot-chunks-unknown", _set(R0 + ("chunks",), ["Q7"]), "robots[0].chunks[0]: expected the id of one"),
+    # a robot's own profile (issue 13): a name, or an object of [robot] fields, each checked
+    ("profile-number", _set(R1 + ("profile",), 5), "robots[1].profile: expected a profile name or an object"),
+    ("profile-list", _set(R1 + ("profile",), [40]), "robots[1].profile: expected a profile name or an object"),
+    ("profile-name-empty", _set(R0 + ("profile",), ""), "robots[0].profile: expected a profile name"),
+    ("profile-typo", _rename(R1 + ("profile", "nozzle_depth"), "nozle_depth"),
+     "robots[1].profile.nozle_depth: unknown key (did you mean 'nozzle_depth'?)"),
+    ("profile-slicing-field", _set(R1 + ("profile", "layer_height"), 0.2), "robots[1].profile.layer_height: unknown key"),
+    ("profile-nozzle-depth-negative", _set(R1 + ("profile", "nozzle_depth"), -1),
+     "robots[1].profile.nozzle_depth = -1: expected a number > 0 and <= 10000 (mm)"),
+    ("profile-print-speed-0", _set(R0 + ("profile",), {"print_speed": 0}), "robots[0].profile.print_speed = 0"),
+    ("profile-body-width-string", _set(R0 + ("profile", "body_width"), "wide"), "robots[0].profile.body_width = 'wide'"),
+    ("profile-body-nan", _set(R1 + ("profile", "body_length"), float("nan")), "robots[1].profile.body_length = nan"),
+    ("profile-name-blank", _set(R1 + ("profile", "name"), " "), "robots[1].profile.name"),
+    ("profile-heated-bed-number", _set(R1 + ("profile", "heated_bed"), 1), "robots[1].profile.heated_bed = 1"),
+    # the chunks' dependencies (the chunk-order check)
+    ("deps-unknown-chunk", _set(("chunks", 1, "deps"), ["Z9"]), "chunks[1].deps[0]: expected the id of one of the"),
+    ("deps-number", _set(("chunks", 1, "deps"), 3), "chunks[1].deps: expected a list"),
+    ("deps-item-number", _set(("chunks", 2, "deps"), [0]), "chunks[2].deps[0]: expected the id"),
+    ("deps-itself", _set(("chunks", 1, "deps"), ["C", "L1"]), "chunks[1].deps[1]: a chunk cannot depend on itself"),
 ]
 
 
@@ -241,6 +260,19 @@ MANIFEST_CASES = [
     ("program-missing", '[[robots]]\nname = "A"\nprogram = "B.coop"\n', "robots[0].program: no such .coop file"),
     ("program-number", '[[robots]]\nname = "A"\nprogram = 3\n', "robots[0].program"),
     ("program-folder", '[[robots]]\nname = "A"\nprogram = "."\n', "robots[0].program"),
+    # a robot's own profile (issue 13): [profiles.NAME] for a robot of [[robots]], [robot] fields
+    ("profile-of-no-robot", ROBOT + "[profiles.C]\nprint_speed = 20\n", "m.toml: profiles.C: no robot C in [[robots]]"),
+    ("profile-of-a-near-name", ROBOT + "[profiles.A1]\nprint_speed = 20\n",
+     "profiles.A1: no robot A1 in [[robots]] (did you mean [profiles.A]?)"),
+    ("profile-typo", ROBOT + "[profiles.A]\nprint_sped = 20\n",
+     "profiles.A.print_sped: unknown key (did you mean 'print_speed'?)"),
+    ("profile-slicing-field", ROBOT + "[profiles.A]\nlayer_height = 0.2\n", "profiles.A.layer_height: unknown key"),
+    ("profile-bad-value", ROBOT + "[profiles.A]\nnozzle_depth = -1\n",
+     "m.toml: profiles.A.nozzle_depth = -1: expected a number > 0 and <= 10000 (mm)"),
+    ("profile-string-value", ROBOT + '[profiles.A]\nbody_width = "wide"\n', "profiles.A.body_width = 'wide'"),
+    ("profiles-not-table", "profiles = 5\n" + ROBOT, "profiles: expected an object, got 5"),
+    ("profile-not-table", "profiles = {A = 5}\n" + ROBOT, "profiles.A: expected an object, got 5"),
+    ("profiles-typo", "[profile.A]\nprint_speed = 20\n" + ROBOT, "profile: unknown key (did you mean 'profiles'?)"),
 ]
 
 
@@ -370,7 +402,7 @@ _PATHS = [(), ("format",), ("settings",), ("settings", "robot"), ("settings", "r
           ("settings", "slicing", "perimeters"), ("settings", "slicing", "layer_height"), ("robots",), R0, R1,
           R0 + ("name",), R1 + ("name",), R0 + ("program",), R1 + ("start",), R0 + ("start", 1),
           R0 + ("facing_deg",), R1 + ("facings",), R0 + ("stats",), R0 + ("facing",), ("settings", "robt"),
-          R0 + ("facng_deg",)]
+          R0 + ("facng_deg",), R1 + ("profile",), R1 + ("profile", "body_width"), ("chunks", 1, "deps")]
 
 
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -162,7 +162,8 @@ def test_a_slope_steeper_than_theta_max_hits_the_printhead(car_bundle):
     # planned for the default printhead (theta_max = atan(100 / 25) = 76 deg); a printhead only
     # 30 mm tall (theta_max 50 deg) meets the centre chunk's slope when the side chunks are printed
     inp = load_inputs([str(car_bundle)])
-    short = simulate(dataclasses.replace(inp, profile=dataclasses.replace(inp.profile, nozzle_height=30.0)))
+    low = dataclasses.replace(inp.profile, nozzle_height=30.0)  # each robot's own (job.json writes them)
+    short = simulate(dataclasses.replace(inp, robots=[dataclasses.replace(r, profile=low) for r in inp.robots]))
     hits = [f for f in short.findings if f.kind == "printhead-hits-material"]
     assert {f.chunk for f in hits} == {"L1", "R1"} and all(f.count > 10 for f in hits)
     for f in hits:  # printing low, next to the centre chunk printed up to the roof before

@@ -344,14 +344,18 @@ def program_stats(program: Any, s: SlicingSettings) -> dict[str, Any]:
 
 
 def coop_record(job: CoopJob) -> dict[str, Any]:
-    """``job.json`` of a cooperative run: the chunk record, robots with their placement and
-    program statistics, and the synchronisation events."""
+    """``job.json`` of a cooperative run: the chunk record, robots with their placement, their
+    whole profile (so that the bundle says each robot's speeds and geometry itself; a mixed fleet
+    gives each its own) and program statistics, and the synchronisation events."""
+    from dataclasses import asdict
+
     from cooprint.program.commands import NOTIFY
 
     record = job_record(job.chunked)
     s = job.chunked.settings.slicing
     for r in record["robots"]:
         name = r["name"]
+        r["profile"] = asdict(job.chunked.settings.robot)
         r.update(job.placements[name].to_dict())
         r["program"] = f"robots/{name}.coop"
         r["gcode"] = f"robots/{name}.gcode"

@@ -8,7 +8,8 @@ from cooprint.config.settings import (
     RobotProfile,
     SlicingSettings,
     load_settings,
+    robot_profile,
 )
 
 __all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "ProgramSettings", "RobotProfile", "SlicingSettings",
-           "load_settings"]
+           "load_settings", "robot_profile"]

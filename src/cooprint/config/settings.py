@@ -31,7 +31,7 @@ from __future__ import annotations
 import difflib
 import math
 import tomllib
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -248,24 +248,29 @@ def _did_you_mean(word: str, options: Iterable[str]) -> str:
     return "; expected one of: " + ", ".join(options)
 
 
-def _field_for(section: str, key: str, where: str) -> Any:
-    """The dataclass field ``section.key``; unknown names get a did-you-mean."""
+def _field_for(section: str, key: str, where: str, label: str | None = None) -> Any:
+    """The dataclass field ``section.key``; unknown names get a did-you-mean. ``label`` is what
+    the messages call the table (``profile`` for a robot's own profile; the section's name)."""
     if section not in _SECTIONS:
         raise ConfigError(f"{where}unknown section [{section}]" + _did_you_mean(section, _SECTIONS))
     known = {f.name: f for f in fields(_SECTIONS[section])}
+    shown = label or section
     if key not in known:
         for other, cls in _SECTIONS.items():  # a field of another section? (``layer_height`` under [robot])
             if key in {f.name for f in fields(cls)}:
+                if label is not None:  # a table that holds [section] fields only
+                    raise ConfigError(f"{where}unknown field {shown}.{key} (a [{other}] field; it takes "
+                                      f"[{section}] fields only)")
                 raise ConfigError(f"{where}unknown field {section}.{key}; did you mean {other}.{key}?")
-        raise ConfigError(f"{where}unknown field {section}.{key}" + _did_you_mean(key, sorted(known)))
+        raise ConfigError(f"{where}unknown field {shown}.{key}" + _did_you_mean(key, sorted(known)))
     return known[key]
 
 
-def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> Any:
+def _build(section: str, cls: type, values: Mapping[str, Any], where: str, label: str | None = None) -> Any:
     out: dict[str, Any] = {}
     for key, value in values.items():
-        f = _field_for(section, str(key), where)
-        name = f"{section}.{key}"
+        f = _field_for(section, str(key), where, label)
+        name = f"{label or section}.{key}"
         if "choices" in f.metadata:
             if not isinstance(value, str) or value not in f.metadata["choices"]:
                 close = difflib.get_close_matches(value, f.metadata["choices"], n=1) if isinstance(value, str) else []
@@ -285,6 +290,18 @@ def _build(section: str, cls: type, values: Mapping[str, Any], where: str) -> An
         else:
             out[key] = value
     return cls(**out)
+
+
+def robot_profile(values: Any, where: str, label: str, base: RobotProfile | None = None) -> RobotProfile:
+    """A robot's own profile: ``values`` (any subset of the [robot] fields, ``{field: value}``)
+    over ``base`` (a fleet's shared profile; the defaults when ``None``), each value checked as a
+    [robot] field of a settings file is. Messages name the table as ``where`` + ``label``
+    (``"job/job.json: robots[1]."`` + ``"profile"``: ``job/job.json: robots[1].profile.nozzle_depth
+    = -1: expected a number > 0 and <= 10000 (mm)``); a misspelt field gets a did-you-mean."""
+    if not isinstance(values, Mapping):
+        raise ConfigError(f"{where}{label} = {_shown(values)}: expected a table of [robot] fields")
+    given = _build("robot", RobotProfile, values, where, label)  # every value checked, in its own type
+    return replace(base or RobotProfile(), **{str(k): getattr(given, str(k)) for k in values})
 
 
 def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -> None:

@@ -13,14 +13,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import STEP, Material, below_floor, footprint_checks, overhangs, robots_collide
+from cooprint.simulation.checks import (STEP, Material, below_floor, chunk_order, footprint_checks, overhangs,
+                                        robots_collide)
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
 #: Finding kinds, in the order of the issue's checks (a)-(e), then the nozzle below the floor.
-KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "deadlock", "below-floor", "overhang")
+KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "deadlock", "chunk-order", "below-floor",
+         "overhang")
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,9 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
     timelines, findings = schedule(robots, p.print_speed, p.travel_speed, limits)
     checked = ["deadlock"]
     if checks:
+        if inp.deps is not None:  # a bundle: the order its chunks depend on is known
+            findings += chunk_order(robots, timelines, inp.deps)
+            checked.append("chunk-order")
         findings += below_floor(robots, timelines)
         checked.append("below-floor")
         material = Material.sample(robots, timelines, STEP, inp.slicing.layer_height)

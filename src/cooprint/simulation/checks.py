@@ -7,6 +7,8 @@
   of half-side ``nozzle_depth`` around the nozzle, in the robot's frame) that rises above the
   printhead's underside (``nozzle_height`` above the nozzle tip), seed Fig. 3b: a chunk whose
   slope is steeper than theta_max = atan(nh / nd) reaches it.
+* ``chunk-order``: material of a chunk laid down before every chunk it depends on is finished
+  (a bundle's ``chunks[].deps``; :func:`chunk_order`).
 * ``overhang`` (a warning): material laid down with nothing below it: no material whose top is
   at most one layer of air lower (between 2.5 and 0.5 layer heights below) within ``radius``, and
   not on the floor.
@@ -416,6 +418,55 @@ def _chunk_of(r: SimRobot, tl: Timeline, t: float) -> str | None:
     return r.program.chunks[c] if c >= 0 else None
 
 
+#: A chunk's first deposit may start this long before a dependency's last one ends and still be
+#: in order, s: the timelines' rounding (a dependent chunk printed right after its dependency, by
+#: the same robot or after a WAIT, starts at the very instant it ends).
+ORDER_TOLERANCE = 1e-6
+
+
+def chunk_order(robots: list[SimRobot], timelines: dict[str, Timeline],
+                deps: dict[str, tuple[str, ...]]) -> list[Finding]:
+    """``chunk-order``: material of a chunk laid down before every chunk it depends on
+    (``deps``: job.json ``chunks[].deps``) is finished: the chunk would lean on material that is
+    not there yet (seed §3: a chunk is printed on the sloped face of the chunks before it).
+
+    A chunk starts at its first deposit (the start of the first tool-on move of that chunk, by
+    any robot) and is finished at the end of its last one; a chunk without material is finished
+    at its NOTIFY (the event named by its id), or at once when nothing announces it. One finding
+    per chunk that starts before a dependency is finished: the robot and the place of its first
+    deposit, then, the dependencies not finished and by how many seconds; the count is how many."""
+    start: dict[str, tuple[float, str, np.ndarray]] = {}  # chunk: (time, robot, position) of its first deposit
+    end: dict[str, float] = {}  # chunk: when its last deposit ends
+    announced: dict[str, float] = {}  # event: when it is first announced
+    for r in robots:
+        tl = timelines[r.name]
+        for t, event in tl.notifies:
+            announced[event] = min(announced.get(event, np.inf), float(t))
+        on = np.flatnonzero(tl.on)
+        if not len(on):
+            continue
+        chunk = r.program.chunk[tl.index[on]]
+        for c in np.unique(chunk[chunk >= 0]).tolist():
+            moves = on[chunk == c]
+            name = r.program.chunks[c]
+            first, last = int(moves[0]), int(moves[-1])
+            if name not in start or tl.t0[first] < start[name][0]:
+                start[name] = (float(tl.t0[first]), r.name, tl.p0[first])
+            end[name] = max(end.get(name, -np.inf), float(tl.t1[last]))
+    findings = []
+    for c, needs in deps.items():
+        if c not in start:
+            continue  # no material: nothing leans on anything
+        t, robot, where = start[c]
+        early = [(d, end.get(d, announced.get(d, 0.0)) - t) for d in needs]
+        early = [(d, dt) for d, dt in early if dt > ORDER_TOLERANCE]
+        if early:
+            detail = "laid down before the chunks it depends on are finished: " + \
+                ", ".join(f"{d} ({dt:.3f} s early)" for d, dt in early)
+            findings.append(Finding("chunk-order", robot, t, tuple(float(x) for x in where), c, detail, len(early)))
+    return sorted(findings, key=lambda f: (f.time, f.chunk))
+
+
 #: How far below the floor (z = 0) a nozzle may go before it is a finding, mm: the programs'
 #: 1 µm grid.
 FLOOR_TOLERANCE = 1e-3
@@ -461,5 +512,5 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["FLOOR_TOLERANCE", "Material", "below_floor", "body_box", "body_corners", "footprint_checks", "head_box", "overhangs", "path_samples",
-           "robots_collide"]
+__all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "Material", "below_floor", "body_box", "body_corners", "chunk_order",
+           "footprint_checks", "head_box", "overhangs", "path_samples", "robots_collide"]

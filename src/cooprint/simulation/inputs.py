@@ -3,6 +3,7 @@ plain G-code files (one robot each, so that PrusaSlicer's or Cura's output simul
 
 from __future__ import annotations
 
+import difflib
 import io
 import json
 import math
@@ -14,7 +15,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings
+from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings, robot_profile
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path)
 from cooprint.io.files import path_kind, regular_file
@@ -40,6 +41,9 @@ class SimInput:
     limits: MachineLimits | None = None  # for the acceleration model; None: the robot profile's
     placed: bool = True  # the robots' starts and facings are known: the body checks apply
     notes: tuple[str, ...] = ()  # what was read and not acted on (for the summary)
+    #: Each chunk's dependencies (job.json ``chunks[].deps``): the chunks whose material must be
+    #: finished before its own is laid (the ``chunk-order`` check); ``None``: not known.
+    deps: dict[str, tuple[str, ...]] | None = None
 
     def fleet(self) -> list[SimRobot]:
         """The robots, each with its own profile (the input's ``profile`` for those without)."""
@@ -79,9 +83,12 @@ FACING_TOLERANCE = 1e-6
 BUNDLE_ROBOT_REQUIRED = ("name", "program", "start", "facing_deg")
 BUNDLE_ROBOT_OPTIONAL = ("side", "facing", "gcode", "stats", "profile", "chunks", "facings")
 #: A manifest (TOML): its sections and the keys of a ``[[robots]]`` entry; unknown keys are errors.
-MANIFEST_SECTIONS = ("robot", "slicing", "robots")
+MANIFEST_SECTIONS = ("robot", "slicing", "robots", "profiles")
 MANIFEST_ROBOT_REQUIRED = ("name", "program")
 MANIFEST_ROBOT_OPTIONAL = ("start", "facing_deg")
+#: The fields of a robot's own profile (job.json ``robots[].profile``, a manifest's
+#: ``[profiles.NAME]``): those of the [robot] section.
+ROBOT_FIELDS = tuple(f.name for f in fields(RobotProfile))
 
 
 def _settings_fields() -> dict[str, tuple[str, ...]]:
@@ -187,9 +194,46 @@ def load_bundle(folder: str | Path) -> SimInput:
         facing = check_number(e["facing_deg"], where, at + ".facing_deg", lo=-FACING_LIMIT, hi=FACING_LIMIT,
                               unit="degrees")
         _check_robot_record(e, facing, chunk_ids, where, at)
+        profile = _bundle_profile(e.get("profile"), settings.robot, where, at)
         program = read_coop(program_path, name)
-        robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing)))
-    return SimInput(robots, settings.robot, settings.slicing, str(d))
+        robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing),
+                               profile=profile))
+    return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where))
+
+
+def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> RobotProfile | None:
+    """A job.json robot's own profile: an object of [robot] fields over the bundle's
+    ``settings.robot`` (what ``cooprint run`` writes: the robot's whole profile), or the
+    profile's name (older bundles: the robot has the bundle's profile; ``None`` here)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        check_string(value, where, at + ".profile", what="a profile name or an object of [robot] fields")
+        return None
+    if not isinstance(value, dict):
+        raise fail(where, at + ".profile", "expected a profile name or an object of [robot] fields", value)
+    check_object(value, where, at + ".profile", optional=ROBOT_FIELDS)  # a misspelt field: did you mean
+    return robot_profile(value, f"{where}: {at}.", "profile", fleet)
+
+
+def _chunk_deps(record: dict[str, Any], chunk_ids: set[str] | None, where: str) -> dict[str, tuple[str, ...]] | None:
+    """Each chunk's dependencies from job.json's ``chunks[].deps`` (ids of other chunks of the
+    bundle); ``None`` when no chunk lists any (nothing to check the chunk order against). A chunk
+    without ``deps`` depends on none; a chunk that depends on itself could never be printed."""
+    if chunk_ids is None or not any(isinstance(c, dict) and "deps" in c for c in record["chunks"]):
+        return None
+    deps = {}
+    for n, c in enumerate(record["chunks"]):
+        at = key_path("chunks", n)
+        own = c["id"]
+        items = check_list(c.get("deps", []), where, at + ".deps", what="chunk ids")
+        for k, dep in enumerate(items):
+            if not isinstance(dep, str) or dep not in chunk_ids:
+                raise fail(where, key_path(at + ".deps", k), "expected the id of one of the bundle's chunks", dep)
+            if dep == own:
+                raise fail(where, key_path(at + ".deps", k), "a chunk cannot depend on itself", dep)
+        deps[own] = tuple(dict.fromkeys(items))  # in order, once each
+    return deps
 
 
 def _chunk_ids(record: dict[str, Any], where: str) -> set[str] | None:
@@ -242,7 +286,7 @@ def load_manifest(path: str | Path) -> SimInput:
     """``.coop`` files named by a TOML manifest (every key checked; a misspelt one is an error
     that names the key meant)::
 
-        [robot]                 # the profile (any field of cooprint's [robot] section)
+        [robot]                 # the fleet's profile (any field of cooprint's [robot] section)
         print_speed = 40.0
         [[robots]]
         name = "A"
@@ -250,11 +294,19 @@ def load_manifest(path: str | Path) -> SimInput:
         start = [0.0, 0.0, 5.0] # nozzle position at the start, mm (absent: the first MOVE)
         facing_deg = 90.0       # direction from the body to the nozzle at the start (absent: +Y;
                                 # the program's ;@facing lines turn the robot on the way)
+        [profiles.B]            # robot B's own profile: any [robot] field, over [robot]
+        print_speed = 20.0      # (a mixed fleet: B is slower, and below, bigger)
+        body_width = 400.0
+
+    A robot without a ``[profiles.NAME]`` table has the ``[robot]`` profile. A profile table for
+    a robot the manifest does not list is an error (a misspelt name would silently leave the
+    robot with the fleet's profile).
     """
     p = Path(path)
     where = str(p)
     data = check_object(_read_structured(p, "manifest", tomllib.loads), where, "", optional=MANIFEST_SECTIONS)
-    settings = check_settings({k: v for k, v in data.items() if k != "robots"}, where, "", ("robot", "slicing"))
+    settings = check_settings({k: v for k, v in data.items() if k in ("robot", "slicing")}, where, "",
+                              ("robot", "slicing"))
     if "robots" not in data:
         raise SimInputError(f"{where}: no [[robots]] entries")
     entries = check_list(data["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="[[robots]] entries")
@@ -278,7 +330,32 @@ def load_manifest(path: str | Path) -> SimInput:
                        f"expected a .coop file, not a folder, a named pipe (FIFO) or a device ({file})", prog)
         program = read_coop(file, name)
         robots.append(SimRobot(name, program, None if start is None else np.asarray(start, float), _facing(facing)))
+    profiles = _manifest_profiles(data.get("profiles", {}), [r.name for r in robots], settings.robot, where)
+    robots = [replace(r, profile=profiles[r.name]) if r.name in profiles else r for r in robots]
     return SimInput(robots, settings.robot, settings.slicing, where)
+
+
+def _manifest_profiles(data: Any, names: list[str], fleet: RobotProfile, where: str) -> dict[str, RobotProfile]:
+    """A manifest's ``[profiles.NAME]`` tables: robot NAME's own profile, its [robot] fields over
+    the manifest's ``[robot]`` (each checked; a misspelt field gets a did-you-mean). A table for
+    a robot that ``[[robots]]`` does not list is an error naming it (and the robot meant)."""
+    check_object(data, where, "profiles", unknown="ignore")
+    out = {}
+    for name, values in data.items():
+        at = key_path("profiles", str(name))
+        if name not in names:
+            close = difflib.get_close_matches(str(name), names, n=1, cutoff=0.6)
+            raise SimInputError(f"{where}: {_clip(at)}: no robot {_clip(str(name))} in [[robots]]"
+                                + (f" (did you mean [profiles.{close[0]}]?)" if close else ""))
+        check_object(values, where, at, optional=ROBOT_FIELDS)  # a misspelt field: did you mean
+        out[name] = robot_profile(values, f"{where}: profiles.", str(name), fleet)
+    return out
+
+
+def _clip(text: str, chars: int = 60) -> str:
+    """A name from a file as a message shows it: escaped, at most ``chars`` characters."""
+    shown = text[:chars].encode("unicode_escape").decode("ascii")
+    return shown + ("..." if len(text) > chars else "")
 
 
 def coop_facing(program: Any) -> float:
