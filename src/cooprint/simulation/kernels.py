@@ -566,45 +566,47 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
 
 
 @_jit
-def rects_overlap(pa, pb, ca, cb):
-    """(T,) bool: whether robot a's body (corners ``ca`` (4, 2) around its nozzle ``pa[i]``)
-    and robot b's overlap at each instant (a box test, then separating axes)."""
-    out = np.zeros(len(pa), np.bool_)
-    qa = np.empty((4, 2))
-    qb = np.empty((4, 2))
+def outlines_overlap(pa, pb, axes, lo, hi):
+    """(T,) int64: which parts of two robots' outlines overlap at each instant, a bit per pair of
+    parts (bit ``p`` for the pair of row ``p`` of ``lo``, ``hi``); 0: the outlines are apart.
+
+    Every part of a robot is a rectangle in its frame, so all the parts of robot a share two edge
+    directions, and all of b's two others: ``axes`` (4, 2) are the four unit normals (a's facing,
+    its left, b's facing, its left), the only axes that can separate two of these rectangles
+    (separating axis theorem). Two parts overlap iff on every axis ``k`` the nozzles' offset
+    ``d = pb[i] - pa[i]`` projects strictly inside ``(lo[p, k], hi[p, k])`` (their Minkowski
+    difference, precomputed by the caller): per instant four dot products, and a first test
+    against the union of the pairs' intervals rejects robots far apart at once."""
+    n_pairs, n_axes = lo.shape
+    out = np.zeros(len(pa), np.int64)
+    ulo = np.empty(n_axes)
+    uhi = np.empty(n_axes)
+    for k in range(n_axes):
+        ulo[k], uhi[k] = np.inf, -np.inf
+        for p in range(n_pairs):
+            ulo[k] = min(ulo[k], lo[p, k])
+            uhi[k] = max(uhi[k], hi[p, k])
+    s = np.empty(n_axes)
     for i in range(len(pa)):
-        for k in range(4):
-            for d in range(2):
-                qa[k, d] = pa[i, d] + ca[k, d]
-                qb[k, d] = pb[i, d] + cb[k, d]
+        dx, dy = pb[i, 0] - pa[i, 0], pb[i, 1] - pa[i, 1]
         apart = False
-        for d in range(2):
-            amin, amax, bmin, bmax = np.inf, -np.inf, np.inf, -np.inf
-            for k in range(4):
-                amin, amax = min(amin, qa[k, d]), max(amax, qa[k, d])
-                bmin, bmax = min(bmin, qb[k, d]), max(bmax, qb[k, d])
-            if amin > bmax or bmin > amax:
+        for k in range(n_axes):
+            s[k] = dx * axes[k, 0] + dy * axes[k, 1]
+            if not ulo[k] < s[k] < uhi[k]:
                 apart = True
+                break
         if apart:
             continue
-        apart = False
-        for poly in range(2):
-            q = qa if poly == 0 else qb
-            for k in range(4):
-                nx = -(q[(k + 1) % 4, 1] - q[k, 1])
-                ny = q[(k + 1) % 4, 0] - q[k, 0]
-                amin, amax, bmin, bmax = np.inf, -np.inf, np.inf, -np.inf
-                for j in range(4):
-                    s = nx * qa[j, 0] + ny * qa[j, 1]
-                    amin, amax = min(amin, s), max(amax, s)
-                    s = nx * qb[j, 0] + ny * qb[j, 1]
-                    bmin, bmax = min(bmin, s), max(bmax, s)
-                if amax < bmin or bmax < amin:
-                    apart = True
+        mask = 0
+        for p in range(n_pairs):
+            inside = True
+            for k in range(n_axes):
+                if not lo[p, k] < s[k] < hi[p, k]:
+                    inside = False
                     break
-            if apart:
-                break
-        out[i] = not apart
+            if inside:
+                mask |= 1 << p
+        out[i] = mask
     return out
 
 
