@@ -445,7 +445,8 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     end = max((tl.end for tl in timelines.values()), default=0.0)
     dt = max(dt, end / MAX_INSTANTS)  # a plan of years (a program that jumps kilometres) is looked at less often
     times = np.arange(0.0, end + dt, dt)
-    nozzle = {r.name: _nozzle_xy(timelines[r.name], times) for r in robots}
+    nozzle = {r.name: _nozzle_xy(r, timelines[r.name], times) for r in robots}
+    robots = [r for r in robots if nozzle[r.name] is not None]
     facing = {}  # per robot: its facings, and which is in force at each instant
     for r in robots:
         spans = r.facing_spans(timelines[r.name])
@@ -467,7 +468,8 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
             k = np.flatnonzero(mask)
             if len(k):
                 t = float(times[k[0]])
-                pos = timelines[a.name].position(t)
+                tl = timelines[a.name]
+                pos = tl.position(t) if len(tl.t1) else np.asarray(a.start, dtype=np.float64)
                 findings.append(Finding("robots-collide", a.name, t, tuple(float(x) for x in pos),
                                         _chunk_of(a, timelines[a.name], t), _collide_detail(a.name, b.name, mask[k]),
                                         int(len(k))))
@@ -489,10 +491,13 @@ def _collide_detail(a: str, b: str, masks: np.ndarray) -> str:
     return detail
 
 
-def _nozzle_xy(tl: Timeline, times: np.ndarray) -> np.ndarray:
-    """(T, 2) the nozzle's XY at sorted ``times`` (as :meth:`Timeline.position`)."""
+def _nozzle_xy(r: SimRobot, tl: Timeline, times: np.ndarray) -> np.ndarray | None:
+    """(T, 2) the nozzle's XY at sorted ``times`` (as :meth:`Timeline.position`); a robot without
+    moves stands at its start all along (``None``: it has none either, it is nowhere)."""
     if len(tl.t1) == 0:
-        return np.zeros((len(times), 2))
+        if r.start is None:
+            return None
+        return np.broadcast_to(np.asarray(r.start, dtype=np.float64)[:2], (len(times), 2))
     return kernels.positions_at(tl.t0, tl.t1, tl.p0, tl.p1, times)
 
 
