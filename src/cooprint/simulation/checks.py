@@ -456,7 +456,7 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
         for b in robots[i + 1:]:
             (fa, ka), (fb, kb) = facing[a.name], facing[b.name]
             pa, pb = a.profile or profile, b.profile or profile  # each robot's own outline
-            mask = np.zeros(len(times), np.int64)
+            mask = np.zeros(len(times), np.int32)
             # runs of instants with the same pair of facings in force (spans come in time order)
             cuts = np.r_[0, np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1, len(times)]
             tables = {}

@@ -567,8 +567,9 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
 
 @_jit
 def outlines_overlap(pa, pb, axes, lo, hi):
-    """(T,) int64: which parts of two robots' outlines overlap at each instant, a bit per pair of
-    parts (bit ``p`` for the pair of row ``p`` of ``lo``, ``hi``); 0: the outlines are apart.
+    """(T,) int32: which parts of two robots' outlines overlap at each instant, a bit per pair of
+    parts (bit ``p`` for the pair of row ``p`` of ``lo``, ``hi``, at most 31 pairs); 0: the
+    outlines are apart.
 
     Every part of a robot is a rectangle in its frame, so all the parts of robot a share two edge
     directions, and all of b's two others: ``axes`` (4, 2) are the four unit normals (a's facing,
@@ -577,34 +578,33 @@ def outlines_overlap(pa, pb, axes, lo, hi):
     ``d = pb[i] - pa[i]`` projects strictly inside ``(lo[p, k], hi[p, k])`` (their Minkowski
     difference, precomputed by the caller): per instant four dot products, and a first test
     against the union of the pairs' intervals rejects robots far apart at once."""
-    n_pairs, n_axes = lo.shape
-    out = np.zeros(len(pa), np.int64)
-    ulo = np.empty(n_axes)
-    uhi = np.empty(n_axes)
-    for k in range(n_axes):
-        ulo[k], uhi[k] = np.inf, -np.inf
-        for p in range(n_pairs):
+    n_pairs = lo.shape[0]
+    out = np.zeros(len(pa), np.int32)
+    ulo = np.full(4, np.inf)
+    uhi = np.full(4, -np.inf)
+    for p in range(n_pairs):
+        for k in range(4):
             ulo[k] = min(ulo[k], lo[p, k])
             uhi[k] = max(uhi[k], hi[p, k])
-    s = np.empty(n_axes)
+    a0, a1, a2, a3 = axes[0], axes[1], axes[2], axes[3]
     for i in range(len(pa)):
         dx, dy = pb[i, 0] - pa[i, 0], pb[i, 1] - pa[i, 1]
-        apart = False
-        for k in range(n_axes):
-            s[k] = dx * axes[k, 0] + dy * axes[k, 1]
-            if not ulo[k] < s[k] < uhi[k]:
-                apart = True
-                break
-        if apart:
+        s0 = dx * a0[0] + dy * a0[1]
+        if not ulo[0] < s0 < uhi[0]:
+            continue
+        s1 = dx * a1[0] + dy * a1[1]
+        if not ulo[1] < s1 < uhi[1]:
+            continue
+        s2 = dx * a2[0] + dy * a2[1]
+        if not ulo[2] < s2 < uhi[2]:
+            continue
+        s3 = dx * a3[0] + dy * a3[1]
+        if not ulo[3] < s3 < uhi[3]:
             continue
         mask = 0
         for p in range(n_pairs):
-            inside = True
-            for k in range(n_axes):
-                if not lo[p, k] < s[k] < hi[p, k]:
-                    inside = False
-                    break
-            if inside:
+            if (lo[p, 0] < s0 < hi[p, 0] and lo[p, 1] < s1 < hi[p, 1] and lo[p, 2] < s2 < hi[p, 2]
+                    and lo[p, 3] < s3 < hi[p, 3]):
                 mask |= 1 << p
         out[i] = mask
     return out
