@@ -307,3 +307,30 @@ def test_summary_lists_every_kind_and_checked_only_those_that_ran():
     s = summary(res)
     assert list(s["finding_counts"]) == list(KINDS)
     assert s["checked"] == [k for k in KINDS if k in res.checked] and "robots-collide" in s["checked"]
+
+
+@pytest.mark.parametrize("robot, needle", [
+    ("frame_width = -1", "fleet.toml: robot.frame_width = -1: expected a number > 0"),
+    ("build_depth = 30\nnozzle_depth = 30", "fleet.toml: robot.nozzle_depth = 30 mm, robot.build_depth = 30 mm"),
+])
+def test_a_manifest_with_a_degenerate_outline_is_refused(tmp_path, capsys, robot, needle):
+    (tmp_path / "A.coop").write_text("MOVE 0 0 5\n")
+    m = tmp_path / "fleet.toml"
+    m.write_text(f'[robot]\n{robot}\n[[robots]]\nname = "A"\nprogram = "A.coop"\n')
+    assert_rejected(["simulate", "--manifest", m, "--out", tmp_path / "o"], capsys, [tmp_path], contains=needle)
+
+
+def test_a_manifest_frame_width_is_the_robots(tmp_path):
+    """A manifest's [robot] frame_width reaches the outline check: A's frame 100 mm wide leaves
+    B's printhead (x 115 .. 165 under where a 300 mm frame would be) clear."""
+    from cooprint.simulation import load_inputs
+
+    (tmp_path / "A.coop").write_text("MOVE 0 0 50\nMOVE 0 0 60\n")
+    (tmp_path / "B.coop").write_text("MOVE 140 -150 50\nMOVE 140 -150 60\n")
+    m = tmp_path / "fleet.toml"
+    robots = ('[[robots]]\nname = "A"\nprogram = "A.coop"\nfacing_deg = 90\n'
+              '[[robots]]\nname = "B"\nprogram = "B.coop"\nfacing_deg = 180\n')
+    m.write_text(robots)
+    assert [f.detail for f in collisions(simulate(load_inputs([], str(m))))] == ["the frame of A meets the printhead of B"]
+    m.write_text("[robot]\nframe_width = 100\n" + robots)
+    assert collisions(simulate(load_inputs([], str(m)))) == []
