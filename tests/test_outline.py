@@ -334,3 +334,25 @@ def test_a_manifest_frame_width_is_the_robots(tmp_path):
     assert [f.detail for f in collisions(simulate(load_inputs([], str(m))))] == ["the frame of A meets the printhead of B"]
     m.write_text("[robot]\nframe_width = 100\n" + robots)
     assert collisions(simulate(load_inputs([], str(m)))) == []
+
+
+def test_the_snapshot_draws_each_robots_frame_and_printhead(tmp_path):
+    """The frame and the printhead outlined at the printhead's underside (nozzle_height above the
+    tip), in the robot's colour: the pixel at each corner of A's printhead is A's colour."""
+    from PIL import Image
+
+    from cooprint.render.sim import _colour, _Scene, _upper_parts, render_snapshot
+
+    res = facing_across(300.0)
+    a = res.robots[0]
+    nozzle = res.timelines["A"].position(0.0)
+    frame, head = _upper_parts(res, a, nozzle, 0.0)
+    assert np.allclose(head[:, 2], nozzle[2] + PROFILE.nozzle_height)
+    assert np.allclose(head[:, :2], nozzle[:2] + outline_corners(PROFILE, a.facing, 0.0)["printhead"])
+    assert np.allclose(frame[:, :2], nozzle[:2] + outline_corners(PROFILE, a.facing, 0.0)["frame"])
+    path = render_snapshot(res, 0.0, tmp_path / "s.png", size=(800, 500))
+    img = np.asarray(Image.open(path).convert("RGB")).astype(int)
+    scene = _Scene(res, (800, 500), -35.0, 30.0)
+    for x, y in scene.px(head).round().astype(int):
+        near = img[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].reshape(-1, 3)
+        assert (np.abs(near - np.array(_colour(0))).sum(axis=1) < 40).any(), (x, y)
