@@ -72,6 +72,9 @@ SETTINGS_CASES = [
     (["--set", "robot.name="], "robot.name = '': expected a non-empty string"),
     (["--set", "robot.name=[1, 2]"], "robot.name = [1, 2]: expected a non-empty string"),
     (["--set", "robot.max_z=0"], "robot.max_z = 0: expected a number > 0"),
+    (["--set", "robot.frame_width=-1"], "robot.frame_width = -1: expected a number > 0"),
+    (["--set", "robot.nozzle_depth=400"], "robot.nozzle_depth = 400 mm, robot.build_depth = 300 mm: the printhead "
+                                          "reaches into the body"),
     (["--set", "robot.print_speed=true"], "robot.print_speed = True"),
     (["--set", "mesh.units=km"], "mesh.units = 'km': expected one of"),
     (["--set", "mesh.place=yes"], "mesh.place = 'yes': expected true or false"),
@@ -92,6 +95,8 @@ CONFIG_CASES = [
     ("[slicer]\nlayer_height = 0.3\n", "unknown section [slicer]; did you mean 'slicing'?"),
     ("[chunking]\nshift = 1e-9\n", "chunking.shift = 1e-09"),
     ("[robot]\nname = 'x'\nmax_z = -1\n", "robot.max_z = -1"),
+    ("[robot]\nframe_width = 0\n", "robot.frame_width = 0: expected a number > 0"),
+    ("[robot]\nbuild_depth = 25\n", "robot.nozzle_depth = 25 mm, robot.build_depth = 25 mm"),
     ("[mesh]\nunits = 'inch'\n", "mesh.units = 'inch': expected one of 'mm', 'cm', 'm', 'in' (did you mean 'in'?)"),
     ("slicing = 3\n", "slicing must be a table"),
     ("[slicing\n", "invalid TOML"),

@@ -408,7 +408,8 @@ def test_a_centre_offset_beyond_the_part_is_named(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args", [["--theta", "90"], ["--theta", "2"], ["--set", "robot.nozzle_height=1"],
-                                  ["--set", "robot.build_depth=10", "--set", "robot.nozzle_height=0.5"],
+                                  ["--set", "robot.build_depth=10", "--set", "robot.nozzle_height=0.5",
+                                   "--set", "robot.nozzle_depth=5"],
                                   ["--set", "robot.max_z=10"]])
 def test_every_refusal_line_is_whole_and_under_250_characters(tmp_path, capsys, args):
     block = stl(tmp_path / "block.stl", cube(60, 400, 30))

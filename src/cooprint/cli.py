@@ -2,7 +2,8 @@
 
 Exit codes: 0 success; 1 a plan whose own simulation (``run --simulate``, ``simulate``) finds
 error-level findings (bodies on material, robots colliding, the printhead meeting material,
-deadlocks), or with ``--strict`` any finding (overhang warnings too): one line on stderr says so,
+deadlocks), or with ``--strict`` (``--fail-on warnings``) any finding (overhang warnings too): one
+line on stderr says so,
 even with ``--quiet``; also 1 when ``info`` finds the part not feasible; 2 bad input (one line on stderr, no traceback unless ``--verbose``);
 130 interrupted.
 """
@@ -318,9 +319,29 @@ def _judge(sim: dict[str, Any], strict: bool, quiet: bool, what: str, summary_pa
     raise click.exceptions.Exit(1)
 
 
-strict_option = click.option(
-    "--strict", is_flag=True, help="Exit with code 1 on warnings (overhangs) too; errors (a body on material, "
-                                   "robots colliding, the printhead meeting material, a deadlock) always exit 1.")
+def strict_option(command: Any) -> Any:
+    """``--strict`` (a flag: warnings fail the plan too) and ``--fail-on errors|warnings`` (the
+    same choice spelled out: ``errors``, the default, fails only on error-level findings;
+    ``warnings`` is ``--strict``), handed to ``command`` as one ``strict`` bool. Conflicting
+    values, or either on ``run`` without ``--simulate``, are refused."""
+
+    @functools.wraps(command)
+    def wrapper(*args: Any, strict: bool, fail_on: str | None, **kwargs: Any) -> Any:
+        if strict and fail_on == "errors":
+            raise UserError("--strict fails on warnings, --fail-on errors only on errors: give one")
+        if fail_on is not None and kwargs.get("then_simulate") is False:
+            raise UserError(f"--fail-on {fail_on} needs --simulate (it says which findings of the plan's simulation "
+                            "fail it)")
+        return command(*args, strict=strict or fail_on == "warnings", **kwargs)
+
+    wrapper = click.option(
+        "--fail-on", type=click.Choice(["errors", "warnings"]), default=None,
+        help="Which findings exit with code 1: errors (the default: a body on material, robots colliding, the "
+             "printhead or nozzle meeting material, material laid twice, out of order or outside the part, a "
+             "deadlock) or warnings too (overhangs; the same as --strict).")(wrapper)
+    return click.option("--strict", is_flag=True,
+                        help="Exit with code 1 on warnings (overhangs) too (--fail-on warnings); errors always "
+                             "exit 1.")(wrapper)
 
 
 @cli.command(name="run")

@@ -23,7 +23,8 @@ combination can make nonsense:
 Hence ``width >= nozzle >= height``, and the bead's cross-section
 ``(w - h) h + pi (h / 2)^2 >= pi h^2 / 4 > 0`` (:func:`cooprint.slicing.paths.extrusion_area`): E is
 never negative, nor the line spacing ``w - h (1 - pi / 4)``. ``chunking.shift`` is at least
-``MIN_SHIFT`` (5 mm). :func:`work_estimate` bounds what a part asks for (layers, path length).
+``MIN_SHIFT`` (5 mm). The robot's outline is whole (:func:`check_robot`): ``nozzle_depth <
+build_depth``, the printhead ends before the body's front. :func:`work_estimate` bounds what a part asks for (layers, path length).
 """
 
 from __future__ import annotations
@@ -80,6 +81,9 @@ class RobotProfile:
                                 doc="reach of the printhead body ahead of the nozzle (nd)"))
     body_width: float = field(default=300.0, metadata=_num(0, 1e5, unit="mm", lo_open=True))
     body_length: float = field(default=350.0, metadata=_num(0, 1e5, unit="mm", lo_open=True))
+    frame_width: float | None = field(default=None, metadata=_num(0, 1e5, unit="mm", lo_open=True, optional=True,
+                                      doc="width of the frame that carries the printhead over the print, "
+                                          "across the facing axis; absent: body_width"))
     print_speed: float = field(default=40.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     travel_speed: float = field(default=120.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     acceleration: float = field(default=500.0, metadata=_num(0, 1e6, unit="mm/s2", lo_open=True,
@@ -91,6 +95,11 @@ class RobotProfile:
     # a mobile robot prints on the floor: no bed to heat unless its profile says it carries one
     heated_bed: bool = field(default=False, metadata={"boolean": True,
                              "doc": "the robot prints on a heated bed (G-code heats it to slicing.bed_temperature)"})
+
+    @property
+    def resolved_frame_width(self) -> float:
+        """The frame's width, mm: ``frame_width``, or the body's width when it is not given."""
+        return self.body_width if self.frame_width is None else self.frame_width
 
 
 @dataclass(frozen=True)
@@ -301,7 +310,12 @@ def robot_profile(values: Any, where: str, label: str, base: RobotProfile | None
     if not isinstance(values, Mapping):
         raise ConfigError(f"{where}{label} = {_shown(values)}: expected a table of [robot] fields")
     given = _build("robot", RobotProfile, values, where, label)  # every value checked, in its own type
-    return replace(base or RobotProfile(), **{str(k): getattr(given, str(k)) for k in values})
+    profile = replace(base or RobotProfile(), **{str(k): getattr(given, str(k)) for k in values})
+    try:  # the rules between fields hold for each robot's own outline too
+        check_robot(profile, {str(k): f"{where}{label}: " for k in values})
+    except ConfigError as e:
+        raise ConfigError(str(e) if str(e).startswith(where) else f"{where}{label}: {e}") from None
+    return profile
 
 
 def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -> None:
@@ -332,6 +346,21 @@ def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -
         where = where_of("extrusion_width", "nozzle_diameter")
         raise ConfigError(f"{where}slicing.extrusion_width = {w:g} mm: expected {MIN_WIDTH_PER_NOZZLE:g} to "
                           f"{MAX_WIDTH_PER_NOZZLE:g} x slicing.nozzle_diameter = {lo:g} to {hi:g} mm")
+
+
+def check_robot(r: RobotProfile, origin: Mapping[str, str] | None = None) -> None:
+    """The rule between robot fields that keeps its outline whole (docs/simulator.md): the
+    printhead (half-side ``nozzle_depth`` around the nozzle) ends before the body's front
+    (``build_depth`` behind the nozzle), so that the frame between them has a length, and the
+    printhead does not reach into the body. Every size is already > 0 by its own range (a frame
+    narrower than zero or a zero body is refused there). The failure names both fields and their
+    values on one line, after where the first was set (``origin``: ``{"nozzle_depth": "r.toml: "}``)."""
+    if r.nozzle_depth >= r.build_depth:
+        given = {k: w for k, w in (origin or {}).items() if w != "defaults.toml: "}
+        where = next((given[n] for n in ("nozzle_depth", "build_depth") if n in given), "")
+        raise ConfigError(f"{where}robot.nozzle_depth = {r.nozzle_depth:g} mm, robot.build_depth = {r.build_depth:g} mm: "
+                          "the printhead reaches into the body; expected nozzle_depth < build_depth (the printhead, "
+                          "nozzle_depth around the nozzle, ends before the body's front)")
 
 
 def work_estimate(size: Any, volume: float, s: SlicingSettings) -> dict[str, float]:
@@ -474,4 +503,5 @@ def load_settings(*paths: str | Path, overrides: Mapping[str, Any] | None = None
         origin[key] = "option: "
     settings = JobSettings(**{s: _build(s, cls, merged[s], "") for s, cls in _SECTIONS.items()})
     check_slicing(settings.slicing, {k.partition(".")[2]: w for k, w in origin.items() if k.startswith("slicing.")})
+    check_robot(settings.robot, {k.partition(".")[2]: w for k, w in origin.items() if k.startswith("robot.")})
     return settings

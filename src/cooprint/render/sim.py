@@ -1,6 +1,6 @@
 """Pictures of a simulated plan (thin, on the timelines): the fleet at an instant, like the seed's
 Fig. 14 and 16 (material as lines coloured per robot, robots as their footprints with the
-nozzle), and a Gantt chart of who prints, travels and waits when."""
+nozzle, and the outlines of their frames and printheads over the print), and a Gantt chart of who prints, travels and waits when."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from cooprint.errors import UserError
 from cooprint.render.chunks import BACKGROUND, _font, _view_basis
 from cooprint.render.paths import _fit
 from cooprint.simulation import SimResult
-from cooprint.simulation.checks import body_corners
+from cooprint.simulation.checks import body_corners, outline_corners
 
 ROBOT_COLOURS = [(214, 96, 77), (67, 147, 195), (90, 170, 90), (200, 150, 40), (150, 100, 190), (120, 120, 120)]
 WAIT_COLOUR = (235, 200, 60)
@@ -44,6 +44,9 @@ class _Scene:
         feet = [_footprint(result, r, p, t) for r in result.robots for tl in [result.timelines[r.name]]
                 for p, t in ([(tl.p0[0], tl.t0[0]), (tl.p1[-1], tl.t1[-1])] if len(tl.p0) else [])
                 if result.placed]
+        feet += [part for r in result.robots if result.placed for tl in [result.timelines[r.name]]
+                 for p, t in ([(tl.p0[0], tl.t0[0]), (tl.p1[-1], tl.t1[-1])] if len(tl.p0) else [])
+                 for part in _upper_parts(result, r, p, t)]  # the frames and printheads, in the air
         for r in result.robots if result.placed else []:  # where a robot turns, in the facings before and after
             spans = r.facing_spans(result.timelines[r.name]) if r.program.turns else []
             feet += [np.column_stack([sp.position[:2] + body_corners(r.profile or result.profile, f), np.zeros(4)])
@@ -91,6 +94,12 @@ class _Scene:
                 foot = [tuple(q) for q in self.px(_footprint(self.result, r, n, t)).round(1).tolist()]
                 light = tuple(int(0.5 * x + 0.5 * 255) for x in _colour(i))
                 draw.polygon(foot, fill=light if filled else None, outline=_colour(i))
+                if not filled:  # the frame and the printhead, in the air over the print, on the nozzle
+                    parts = _upper_parts(self.result, r, n, t)
+                    for part in parts:
+                        draw.polygon([tuple(q) for q in self.px(part).round(1).tolist()], outline=_colour(i))
+                    up = self.px(np.array([n[0], n[1], parts[0][0, 2]]))
+                    draw.line([tuple(self.px(n)), tuple(up)], fill=_colour(i), width=1)
             a, b = self.px(np.array([n[0], n[1], 0.0])), self.px(n)
             draw.line([tuple(a), tuple(b)], fill=(60, 60, 60), width=2)
             draw.ellipse([b[0] - 5, b[1] - 5, b[0] + 5, b[1] + 5], fill=_colour(i), outline=(30, 30, 30))
@@ -303,6 +312,17 @@ def _footprint(result: SimResult, r, nozzle: np.ndarray, t: float) -> np.ndarray
     facing = r.facing_at(result.timelines[r.name], t) if r.program.turns else r.facing
     xy = nozzle[:2] + body_corners(r.profile or result.profile, facing)
     return np.column_stack([xy, np.zeros(4)])
+
+
+def _upper_parts(result: SimResult, r, nozzle: np.ndarray, t: float) -> list[np.ndarray]:
+    """(4, 3) corners of a robot's frame and printhead (:func:`outline_corners`, no tolerance) at
+    the height of the printhead's underside (``nozzle_height`` above the tip), with its nozzle at
+    ``nozzle`` at time ``t``, in the facing in force then."""
+    profile = r.profile or result.profile
+    facing = r.facing_at(result.timelines[r.name], t) if r.program.turns else r.facing
+    corners = outline_corners(profile, facing, 0.0)
+    z = float(nozzle[2]) + profile.nozzle_height
+    return [np.column_stack([nozzle[:2] + corners[p], np.full(4, z)]) for p in ("frame", "printhead")]
 
 
 def _overlay(draw: ImageDraw.ImageDraw, scene: _Scene, t: float, size: tuple[int, int]) -> None:

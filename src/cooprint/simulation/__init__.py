@@ -20,9 +20,12 @@ from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
-#: Finding kinds, in the order of the issue's checks (a)-(e), then the nozzle below the floor.
-KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "deadlock", "chunk-order", "below-floor",
-         "overhang")
+#: Finding kinds, in the order summaries list them: the robot's outline against material and
+#: other robots, the nozzle and the material it lays (in material, twice, in the chunks' order,
+#: inside the part), the timing, the floor, then the one warning. A kind is in a summary's
+#: ``checked`` only when its check ran.
+KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "nozzle-in-material", "double-deposit",
+         "chunk-order", "outside-part", "deadlock", "below-floor", "overhang")
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,8 @@
 
 * ``body-on-material``: a robot's body footprint (``body_width`` x ``body_length``, its front
   ``build_depth`` behind the nozzle along the robot's facing) over material deposited before.
-* ``robots-collide``: two robots' footprints overlapping at the same instant.
+* ``robots-collide``: two robots' outlines (body, frame and printhead of each,
+  :func:`outline_boxes`) overlapping at the same instant; the detail says which parts met.
 * ``printhead-hits-material``: material deposited before within the printhead's reach (a square
   of half-side ``nozzle_depth`` around the nozzle, in the robot's frame) that rises above the
   printhead's underside (``nozzle_height`` above the nozzle tip), seed Fig. 3b: a chunk whose
@@ -156,6 +157,74 @@ def head_box(profile: RobotProfile, tolerance: float = 0.0) -> tuple[float, floa
     ``nozzle_depth``), shrunk by ``tolerance``."""
     r = max(profile.nozzle_depth - tolerance, 0.0)
     return (-r, r, -r, r)
+
+
+#: The parts of a robot's outline (seed Fig. 1 and 3), in the order of :func:`outline_boxes`.
+PARTS = ("body", "frame", "printhead")
+#: How far each part is shrunk before two robots' outlines are compared, mm: two parts meet
+#: when they overlap by more than the sum of their shrinks. The body keeps the footprint checks'
+#: ``TOLERANCE`` (2 mm; a coarse wheel base, and bodies meeting bodies are judged as before). The
+#: frame and the printhead are machined parts placed to the programs' 1 µm grid: a shrink of
+#: 0.1 mm each lets two of them touch face to face (rounding in the time sampling and the
+#: corners' arithmetic is far below it) and finds any true overlap of more than 0.2 mm. It must
+#: stay under 0.5 mm: two printheads facing each other across a gap 1 mm narrower than
+#: ``2 * nozzle_depth`` overlap by 1 mm, which must be found.
+OUTLINE_TOLERANCE = {"body": TOLERANCE, "frame": 0.1, "printhead": 0.1}
+
+
+def outline_boxes(profile: RobotProfile, tolerance: dict[str, float] | float | None = None
+                  ) -> dict[str, tuple[float, float, float, float]]:
+    """The robot's outline: part -> ``(u_lo, u_hi, v_lo, v_hi)`` relative to the nozzle, in the
+    robot's frame (u along its facing, from the body to the nozzle; v to its left), each part a
+    vertical prism compared in XY:
+
+    * ``body``: ``u`` in ``[-build_depth - body_length, -build_depth]``, ``v`` in ``+-body_width/2``
+      (on the floor, on its wheels);
+    * ``frame``: ``u`` in ``[-build_depth, -nozzle_depth]``, ``v`` in ``+-frame_width/2`` (from the
+      body's front over the print to the printhead; ``frame_width`` defaults to ``body_width``);
+    * ``printhead``: ``u``, ``v`` in ``+-nozzle_depth`` (from ``nozzle_height`` above the tip up).
+
+    Each is shrunk on every side by ``tolerance`` (mm, one for all or per part; ``None``:
+    :data:`OUTLINE_TOLERANCE`), never past its centre line."""
+    tol = OUTLINE_TOLERANCE if tolerance is None else tolerance
+    bd, nd, bl = profile.build_depth, profile.nozzle_depth, profile.body_length
+    bw, fw = profile.body_width, profile.resolved_frame_width
+    raw = {"body": (-bd - bl, -bd, -bw / 2, bw / 2), "frame": (-bd, -nd, -fw / 2, fw / 2),
+           "printhead": (-nd, nd, -nd, nd)}
+    out = {}
+    for part, (u0, u1, v0, v1) in raw.items():
+        t = tol[part] if isinstance(tol, dict) else float(tol)
+        tu, tv = min(t, (u1 - u0) / 2), min(t, (v1 - v0) / 2)
+        out[part] = (u0 + tu, u1 - tu, v0 + tv, v1 - tv)
+    return out
+
+
+def outline_corners(profile: RobotProfile, facing: np.ndarray, tolerance: dict[str, float] | float | None = None
+                    ) -> dict[str, np.ndarray]:
+    """Part -> (4, 2) corners of the robot's outline (:func:`outline_boxes`) relative to the
+    nozzle, in world XY, for a robot facing ``facing``."""
+    frame = _frame(facing)
+    return {part: np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]]) @ frame
+            for part, (u0, u1, v0, v1) in outline_boxes(profile, tolerance).items()}
+
+
+def outline_tables(pa: RobotProfile, fa: np.ndarray, pb: RobotProfile, fb: np.ndarray,
+                   tolerance: dict[str, float] | float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`kernels.outlines_overlap` takes for robot a (profile ``pa``, facing ``fa``)
+    against robot b: the four separating axes (4, 2) and, for each pair of parts (a's part
+    ``p // 3``, b's part ``p % 3`` of :data:`PARTS`), the open interval (``lo``, ``hi`` (9, 4))
+    of ``(nozzle_b - nozzle_a) . axis`` in which the two overlap (their Minkowski difference:
+    ``min(a) - max(b)`` to ``max(a) - min(b)`` of the corners' projections)."""
+    axes = np.vstack([_frame(fa), _frame(fb)])
+    ca, cb = outline_corners(pa, fa, tolerance), outline_corners(pb, fb, tolerance)
+    lo, hi = np.empty((len(PARTS) ** 2, 4)), np.empty((len(PARTS) ** 2, 4))
+    for i, x in enumerate(PARTS):
+        sa = ca[x] @ axes.T  # (4 corners, 4 axes)
+        for j, y in enumerate(PARTS):
+            sb = cb[y] @ axes.T
+            lo[i * len(PARTS) + j] = sa.min(axis=0) - sb.max(axis=0)
+            hi[i * len(PARTS) + j] = sa.max(axis=0) - sb.min(axis=0)
+    return axes, lo, hi
 
 
 @dataclass(frozen=True)
@@ -363,17 +432,23 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
 
 
 def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
-                   dt: float = 0.5, tolerance: float = TOLERANCE) -> list[Finding]:
-    """Pairs of robots whose footprints overlap at the same instant (sampled every ``dt`` s, or
-    at ``MAX_INSTANTS`` instants over a longer plan), each robot in the facing in force at that
-    instant."""
+                   dt: float = 0.5, tolerance: dict[str, float] | float | None = None) -> list[Finding]:
+    """Pairs of robots whose outlines overlap at the same instant: body, frame and printhead of
+    each (:func:`outline_boxes`, each robot's own profile, shrunk by ``tolerance``, by default
+    :data:`OUTLINE_TOLERANCE`) against those of the other, each robot in the facing in force at
+    that instant, sampled every ``dt`` s (or at ``MAX_INSTANTS`` instants over a longer plan).
+
+    One finding per pair of robots: the first instant they meet, with the parts that meet then
+    in its detail (``the printhead of A meets the printhead of B``) and, when others meet later,
+    how many instants each pair of parts met; ``count`` is the instants they overlap at all."""
     findings = []
     if len(robots) < 2:
         return findings
     end = max((tl.end for tl in timelines.values()), default=0.0)
     dt = max(dt, end / MAX_INSTANTS)  # a plan of years (a program that jumps kilometres) is looked at less often
     times = np.arange(0.0, end + dt, dt)
-    nozzle = {r.name: _nozzle_xy(timelines[r.name], times) for r in robots}
+    nozzle = {r.name: _nozzle_xy(r, timelines[r.name], times) for r in robots}
+    robots = [r for r in robots if nozzle[r.name] is not None]
     facing = {}  # per robot: its facings, and which is in force at each instant
     for r in robots:
         spans = r.facing_spans(timelines[r.name])
@@ -382,31 +457,49 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
             (fa, ka), (fb, kb) = facing[a.name], facing[b.name]
-            pa, pb = a.profile or profile, b.profile or profile  # each robot's own body
-            if len(fa) == len(fb) == 1:
-                hit = kernels.rects_overlap(nozzle[a.name], nozzle[b.name], body_corners(pa, fa[0], tolerance),
-                                            body_corners(pb, fb[0], tolerance))
-            else:  # the instants of each pair of facings in force
-                hit = np.zeros(len(times), dtype=bool)
-                for ja, jb in sorted(set(zip(ka.tolist(), kb.tolist()))):
-                    sel = (ka == ja) & (kb == jb)
-                    hit[sel] = kernels.rects_overlap(nozzle[a.name][sel], nozzle[b.name][sel],
-                                                     body_corners(pa, fa[ja], tolerance),
-                                                     body_corners(pb, fb[jb], tolerance))
-            if hit.any():
-                k = np.flatnonzero(hit)
+            pa, pb = a.profile or profile, b.profile or profile  # each robot's own outline
+            mask = np.zeros(len(times), np.int32)
+            # runs of instants with the same pair of facings in force (spans come in time order)
+            cuts = np.r_[0, np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1, len(times)]
+            tables = {}
+            for s, e in zip(cuts[:-1], cuts[1:]):
+                key = (int(ka[s]), int(kb[s]))
+                if key not in tables:
+                    tables[key] = outline_tables(pa, fa[key[0]], pb, fb[key[1]], tolerance)
+                mask[s:e] = kernels.outlines_overlap(nozzle[a.name][s:e], nozzle[b.name][s:e], *tables[key])
+            k = np.flatnonzero(mask)
+            if len(k):
                 t = float(times[k[0]])
-                pos = timelines[a.name].position(t)
+                tl = timelines[a.name]
+                pos = tl.position(t) if len(tl.t1) else np.asarray(a.start, dtype=np.float64)
                 findings.append(Finding("robots-collide", a.name, t, tuple(float(x) for x in pos),
-                                        _chunk_of(a, timelines[a.name], t),
-                                        f"the bodies of robots {a.name} and {b.name} overlap", int(len(k))))
+                                        _chunk_of(a, timelines[a.name], t), _collide_detail(a.name, b.name, mask[k]),
+                                        int(len(k))))
     return findings
 
 
-def _nozzle_xy(tl: Timeline, times: np.ndarray) -> np.ndarray:
-    """(T, 2) the nozzle's XY at sorted ``times`` (as :meth:`Timeline.position`)."""
+def _collide_detail(a: str, b: str, masks: np.ndarray) -> str:
+    """Which parts of robots ``a`` and ``b`` meet: at the first instant of ``masks`` (the
+    kernel's bit masks of the instants they overlap), and how many instants each pair of parts
+    meets when more than one pair does."""
+    n = len(PARTS)
+    pairs = [(PARTS[p // n], PARTS[p % n]) for p in range(n * n)]
+    first = [f"the {x} of {a} meets the {y} of {b}" for p, (x, y) in enumerate(pairs) if masks[0] >> p & 1]
+    counts = [(x, y, int(np.count_nonzero(masks >> p & 1))) for p, (x, y) in enumerate(pairs)]
+    counts = [c for c in counts if c[2]]
+    detail = " and ".join(first)
+    if len(counts) > 1:
+        detail += "; instants met: " + ", ".join(f"{a} {x} / {b} {y} {c}" for x, y, c in counts)
+    return detail
+
+
+def _nozzle_xy(r: SimRobot, tl: Timeline, times: np.ndarray) -> np.ndarray | None:
+    """(T, 2) the nozzle's XY at sorted ``times`` (as :meth:`Timeline.position`); a robot without
+    moves stands at its start all along (``None``: it has none either, it is nowhere)."""
     if len(tl.t1) == 0:
-        return np.zeros((len(times), 2))
+        if r.start is None:
+            return None
+        return np.broadcast_to(np.asarray(r.start, dtype=np.float64)[:2], (len(times), 2))
     return kernels.positions_at(tl.t0, tl.t1, tl.p0, tl.p1, times)
 
 
@@ -512,5 +605,6 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "Material", "below_floor", "body_box", "body_corners", "chunk_order",
-           "footprint_checks", "head_box", "overhangs", "path_samples", "robots_collide"]
+__all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "OUTLINE_TOLERANCE", "PARTS", "Material", "below_floor", "body_box",
+           "body_corners", "chunk_order", "footprint_checks", "head_box", "outline_boxes", "outline_corners",
+           "outline_tables", "overhangs", "path_samples", "robots_collide"]

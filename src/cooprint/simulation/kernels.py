@@ -566,45 +566,47 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
 
 
 @_jit
-def rects_overlap(pa, pb, ca, cb):
-    """(T,) bool: whether robot a's body (corners ``ca`` (4, 2) around its nozzle ``pa[i]``)
-    and robot b's overlap at each instant (a box test, then separating axes)."""
-    out = np.zeros(len(pa), np.bool_)
-    qa = np.empty((4, 2))
-    qb = np.empty((4, 2))
-    for i in range(len(pa)):
+def outlines_overlap(pa, pb, axes, lo, hi):
+    """(T,) int32: which parts of two robots' outlines overlap at each instant, a bit per pair of
+    parts (bit ``p`` for the pair of row ``p`` of ``lo``, ``hi``, at most 31 pairs); 0: the
+    outlines are apart.
+
+    Every part of a robot is a rectangle in its frame, so all the parts of robot a share two edge
+    directions, and all of b's two others: ``axes`` (4, 2) are the four unit normals (a's facing,
+    its left, b's facing, its left), the only axes that can separate two of these rectangles
+    (separating axis theorem). Two parts overlap iff on every axis ``k`` the nozzles' offset
+    ``d = pb[i] - pa[i]`` projects strictly inside ``(lo[p, k], hi[p, k])`` (their Minkowski
+    difference, precomputed by the caller): per instant four dot products, and a first test
+    against the union of the pairs' intervals rejects robots far apart at once."""
+    n_pairs = lo.shape[0]
+    out = np.zeros(len(pa), np.int32)
+    ulo = np.full(4, np.inf)
+    uhi = np.full(4, -np.inf)
+    for p in range(n_pairs):
         for k in range(4):
-            for d in range(2):
-                qa[k, d] = pa[i, d] + ca[k, d]
-                qb[k, d] = pb[i, d] + cb[k, d]
-        apart = False
-        for d in range(2):
-            amin, amax, bmin, bmax = np.inf, -np.inf, np.inf, -np.inf
-            for k in range(4):
-                amin, amax = min(amin, qa[k, d]), max(amax, qa[k, d])
-                bmin, bmax = min(bmin, qb[k, d]), max(bmax, qb[k, d])
-            if amin > bmax or bmin > amax:
-                apart = True
-        if apart:
+            ulo[k] = min(ulo[k], lo[p, k])
+            uhi[k] = max(uhi[k], hi[p, k])
+    a0, a1, a2, a3 = axes[0], axes[1], axes[2], axes[3]
+    for i in range(len(pa)):
+        dx, dy = pb[i, 0] - pa[i, 0], pb[i, 1] - pa[i, 1]
+        s0 = dx * a0[0] + dy * a0[1]
+        if not ulo[0] < s0 < uhi[0]:
             continue
-        apart = False
-        for poly in range(2):
-            q = qa if poly == 0 else qb
-            for k in range(4):
-                nx = -(q[(k + 1) % 4, 1] - q[k, 1])
-                ny = q[(k + 1) % 4, 0] - q[k, 0]
-                amin, amax, bmin, bmax = np.inf, -np.inf, np.inf, -np.inf
-                for j in range(4):
-                    s = nx * qa[j, 0] + ny * qa[j, 1]
-                    amin, amax = min(amin, s), max(amax, s)
-                    s = nx * qb[j, 0] + ny * qb[j, 1]
-                    bmin, bmax = min(bmin, s), max(bmax, s)
-                if amax < bmin or bmax < amin:
-                    apart = True
-                    break
-            if apart:
-                break
-        out[i] = not apart
+        s1 = dx * a1[0] + dy * a1[1]
+        if not ulo[1] < s1 < uhi[1]:
+            continue
+        s2 = dx * a2[0] + dy * a2[1]
+        if not ulo[2] < s2 < uhi[2]:
+            continue
+        s3 = dx * a3[0] + dy * a3[1]
+        if not ulo[3] < s3 < uhi[3]:
+            continue
+        mask = 0
+        for p in range(n_pairs):
+            if (lo[p, 0] < s0 < hi[p, 0] and lo[p, 1] < s1 < hi[p, 1] and lo[p, 2] < s2 < hi[p, 2]
+                    and lo[p, 3] < s3 < hi[p, 3]):
+                mask |= 1 << p
+        out[i] = mask
     return out
 
 
