@@ -17,9 +17,11 @@ from solids import box, car, lying_tube, thin_walls, to_trimesh, tube
 ROBOT = RobotProfile()  # bd 300, nh 100, nd 25
 
 
-def chunked(man, robot=ROBOT, **kw):
+def chunked(man, robot=ROBOT, robots=1, **kw):
+    """The seed's geometry: by default for one robot (a wedge-topped centre chunk unless
+    ``top_width`` is given; two robots get 2 x nozzle_depth, tested on its own)."""
     solid = solid_from_trimesh(to_trimesh(man))
-    plan = plan_chunks(solid.vertices, robot, ChunkingSettings(**kw))
+    plan = plan_chunks(solid.vertices, robot, ChunkingSettings(**kw), robots)
     return solid, cut_chunks(solid, plan)
 
 

@@ -164,23 +164,44 @@ def test_a_small_part_gets_a_units_warning(tmp_path, capsys):
 # --- feasibility ------------------------------------------------------------------------------
 
 def test_800_mm_block_info_and_chunk_agree_and_state_the_height_limit(tmp_path, capsys):
+    """Two robots (the default) keep the centre chunk 2 x nozzle_depth = 50 mm wide at the top:
+    (300 - 50) x 4 / 2 = 500 mm; one robot prints a wedge: 300 x 4 / 2 = 600 mm."""
     block = stl(tmp_path / "block.stl", cube(800, 800, 800))
     code, stdout, _ = cli(["info", block], capsys)
-    assert code == 1 and "not feasible" in stdout and "largest printable height 600.0 mm" in stdout
+    assert code == 1 and "not feasible" in stdout and "largest printable height 500.0 mm" in stdout
+    code, stdout, _ = cli(["info", block, "--robots", "1"], capsys)
+    assert code == 1 and "largest printable height 600.0 mm" in stdout
     line = assert_rejected(["chunk", block, "--out", tmp_path / "o", "-q"], capsys, [tmp_path])
-    assert "largest printable height 600.0 mm" in line and "steeper" not in line and "theta_deg" not in line
+    assert "largest printable height 500.0 mm" in line and "steeper" not in line and "theta_deg" not in line
+    assert "robot.build_depth >= 450 or" in line and "robot.nozzle_height >= 160" in line
+    line = assert_rejected(["chunk", block, "--out", tmp_path / "o", "-q", "--robots", "1"], capsys, [tmp_path])
     assert "robot.build_depth >= 400 or" in line and "robot.nozzle_height >= 133.4" in line
-    assert "largest printable height 600.0 mm" in assert_rejected(["run", block, "--out", tmp_path / "o", "-q"], capsys,
+    assert "largest printable height 500.0 mm" in assert_rejected(["run", block, "--out", tmp_path / "o", "-q"], capsys,
                                                                    [tmp_path])
 
 
 def test_a_steeper_slope_is_advised_only_when_it_helps():
     v = np.array([[0, 0, 0], [500, 500, 500]], dtype=float)
-    f = feasibility(v, RobotProfile(), ChunkingSettings(theta_deg=60.0))
+    f = feasibility(v, RobotProfile(), ChunkingSettings(theta_deg=60.0), robots=1)
     assert not f.feasible and any(h.startswith("chunking.theta_deg >= 73.30") for h in f.hints)
-    f = feasibility(v * 1.6, RobotProfile(), ChunkingSettings(theta_deg=60.0))  # 800 tall: theta_max is too shallow too
+    f = feasibility(v * 1.6, RobotProfile(), ChunkingSettings(theta_deg=60.0), robots=1)  # 800 tall: theta_max is too shallow too
     assert not f.feasible and not any("theta_deg >=" in h for h in f.hints)
     assert f.max_height == pytest.approx(300 * 4 / 2 * math.tan(math.radians(60)) / 4)  # at theta 60
+
+
+def test_two_robots_keep_the_centre_chunk_two_printheads_wide_at_the_top():
+    """Default top_width: 0 for one robot (the seed's wedge), 2 x nozzle_depth for two, so the
+    printheads of the robots printing L1 and R1 at once never meet; a set value wins."""
+    from cooprint.chunking.planes import top_width
+
+    robot = RobotProfile(nozzle_depth=30, build_depth=300)
+    assert top_width(robot, ChunkingSettings(), 1) == 0.0
+    assert top_width(robot, ChunkingSettings(), 2) == 60.0
+    assert top_width(robot, ChunkingSettings(top_width=12.0), 2) == 12.0
+    v = np.array([[0, 0, 0], [10, 400, 100.0]])
+    two, one = feasibility(v, robot, ChunkingSettings(), 2), feasibility(v, robot, ChunkingSettings(), 1)
+    assert two.max_height == pytest.approx((300 - 60) * (100 / 30) / 2)
+    assert one.max_height == pytest.approx(300 * (100 / 30) / 2)
 
 
 def test_largest_printable_height_is_the_centre_chunk_bound():
@@ -387,12 +408,13 @@ def _every_hint_is_valid(f):
 
 def test_hints_outside_a_fields_range_are_left_out_and_small_values_keep_their_digits(tmp_path, capsys):
     long = stl(tmp_path / "long.stl", cube(40, 500, 15))
-    code, stdout, _ = cli(["info", long, "--set", "robot.nozzle_height=0.001"], capsys)
+    code, stdout, _ = cli(["info", long, "--set", "robot.nozzle_height=0.001", "--robots", "1"], capsys)
     assert code == 1 and "not feasible" in stdout
     assert "<= 0.0 " not in stdout and "--scale 0 " not in stdout and not stdout.rstrip().endswith("--scale 0")
     assert "robot.nozzle_height >= 2.5" in stdout and "robot.nozzle_depth <= 0.01" in stdout
     assert "largest printable height 0.0055 mm" in stdout or "largest printable height 0.006 mm" in stdout
-    f = feasibility(np.array([[0, 0, 0], [40, 500, 15.0]]), RobotProfile(nozzle_height=0.001), ChunkingSettings())
+    f = feasibility(np.array([[0, 0, 0], [40, 500, 15.0]]), RobotProfile(nozzle_height=0.001), ChunkingSettings(),
+                    robots=1)
     assert f.hints and all("build_depth" not in h for h in f.hints)  # 750,000 mm: beyond the field's 1e5
     _every_hint_is_valid(f)
 
@@ -420,7 +442,7 @@ def test_every_refusal_line_is_whole_and_under_250_characters(tmp_path, capsys, 
 def test_a_part_taller_than_max_z_and_deeper_than_the_build_depth_gives_the_cut_bound(tmp_path, capsys):
     """40 m deep in metres: the cut's bound (600 mm), not max_z's one-chunk height."""
     block = stl(tmp_path / "block.stl", cube(60, 40, 30))
-    code, stdout, _ = cli(["info", block, "--units", "m"], capsys)
+    code, stdout, _ = cli(["info", block, "--units", "m", "--robots", "1"], capsys)
     assert code == 1 and "largest printable height 600.0 mm (cut)" in stdout and "(one chunk)" not in stdout
     assert "robot.max_z >=" not in stdout and "--scale 0.02" in stdout
     tower = stl(tmp_path / "tower.stl", cube(40, 40, 3))  # 3 m tall, 40 m... one chunk at 40 mm deep in mm units

@@ -83,7 +83,7 @@ def test_cap_check_rejects_a_cap_that_does_not_close_the_section():
 
 def test_cut_chunks_falls_back_to_manifold_when_a_cap_fails(monkeypatch):
     solid = solid_from_arrays(*arrays(tube(25, 10, 60)))
-    plan = plan_chunks(solid.vertices, RobotProfile(), ChunkingSettings(theta_deg=70, shift=12))
+    plan = plan_chunks(solid.vertices, RobotProfile(), ChunkingSettings(theta_deg=70, shift=12), robots=1)
     expected = {c.id: c.volume for c in cut_chunks(solid, plan).chunks}
 
     def failing(*args, **kwargs):
@@ -98,7 +98,7 @@ def test_cut_chunks_falls_back_to_manifold_when_a_cap_fails(monkeypatch):
 
 def test_numpy_and_manifold_kernels_agree_on_a_tube():
     solid = solid_from_arrays(*arrays(tube(25, 10, 60)))
-    plan = plan_chunks(solid.vertices, RobotProfile(), ChunkingSettings(theta_deg=70, shift=12))
+    plan = plan_chunks(solid.vertices, RobotProfile(), ChunkingSettings(theta_deg=70, shift=12), robots=1)
     ours = {c.id: c.volume for c in cut_chunks(solid, plan).chunks}
     kernel = cut_module._ManifoldKernel(solid)
     ref = {cid: kernel.extract(p)[2] for cid, _, _, p, _ in cut_module._pieces(kernel, plan)}

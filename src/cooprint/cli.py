@@ -114,7 +114,7 @@ SETTING_FLAGS: tuple[tuple[str, str, str, Any, str], ...] = (
 CHUNK_FLAGS: tuple[tuple[str, str, str, Any, str], ...] = (
     ("--theta", "theta", "chunking.theta_deg", float, "Slope of the chunk interfaces, degrees [theta_max]."),
     ("--shift", "shift", "chunking.shift", float, "Distance between cutting planes, mm [bd - h/tan(theta)]."),
-    ("--top-width", "top_width", "chunking.top_width", float, "Width of the centre chunk at the top, mm [0]."),
+    ("--top-width", "top_width", "chunking.top_width", float, "Width of the centre chunk at the top, mm [0 for one robot, 2 x nozzle_depth for two]."),
     ("--centre-angle", "centre_angle", "chunking.centre_angle_deg", float,
      "Direction of the centre line, degrees from +X [0]."),
 )
@@ -189,7 +189,7 @@ def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: 
     solid, placement = load_placed(mesh, settings)
     click.echo(fmt_report(solid.report))
     click.echo(f"  {placement.describe()}")
-    f = feasibility(solid.vertices, settings.robot, settings.chunking)
+    f = feasibility(solid.vertices, settings.robot, settings.chunking, robots)
     click.echo(f"  robot '{settings.robot.name}': theta_min {f.theta_min_deg:.2f} deg, theta_max {f.theta_max_deg:.2f} "
                f"deg, largest printable height {mm(f.max_height)} mm ({'one chunk' if f.mode == 'whole' else 'cut'})")
     if f.feasible:

@@ -91,7 +91,7 @@ def _load_with_progress(mesh: str | Path | Solid, settings: JobSettings,
 def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, robots: int,
                   progress: Progress | None) -> ChunkJob:
     """Plan, cut and assign a placed solid."""
-    plan = plan_chunks(solid.vertices, settings.robot, settings.chunking)
+    plan = plan_chunks(solid.vertices, settings.robot, settings.chunking, robots)
     cut_progress = (lambda d, t: progress("cut", d, t)) if progress else None
     chunks = cut_chunks(solid, plan, cut_progress)
     return ChunkJob(solid, settings, chunks, assign(chunks, robot_names(robots)), placement)

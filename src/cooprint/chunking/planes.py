@@ -268,8 +268,25 @@ def _axis(settings: ChunkingSettings) -> np.ndarray:
     return np.array([-math.sin(ang), math.cos(ang), 0.0])
 
 
-def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings) -> tuple[Feasibility, ChunkPlan | None]:
-    """The rule behind :func:`feasibility` and :func:`plan_chunks`.
+def top_width(robot: RobotProfile, settings: ChunkingSettings, robots: int) -> float:
+    """The centre chunk's width at the object's top, mm: ``chunking.top_width`` when set; else 0
+    for one robot (the seed's wedge: one robot prints the chunks one after another) and
+    ``2 nozzle_depth`` for two or more. Two robots print the centre chunk's two neighbours at the
+    same time, each with its nozzle at least half a line inside its own chunk, so at any height
+    their nozzles are at least the centre chunk's width at that height apart, and that width is
+    smallest (``top_width``) at the top: a wedge would bring their printheads (``nozzle_depth``
+    around each nozzle) into each other near the top, whatever their speeds; ``2 nozzle_depth``
+    keeps them apart at every instant and every speed. Their frames and bodies stand behind
+    their nozzles, on opposite sides, so they cannot meet."""
+    if settings.top_width is not None:
+        return settings.top_width
+    return 2 * robot.nozzle_depth if robots >= 2 else 0.0
+
+
+def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings,
+          robots: int = 2) -> tuple[Feasibility, ChunkPlan | None]:
+    """The rule behind :func:`feasibility` and :func:`plan_chunks` (``robots``: how many print the
+    part, for the centre chunk's :func:`top_width`).
 
     1. A part taller than ``robot.max_z`` cannot be printed.
     2. A part whose extent along the chunking axis fits the build depth is one chunk, printed by
@@ -285,7 +302,7 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
     v = np.asarray(vertices, dtype=np.float64)
     lo, hi = v.min(axis=0), v.max(axis=0)
     h = float(hi[2] - lo[2])
-    bd, nh, nd, tw = robot.build_depth, robot.nozzle_height, robot.nozzle_depth, settings.top_width
+    bd, nh, nd, tw = robot.build_depth, robot.nozzle_height, robot.nozzle_depth, top_width(robot, settings, robots)
     lim = slope_limits(robot, max(h, 0.0))
     axis = _axis(settings)
     extent = float(np.ptp(v @ axis))
@@ -376,15 +393,17 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings)
                   f"side reach {s + run:.1f} mm within the build depth {bd:g} mm", max_h, n, theta), plan
 
 
-def feasibility(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings) -> Feasibility:
-    """Whether ``robot`` can print the part with ``vertices`` (only their extent matters) under
-    ``settings``, why, the largest printable height and the number of chunks (rules:
-    :func:`_plan`). The one rule of ``info``, ``chunk`` and ``run``."""
-    return _plan(vertices, robot, settings)[0]
+def feasibility(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings,
+                robots: int = 2) -> Feasibility:
+    """Whether ``robots`` robots like ``robot`` can print the part with ``vertices`` (only their
+    extent matters) under ``settings``, why, the largest printable height and the number of
+    chunks (rules: :func:`_plan`). The one rule of ``info``, ``chunk`` and ``run``."""
+    return _plan(vertices, robot, settings, robots)[0]
 
 
-def plan_chunks(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings) -> ChunkPlan:
-    """Choose the slope, the shift and the number of chunks for a mesh and a robot.
+def plan_chunks(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings, robots: int = 2) -> ChunkPlan:
+    """Choose the slope, the shift and the number of chunks for a mesh and ``robots`` robots
+    like ``robot``.
 
     Parameters
     ----------
@@ -397,7 +416,7 @@ def plan_chunks(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSet
         :meth:`Feasibility.message`: why (with the numbers), the largest printable height and
         the changes that would make it printable.
     """
-    record, plan = _plan(vertices, robot, settings)
+    record, plan = _plan(vertices, robot, settings, robots)
     if plan is None:
         raise InfeasibleError(record.message())
     return plan

@@ -110,7 +110,9 @@ class ChunkingSettings:
                                     optional=True, doc="slope of the chunk interfaces"))
     shift: float | None = field(default=None, metadata=_num(MIN_SHIFT, 1e6, unit="mm",
                                 optional=True, doc="distance between parallel cutting planes (s)"))
-    top_width: float = field(default=0.0, metadata=_num(0, 1e6, unit="mm"))
+    top_width: float | None = field(default=None, metadata=_num(0, 1e6, unit="mm", optional=True,
+                                    doc="width of the centre chunk at the object's top; absent: 0 for one robot, "
+                                    "2 x robot.nozzle_depth for two (their printheads never meet)"))
     centre_angle_deg: float = field(default=0.0, metadata=_num(-360, 360, unit="deg"))
     centre_offset: float = field(default=0.0, metadata=_num(-1e6, 1e6, unit="mm"))
 
