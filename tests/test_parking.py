@@ -132,7 +132,8 @@ def waits_in_the_clear(folder) -> list[dict]:
                 assert not o.program.turns, "the check takes one facing per robot"
                 theirs = quads(outline_rects(o.profile), path_samples(to, t0, t1), o.facing)
                 hits += int(overlapping(theirs, mine, GAP).any(axis=1).sum())
-            out.append({"robot": name, "events": events, "position": here[0], "still": float(np.ptp(here, axis=0).max()),
+            out.append({"robot": name, "events": events, "position": here[0],
+                        "still": float(np.ptp(here, axis=0).max()),
                         "hits": hits, "material_mm": distance_to_material(here[0, :2], res.timelines, t1)})
     return out, res
 
@@ -251,8 +252,8 @@ def test_a_wait_between_chunks_backs_off_and_lifts():
     layers, boxes = {}, {}
     for cid, (y0, y1) in chunks.items():  # L1 tall: A is still at it when B is done with R1
         layers[cid], boxes[cid] = _square(y0, y1, 12 if cid == "L1" else 1)
-    layers["R1"] = [(0, LayerPaths.build(1.0, 1.0, [(np.array([[20.0, 40.0], [-20.0, 40.0], [-20.0, 10.0],
-                                                                    [20.0, 10.0], [20.0, 12.0]]), PERIMETER_OUTER, 1.6)]))]
+    ring = np.array([[20.0, 40.0], [-20.0, 40.0], [-20.0, 10.0], [20.0, 10.0], [20.0, 12.0]])
+    layers["R1"] = [(0, LayerPaths.build(1.0, 1.0, [(ring, PERIMETER_OUTER, 1.6)]))]  # it ends next to C
     material = build.MaterialIndex(boxes, margin=1.0)
     r = load_settings().robot
     body = build.BodySize(r.build_depth, r.body_length, r.body_width)

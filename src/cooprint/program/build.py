@@ -455,7 +455,8 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
                 low = np.r_[here[:2], p4[2]] if parked else here
                 z = transition_height(low, p4, material, printed_before + list(seq[:j]), reach, clearance)
                 z = max(z, float(here[2])) if parked else z
-                pieces.append(_moves(robot, _distinct(here, quantize(np.array([np.r_[here[:2], z], np.r_[p4[:2], z]])))))
+                way = quantize(np.array([np.r_[here[:2], z], np.r_[p4[:2], z]]))
+                pieces.append(_moves(robot, _distinct(here, way)))
                 here = quantize(np.r_[p4[:2], z])
             parked = False
             for li, layer in layers[cid]:
