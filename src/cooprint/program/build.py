@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Iterator, NamedTuple, Sequence
+from typing import Iterable, Iterator, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -141,11 +141,67 @@ def transition_height(p1: np.ndarray, p4: np.ndarray, material: MaterialIndex, p
 
 class BodySize(NamedTuple):
     """A robot's body as the planner sees it, mm: its front ``build_depth`` behind the nozzle
-    (along the facing), ``length`` behind the front, ``width`` across."""
+    (along the facing), ``length`` behind the front, ``width`` across; ``frame_width``: the
+    width of the frame that carries the printhead over the print (``None``: the body's)."""
 
     build_depth: float
     length: float
     width: float
+    frame_width: float | None = None
+
+    def outline(self, reach: float) -> "Outline":
+        """The whole robot with a printhead of half-side ``reach`` (``nozzle_depth``)."""
+        fw = self.width if self.frame_width is None else self.frame_width
+        return Outline(self.build_depth, self.length, self.width, fw, reach)
+
+
+class Outline(NamedTuple):
+    """A robot's outline in XY (issue 13, seed Fig. 1 and 3), in its own frame: ``u`` along its
+    facing (from the body to the nozzle), ``v`` to its left, both from the nozzle, mm. Three
+    vertical prisms, so that two robots meet where their rectangles overlap in XY:
+
+    * body ``u in [-build_depth - body_length, -build_depth]``, ``|v| <= body_width / 2``;
+    * frame ``u in [-build_depth, -nozzle_depth]``, ``|v| <= frame_width / 2``;
+    * printhead ``u in [-nozzle_depth, nozzle_depth]``, ``|v| <= nozzle_depth``.
+    """
+
+    build_depth: float
+    body_length: float
+    body_width: float
+    frame_width: float
+    nozzle_depth: float
+
+    @staticmethod
+    def printhead(reach: float) -> "Outline":
+        """A printhead alone (when the planner is not told the body)."""
+        return Outline(reach, 0.0, 0.0, 0.0, reach)
+
+    def rects(self) -> np.ndarray:
+        """(3, 4): ``u_lo, u_hi, v_lo, v_hi`` of the body, the frame and the printhead."""
+        bd, bl, nd = self.build_depth, self.body_length, self.nozzle_depth
+        return np.array([[-bd - bl, -bd, -self.body_width / 2, self.body_width / 2],
+                         [-bd, -nd, -self.frame_width / 2, self.frame_width / 2],
+                         [-nd, nd, -nd, nd]])
+
+    def corners(self, facing: Sequence[float]) -> np.ndarray:
+        """(12, 2): the corners of the three rectangles in XY, from the nozzle, for a robot
+        facing ``facing``."""
+        a = _unit(facing)
+        left = np.array([-a[1], a[0]])
+        r = self.rects()
+        u = r[:, [0, 0, 1, 1]].ravel()
+        v = r[:, [2, 3, 2, 3]].ravel()
+        return u[:, None] * a + v[:, None] * left
+
+    def reach(self, facing: Sequence[float], direction: Sequence[float]) -> float:
+        """How far the outline of a robot facing ``facing`` reaches beyond its nozzle in the XY
+        ``direction`` (a unit vector), mm: the largest of its corners' components along it."""
+        return float((self.corners(facing) @ _unit(direction)).max())
+
+
+def _unit(v: Sequence[float]) -> np.ndarray:
+    a = np.asarray(v, dtype=np.float64)[:2]
+    return a / np.linalg.norm(a)
 
 
 @dataclass(frozen=True)
@@ -185,18 +241,22 @@ def turn_round(here: np.ndarray, p4: np.ndarray, facing: np.ndarray, material: M
 
     1. backs off along ``-facing`` until the body's front is ``m`` behind ``s_lo`` (if it is not
        already): the body, behind the nozzle, is then clear of the box whatever ``q``;
-    2. goes across to the side of the box nearer to its way, until the body is ``m`` clear of
-       ``[q_lo, q_hi]`` (nozzle ``width / 2 + m`` outside): there it turns round about the
-       nozzle, via the facing that points across, at the print, so that the body swings on the
-       outside: at every angle of the turn it stays beyond ``q_lo - m`` (or ``q_hi + m``);
+    2. goes across to the side of the box nearer to its way, until its whole outline is ``m``
+       clear of ``[q_lo, q_hi]`` (nozzle ``w / 2 + m`` outside, ``w`` the widest of the body, the
+       frame and the printhead's diagonal ``2 * sqrt(2) * reach``): there it turns round about
+       the nozzle, via the facing that points across, at the print, so that the body and the
+       frame swing on the outside: at every angle of the turn they stay beyond ``q_lo - m`` (or
+       ``q_hi + m``), and the printhead, within ``sqrt(2) * reach <= w / 2`` of the nozzle, too;
     3. now facing ``-facing``, body ahead of the nozzle along ``+facing``: goes along the side
        until the body's front is ``m`` beyond ``s_hi`` (or to ``p4``'s ``s`` if that is further),
     4. across to ``p4``'s ``q``, and along to above ``p4``: the robot prints the next chunk from
        there with its body on the unprinted side, as a robot that only prints that side would.
 
-    So the body never overlaps the box in either facing; only the last leg (when ``p4`` lies
-    within ``build_depth`` of the box) brings it back towards the print, where the next chunk
-    needs it anyway.
+    So the body never overlaps the box in either facing, and where the robot turns its whole
+    outline is clear of it; the frame and the printhead pass over the print on legs 1, 2 and 4,
+    as they do while printing, at the transition height (the printhead ``nozzle_height`` above
+    the nozzle). Only the last leg (when ``p4`` lies within ``build_depth`` of the box) brings
+    the body back towards the print, where the next chunk needs it anyway.
     """
     a = np.asarray(facing, dtype=np.float64)[:2]
     a = a / np.linalg.norm(a)
@@ -206,7 +266,9 @@ def turn_round(here: np.ndarray, p4: np.ndarray, facing: np.ndarray, material: M
     if not np.isfinite(s_lo):  # nothing printed: the ends alone
         s_lo = s_hi = float(here[:2] @ a)
         q_lo = q_hi = float(here[:2] @ p)
-    bd, length, width = body
+    bd = body.build_depth
+    outline = body.outline(reach)
+    width = max(outline.body_width, outline.frame_width, 2 * math.sqrt(2) * reach)
     m = clearance
     s0, q0 = float(here[:2] @ a), float(here[:2] @ p)
     st, qt = float(p4[:2] @ a), float(p4[:2] @ p)
@@ -277,7 +339,8 @@ def chunk_facings(seq: Sequence[str], roles: dict[str, str], axis: np.ndarray) -
 def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequence[LayerPaths]],
                    deps: dict[str, tuple[str, ...]], material: MaterialIndex, *, reach: float,
                    clearance: float, axis: Sequence[float], roles: dict[str, str],
-                   body: BodySize | None = None) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
+                   body: BodySize | Mapping[str, BodySize] | None = None
+                   ) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
     """Each robot's command stream and placement.
 
     Parameters
@@ -291,43 +354,83 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         ``{chunk id: chunk ids it waits for}``.
     reach, clearance
         The printhead's horizontal extent around the nozzle (``nozzle_depth``) and the lift
-        above material of a transition, mm.
+        above material of a transition, mm; ``clearance`` is also the margin between the
+        outlines of a robot that waits and of the robots it waits for (:func:`park`).
     axis
         The chunking direction (unit XY(Z)); ``roles`` maps chunk ids to centre/left/right.
     body
-        The robot's body, for the way around the print of a robot that prints both sides
-        (:func:`turn_round`); needed only then.
+        The robots' body and frame (one for all, or ``{robot: BodySize}``): for the way around
+        the print of a robot that prints both sides (:func:`turn_round`, needed then) and for
+        the outlines kept apart where a robot waits (without it: the printheads alone).
+
+    Where a robot waits for chunks of other robots it parks (:func:`park`): at the start (its
+    ``start``, when its first chunk waits) or, later, lifted and backed off from where it is,
+    so that its whole outline stays clear of the outlines of the robots printing what it waits
+    for; after the WAIT it goes to its next chunk at the transition height.
     """
     owner = {c: r for r, seq in sequences.items() for c in seq}
     notify_after = {d for c, ds in deps.items() for d in ds if owner[d] != owner[c]}
     programs, placements = {}, {}
     ax = np.asarray(axis, dtype=np.float64)[:2]
+    bodies = body if isinstance(body, Mapping) else {r: body for r in sequences}
+    outlines = {r: (bodies[r].outline(reach) if bodies.get(r) is not None else Outline.printhead(reach))
+                for r in sequences}
+    faces = {r: chunk_facings(seq, roles, ax) for r, seq in sequences.items()}
+    points = _PrintedPoints(layers)
+
+    def occupants(robot: str, waits: Iterable[str]) -> list[tuple[np.ndarray, np.ndarray, Outline]]:
+        """Where the robots that print ``waits`` may be while ``robot`` waits for them: each
+        one's nozzle on every chunk it prints up to the one waited for, in its facing there."""
+        out = []
+        for d in waits:
+            x = owner[d]
+            seq = sequences[x]
+            for c in seq[:seq.index(d) + 1]:
+                if points(c) is not None:
+                    out.append((points(c), faces[x][c], outlines[x]))
+        return out
+
+    idle_robots = []
     for robot, seq in sequences.items():
         pieces: list[Program] = []
         sides = {roles[c] for c in seq} - {"centre"}
         # the side its body stands on: a robot that prints only the centre chunk faces +axis, from the left
         side = "left" if not sides else ("both" if len(sides) > 1 else sides.pop())
-        faces = chunk_facings(seq, roles, ax)
         printing = [c for c in seq if _first_point(layers, (c,)) is not None]
-        current = faces[printing[0]] if printing else (ax if side != "right" else -ax)
-        facing = tuple(float(x) for x in current)
-        first_point = _first_point(layers, seq)
-        if first_point is None:  # a robot with nothing to print parks off the part, on its own side,
-            # and keeps its word (the WAITs and NOTIFYs of its empty chunks)
-            programs[robot] = Program.concat(robot, [_sync(robot, k, ev) for k, ev in _syncs(seq, deps, owner, robot,
-                                                                                            notify_after)])
-            idle = _idle_side(robot, list(sequences), seq, roles)
-            placements[robot] = RobotPlacement(robot, idle,  # type: ignore[arg-type]
-                                               tuple(float(x) for x in (ax if idle == "left" else -ax)),
-                                               _parking(layers, material, ax, clearance, idle))
+        if not printing:  # a robot with nothing to print parks once the others' ways are known
+            idle_robots.append(robot)
             continue
+        outline = outlines[robot]
+        current = faces[robot][printing[0]]
+        facing = tuple(float(x) for x in current)
         facings = [(printing[0], facing_deg(current))]
         printed_before = [c for r, s in sequences.items() if r != robot for c in s]
-        start = quantize(first_point + [0.0, 0.0, clearance])
+        first = seq.index(printing[0])
+        first_point = _first_point(layers, seq)
+        assert first_point is not None
+        # the start: above the first point, or parked clear of what the first chunk waits for
+        start_waits = [d for c in seq[:first + 1] for d in deps.get(c, ()) if owner[d] != robot]
+        spot = park(first_point[:2], current, occupants(robot, start_waits), outline, clearance)
+        if np.array_equal(quantize(spot), first_point[:2]):
+            start = quantize(first_point + [0.0, 0.0, clearance])
+        else:
+            z = transition_height(np.r_[spot, first_point[2]], first_point, material, printed_before, reach,
+                                  clearance)
+            start = quantize(np.r_[spot, z])
         pieces.append(_moves(robot, [start]))
         here = start
+        parked = not np.array_equal(start[:2], first_point[:2])  # up at a travel height, off its way
         for j, cid in enumerate(seq):
             waits = [d for d in deps.get(cid, ()) if owner[d] != robot]
+            if waits and j > first:  # on the way: lift and back off out of the others' way
+                spot = quantize(park(here[:2], current, occupants(robot, waits), outline, clearance))
+                if not np.array_equal(spot, here[:2]):
+                    z = transition_height(here, np.r_[spot, here[2]], material, printed_before + list(seq[:j]),
+                                          reach, clearance)
+                    pieces.append(_moves(robot, _distinct(here, quantize(np.array([np.r_[here[:2], z],
+                                                                                   np.r_[spot, z]])))))
+                    here = quantize(np.r_[spot, z])
+                    parked = True
             if waits:
                 pieces.append(_sync(robot, WAIT, waits))
             p4 = _first_point(layers, (cid,))
@@ -335,21 +438,27 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
                 if cid in notify_after:
                     pieces.append(_sync(robot, NOTIFY, [cid]))
                 continue
-            if j > 0 and not np.array_equal(faces[cid], current):
-                if body is None:
+            if j > first and not np.array_equal(faces[robot][cid], current):
+                b = bodies.get(robot)
+                if b is None:
                     raise ValueError(f"robot {robot} turns round before {cid}: robot_programs needs its body")
-                way = turn_round(here, p4, current, material, printed_before + list(seq[:j]), body, reach,
+                way = turn_round(here, p4, current, material, printed_before + list(seq[:j]), b, reach,
                                  clearance)
-                current = faces[cid]
+                current = faces[robot][cid]
                 turns = ((0, facing_deg(way.via)), (0, facing_deg(current)))
                 pieces += [_moves(robot, _distinct(here, way.before)), make_program(robot, np.zeros(0), turns=turns),
                            _moves(robot, _distinct(way.before[-1], way.after))]
                 facings.append((cid, facing_deg(current)))
                 here = way.after[-1]
-            elif j > 0:
-                z = transition_height(here, p4, material, printed_before + list(seq[:j]), reach, clearance)
-                pieces.append(_moves(robot, [np.r_[here[:2], z], np.r_[p4[:2], z]]))
+            elif j > 0 or parked:
+                # parked: already up at a travel height (from it, no lift by another clearance)
+                low = np.r_[here[:2], p4[2]] if parked else here
+                z = transition_height(low, p4, material, printed_before + list(seq[:j]), reach, clearance)
+                z = max(z, float(here[2])) if parked else z
+                way = quantize(np.array([np.r_[here[:2], z], np.r_[p4[:2], z]]))
+                pieces.append(_moves(robot, _distinct(here, way)))
                 here = quantize(np.r_[p4[:2], z])
+            parked = False
             for li, layer in layers[cid]:
                 piece, here = layer_program(layer, here, robot=robot, index=li, chunk=cid)
                 pieces.append(piece)
@@ -359,31 +468,116 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         programs[robot] = Program.concat(robot, pieces)
         placements[robot] = RobotPlacement(robot, side, facing, tuple(float(x) for x in start),  # type: ignore[arg-type]
                                            tuple(facings))
-    return programs, placements
+    for robot in idle_robots:  # parks off the part, on its own side, and keeps its word (the WAITs and
+        # NOTIFYs of its empty chunks)
+        seq = sequences[robot]
+        programs[robot] = Program.concat(robot, [_sync(robot, k, ev) for k, ev in _syncs(seq, deps, owner, robot,
+                                                                                        notify_after)])
+        idle = _idle_side(robot, list(sequences), seq, roles)
+        f = ax if idle == "left" else -ax
+        others = [o for r in sequences if r not in idle_robots
+                  for o in _program_occupants(programs[r], placements[r].facing, outlines[r])]
+        placements[robot] = RobotPlacement(robot, idle,  # type: ignore[arg-type]
+                                           tuple(float(x) for x in f),
+                                           _parking(others, material, f, outlines[robot], clearance))
+    return {r: programs[r] for r in sequences}, {r: placements[r] for r in sequences}
 
 
-def _parking(layers: dict, material: MaterialIndex, ax: np.ndarray, clearance: float,
-             side: str) -> tuple[float, float, float]:
+def clear_limit(facing: Sequence[float], occupants: Iterable[tuple[np.ndarray, Sequence[float], Outline]],
+                outline: Outline, margin: float) -> float:
+    """The farthest along ``facing`` (a unit XY vector, the robot's own) that the nozzle of a
+    robot with ``outline`` may stand, facing that way, with its whole outline ``margin`` short
+    of the outline of every occupant, mm (a coordinate along ``facing``; ``inf``: no occupant).
+
+    An occupant ``(points, facing, outline)`` is a robot whose nozzle may be at any of the XY
+    ``points`` (k, 2) while it faces its ``facing``. Its outline comes no nearer, along
+    ``facing``, than the least of its points less its outline's reach backwards
+    (:meth:`Outline.reach`); ours reaches its own reach ahead of our nozzle. A line across
+    ``facing`` between the two then separates the outlines, whatever their positions across
+    it: a separating axis, so the rule holds for any facings and any outline sizes.
+    """
+    f = _unit(facing)
+    near = math.inf
+    for pts, g, o in occupants:
+        if len(pts):
+            near = min(near, float((np.asarray(pts)[:, :2] @ f).min()) - o.reach(g, -f))
+    return near - outline.reach(f, f) - margin
+
+
+def park(here: np.ndarray, facing: Sequence[float], occupants: Iterable[tuple[np.ndarray, Sequence[float], Outline]],
+         outline: Outline, margin: float) -> np.ndarray:
+    """Where a robot waits (XY, (2,)): at ``here`` if its whole outline, facing ``facing``, is
+    ``margin`` clear of every occupant's there (:func:`clear_limit`), or else backed off from
+    ``here`` straight along ``-facing``, towards its body's side, just as far as that takes.
+
+    The occupants are the robots that print what it waits for, on every chunk they print until
+    then (so the outlines stay apart for as long as it waits, whichever they print meanwhile).
+    Backing off moves the body and the frame away from the print the robot works on, over the
+    floor on its own side, and the nozzle off the chunks it waits for: material lies only
+    where their nozzles go, more than ``margin`` + two printhead reaches ahead of it.
+    """
+    here = np.asarray(here, dtype=np.float64)[:2]
+    f = _unit(facing)
+    limit = clear_limit(f, occupants, outline, margin)
+    s = float(here @ f)
+    return here if s <= limit else here - (s - limit) * f
+
+
+class _PrintedPoints:
+    """Every XY point a chunk's paths go through (where its printer's nozzle is while it prints
+    it; the moves between them stay in their convex hull), made once per chunk on demand;
+    ``None`` for a chunk with nothing to print."""
+
+    def __init__(self, layers: dict) -> None:
+        self.layers = layers
+        self.cache: dict[str, np.ndarray | None] = {}
+
+    def __call__(self, cid: str) -> np.ndarray | None:
+        if cid not in self.cache:
+            pts = [layer.points[:, :2] for _, layer in self.layers[cid] if len(layer)]
+            self.cache[cid] = np.concatenate(pts) if pts else None
+        return self.cache[cid]
+
+
+def _program_occupants(program: Program, facing: Sequence[float], outline: Outline
+                       ) -> list[tuple[np.ndarray, np.ndarray, Outline]]:
+    """Every nozzle position of a whole program (its MOVEs' XY, the way in straight lines
+    between them), grouped by the facing in force (``facing`` at the start, then each of
+    :attr:`Program.turns`: the place of a turn counts in each facing it passes through)."""
+    mv = program.kind == MOVE
+    xy = program.xyz[:, :2]
+    out, k, g = [], 0, _unit(facing)
+    for i, deg in program.turns:
+        pts = xy[k:i][mv[k:i]]
+        at = xy[:i][mv[:i]][-1:]  # where it turns: the last position before the turn
+        out.append((np.vstack([pts, at]) if len(pts) or len(at) else pts, g, outline))
+        g, k = np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))]), i
+        out.append((at, g, outline))
+    out.append((xy[k:][mv[k:]], g, outline))
+    return [o for o in out if len(o[0])]
+
+
+def _parking(others: list[tuple[np.ndarray, np.ndarray, Outline]], material: MaterialIndex, facing: np.ndarray,
+             outline: Outline, clearance: float) -> tuple[float, float, float]:
     """Where an idle robot stands (a part that is one chunk leaves the second robot without
-    work): on its own ``side`` of the part, facing it (from the -axis side along ``+ax`` for
-    ``"left"``, from the +axis side against it for ``"right"``), its nozzle ``clearance`` beyond
-    the printed point farthest towards that side, level with the middle of the part across it.
-    Its body (behind the nozzle) then stays clear of the part and of the robots that print it,
-    whose bodies stand on their own sides. With nothing printed at all, the part's own extent
-    (the chunks' triangle boxes) stands in for the printed points, so that two idle robots
-    still park apart, one on each side."""
-    pts = [layer.points[:, :2] for chunk in layers.values() for _, layer in chunk if len(layer)]
-    if not pts:  # nothing printed: the corners of the part's triangle boxes
-        pts = [b[:, [0, 1]] for b in material.boxes.values() if len(b)] + \
-              [b[:, [2, 3]] for b in material.boxes.values() if len(b)]
-    if not pts:
-        return (0.0, 0.0, float(clearance))
-    allp = np.concatenate(pts)
-    along = allp @ ax
-    across = np.array([-ax[1], ax[0]])
+    work): on its own side of the part, facing it (``facing``: from the -axis side along
+    ``+axis`` for ``"left"``, from the +axis side against it for ``"right"``), level with the
+    middle of the part across it, as near as its whole outline can be to the other robots'
+    while they print their chunks ``others`` (``clearance`` apart, :func:`clear_limit`): its
+    body and frame stand over the floor, its printhead off the part. With nothing printed at
+    all, the part's own extent (the chunks' triangle boxes, as if printed by a robot facing
+    this one) stands in, so that two idle robots still park apart, one on each side."""
+    f = _unit(facing)
+    if not others:  # nothing printed: the corners of the part's triangle boxes
+        corners = [b[:, [0, 1]] for b in material.boxes.values() if len(b)] + \
+                  [b[:, [2, 3]] for b in material.boxes.values() if len(b)]
+        if not corners:
+            return (0.0, 0.0, float(clearance))
+        others = [(np.concatenate(corners), -f, outline)]
+    allp = np.concatenate([pts for pts, _, _ in others])
+    across = np.array([-f[1], f[0]])
     mid = allp @ across
-    edge = float(along.min()) - clearance if side == "left" else float(along.max()) + clearance
-    p = ax * edge + across * (float(mid.min() + mid.max()) / 2)
+    p = f * clear_limit(f, others, outline, clearance) + across * (float(mid.min() + mid.max()) / 2)
     return (float(p[0]), float(p[1]), float(clearance))
 
 
@@ -426,5 +620,5 @@ def _first_point(layers: dict, seq: Iterable[str]) -> np.ndarray | None:
     return None
 
 
-__all__ = ["BodySize", "MaterialIndex", "RobotPlacement", "TurnRound", "chunk_facings", "facing_deg", "layer_pieces",
-           "layer_program", "robot_programs", "transition_height", "turn_round"]
+__all__ = ["BodySize", "MaterialIndex", "Outline", "RobotPlacement", "TurnRound", "chunk_facings", "clear_limit",
+           "facing_deg", "layer_pieces", "layer_program", "park", "robot_programs", "transition_height", "turn_round"]
