@@ -321,7 +321,7 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
         reach=settings.robot.nozzle_depth, clearance=settings.program.clearance,
         axis=chunked.chunks.plan.axis, roles={c.id: c.role for c in chunked.chunks.chunks},
         body=BodySize(settings.robot.build_depth, settings.robot.body_length, settings.robot.body_width,
-                      getattr(settings.robot, "frame_width", None)))  # the frame as wide as the body until the field exists
+                      settings.robot.frame_width))  # None: as wide as the body
     if progress:
         progress("program", 1, 1)
     return CoopJob(chunked, layers, programs, placements)
