@@ -40,6 +40,10 @@ class SimInput:
     limits: MachineLimits | None = None  # for the acceleration model; None: the robot profile's
     placed: bool = True  # the robots' starts and facings are known: the body checks apply
     notes: tuple[str, ...] = ()  # what was read and not acted on (for the summary)
+    # a bundle's chunk meshes (job.json chunks[].file), in job.json's order, and each robot's
+    # chunk ids (robots[].chunks, or the chunks its program names): the outside-part check
+    chunk_files: dict[str, Path] | None = None
+    robot_chunks: dict[str, tuple[str, ...]] | None = None
 
     def fleet(self) -> list[SimRobot]:
         """The robots, each with its own profile (the input's ``profile`` for those without)."""
@@ -124,8 +128,9 @@ def _read_structured(path: Path, kind: str, parse) -> Any:
         raise SimInputError(f"{path}: not a valid {kind} ({str(exc)[:120]})") from None
 
 
-def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
-    """A bundle's program path: relative, inside the bundle (no ``..``, no symlink out), a file."""
+def _program_in(folder: Path, value: Any, where: str, path: str, what: str = "program file") -> Path:
+    """A bundle's program (or other ``what``) path: relative, inside the bundle (no ``..``, no
+    symlink out), a file."""
     text = check_string(value, where, path, what="a path relative to the bundle")
     rel = PurePosixPath(text)
     if rel.is_absolute() or PureWindowsPath(text).drive or ".." in rel.parts or "\x00" in text or "\\" in text:
@@ -139,8 +144,8 @@ def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
         raise fail(where, path, "expected a path inside the bundle (it leads outside)", value)
     kind = path_kind(full, SimInputError)
     if kind != "file":
-        raise fail(where, path, "no such program file in the bundle" if kind == "missing" else
-                   "expected a program file in the bundle, not a folder, a named pipe (FIFO) or a device", value)
+        raise fail(where, path, f"no such {what} in the bundle" if kind == "missing" else
+                   f"expected a {what} in the bundle, not a folder, a named pipe (FIFO) or a device", value)
     return full
 
 
@@ -171,9 +176,10 @@ def load_bundle(folder: str | Path) -> SimInput:
     if "picture" in record and record["picture"] is not None:
         check_string(record["picture"], where, "picture", what="a file name or null")
     chunk_ids = _chunk_ids(record, where)
+    chunk_files = _chunk_files(record, d, where)
     settings = check_settings(record["settings"], where, "settings")
     entries = check_list(record["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="robot objects")
-    robots, names = [], set()
+    robots, names, robot_chunks = [], set(), {}
     for n, e in enumerate(entries):
         at = key_path("robots", n)
         check_object(e, where, at, required=BUNDLE_ROBOT_REQUIRED, optional=BUNDLE_ROBOT_OPTIONAL, unknown="typo")
@@ -189,7 +195,42 @@ def load_bundle(folder: str | Path) -> SimInput:
         _check_robot_record(e, facing, chunk_ids, where, at)
         program = read_coop(program_path, name)
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing)))
-    return SimInput(robots, settings.robot, settings.slicing, str(d))
+        robot_chunks[name] = tuple(e["chunks"]) if "chunks" in e else tuple(program.chunks)
+    return SimInput(robots, settings.robot, settings.slicing, str(d), chunk_files=chunk_files,
+                    robot_chunks=robot_chunks if chunk_files is not None else None)
+
+
+def _chunk_files(record: dict[str, Any], folder: Path, where: str) -> dict[str, Path] | None:
+    """Each chunk's mesh file (job.json ``chunks[].file``, a path inside the bundle that must
+    name a file), by chunk id; ``None`` when the record has no chunk list or a chunk without a
+    ``file`` (the part is then not known and the outside-part check is left out)."""
+    if "chunks" not in record:
+        return None
+    files = {}
+    for n, c in enumerate(record["chunks"]):  # checked by _chunk_ids: objects with a string id
+        if "file" not in c:
+            return None
+        files[c["id"]] = _program_in(folder, c["file"], where, key_path("chunks", n) + ".file", "chunk mesh")
+    return files
+
+
+def read_chunk_meshes(inp: SimInput) -> dict[str, Any] | None:
+    """The chunk meshes of a bundle (:attr:`SimInput.chunk_files`) as watertight solids, by chunk
+    id, read with cooprint's mesh reader; ``None`` when the input names none. A file that does not
+    read as a closed mesh is a :class:`SimInputError` naming job.json's field and the file."""
+    from cooprint.io.mesh import load_mesh
+    from cooprint.errors import UserError
+
+    if inp.chunk_files is None:
+        return None
+    out = {}
+    where = str(Path(inp.source) / "job.json")
+    for n, (cid, path) in enumerate(inp.chunk_files.items()):
+        try:
+            out[cid] = load_mesh(path)
+        except UserError as exc:
+            raise SimInputError(f"{where}: {key_path('chunks', n)}.file: chunk {cid}'s mesh: {exc}") from None
+    return out
 
 
 def _chunk_ids(record: dict[str, Any], where: str) -> set[str] | None:
@@ -508,4 +549,5 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
 
 
 __all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "SimInput", "SimInputError", "check_settings", "coop_facing",
-           "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_gcode"]
+           "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_chunk_meshes",
+           "read_gcode"]
