@@ -517,6 +517,25 @@ def _in_chunk_points(solid, xyz: np.ndarray, key: np.ndarray, tol: np.ndarray) -
     return out
 
 
+def _runs(r: SimRobot, tl: Timeline, xyz: np.ndarray, t: np.ndarray, h: np.ndarray,
+          width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One robot's material points (``xyz``, times ``t``, layer heights ``h``) in runs of one
+    chunk and one test height: each run's first point, chunk (index into the program's
+    ``chunks``, -1 between chunks), height key and half the widest line of its commands (of the
+    commands from its first move to the next run's, ``width`` where the program gives none). A
+    point lies on the first move to end at or after its time."""
+    prog = r.program
+    chunk = prog.chunk[tl.index]  # per move
+    first = np.flatnonzero(chunk[1:] != chunk[:-1]) + 1  # the moves that begin a chunk's span
+    cuts = np.searchsorted(t, tl.t1[first - 1], side="right")  # their first points
+    del chunk
+    start, key = kernels.height_runs(xyz[:, 2], h, cuts, 1024)
+    move = np.searchsorted(tl.t1, t[start], side="left")
+    run_chunk = prog.chunk[tl.index[move]].astype(np.int64)
+    widest = np.maximum.reduceat(prog.width, tl.index[move]) if len(move) else np.zeros(0)
+    return start, run_chunk, key, np.where(widest > 0, widest, width) / 2
+
+
 def outside_part(robots: list[SimRobot], timelines: dict[str, Timeline], material: Material, chunks: dict,
                  owners: dict[str, tuple[str, ...]], width: float) -> list[Finding]:
     """``outside-part``: material outside the part (outside every chunk of ``chunks``, solids by
@@ -543,11 +562,7 @@ def outside_part(robots: list[SimRobot], timelines: dict[str, Timeline], materia
         if len(t) == 0:
             continue
         prog = r.program
-        args = (t, xyz[:, 2], h, tl.t1, tl.index, prog.chunk, prog.width, float(width))
-        n_runs = kernels.material_runs(*args, False, *(np.zeros(0, np.int64),) * 3, np.zeros(0))
-        start, run_chunk, key, half = (np.empty(n_runs, np.int64), np.empty(n_runs, np.int64),
-                                       np.empty(n_runs, np.int64), np.empty(n_runs))
-        kernels.material_runs(*args, True, start, run_chunk, key, half)
+        start, run_chunk, key, half = _runs(r, tl, xyz, t, h, width)
         hi = np.r_[start[1:], len(t)]
         tol = half + OUTSIDE_SLACK
         own = [c for c in owners.get(r.name, ()) if c in chunks]

@@ -632,36 +632,45 @@ def positions_at(t0, t1, p0, p1, times):
 # outside-part: material points against the sections of the chunks
 
 
+@_inline
+def _grow(a, n):
+    """``a``, or a copy twice as long when it holds fewer than ``n`` items."""
+    if len(a) >= n:
+        return a
+    b = np.empty(max(n, 2 * len(a)), a.dtype)
+    b[:len(a)] = a
+    return b
+
+
 @_jit
-def material_runs(t, z, h, t1, index, chunk, width, default_width, fill, start, run_chunk, key, half):
-    """Cut one robot's material points (times ``t``, heights ``z``, layer heights ``h``, in time
-    order) into runs of one chunk and one test height (the layer's middle, ``z - h / 2``, as a
-    ``key`` in 0.1 µm): a point lies on the first move to end at or after its time (``t1``, the
-    move's command ``index``, whose ``chunk`` and ``width`` the program gives, ``default_width``
-    where it has none). Without ``fill`` only counts the runs; with it writes each run's first
-    point, chunk, key and half the widest line in it. Returns how many runs."""
-    m = 0
+def height_runs(z, h, cuts, capacity):
+    """Cut one robot's material points (heights ``z``, layer heights ``h``, in the order laid
+    down) into runs of one test height, the layer's middle ``z - h / 2`` as a key in 0.1 µm, and
+    also before each of the sorted point indices ``cuts`` (where a chunk begins). Returns each
+    run's first point and key (arrays of ``capacity`` to start with, grown when more runs come)."""
+    start = np.empty(capacity, np.int64)
+    key = np.empty(capacity, np.int64)
     r = -1
-    last_c, last_k = -2, np.int64(-1) << np.int64(62)
-    for i in range(len(t)):
-        while m < len(t1) - 1 and t1[m] < t[i]:
-            m += 1
-        c = chunk[index[m]]
-        k = np.int64(np.round((np.float64(z[i]) - 0.5 * np.float64(h[i])) * 1e4))
-        if c != last_c or k != last_k:
+    c = 0
+    last_z, last_h = np.float32(np.nan), np.float32(np.nan)
+    k = np.int64(0)
+    for i in range(len(z)):
+        new = False
+        if z[i] != last_z or h[i] != last_h:
+            last_z, last_h = z[i], h[i]
+            kk = np.int64(np.round((np.float64(z[i]) - 0.5 * np.float64(h[i])) * 1e4))
+            new = kk != k or r < 0
+            k = kk
+        while c < len(cuts) and cuts[c] <= i:
+            new = new or cuts[c] == i
+            c += 1
+        if new:
             r += 1
-            last_c, last_k = c, k
-            if fill:
-                start[r] = i
-                run_chunk[r] = c
-                key[r] = k
-                half[r] = 0.0
-        if fill:
-            w = width[index[m]]
-            w = w if w > 0 else default_width
-            if 0.5 * w > half[r]:
-                half[r] = 0.5 * w
-    return r + 1
+            if r == len(start):
+                start, key = _grow(start, r + 1), _grow(key, r + 1)
+            start[r] = i
+            key[r] = k
+    return start[:r + 1], key[:r + 1]
 
 
 @_inline
@@ -722,32 +731,6 @@ def section_segments(vertices, faces, heights, offsets, segs):
 
 
 @_inline
-def _grid_cells(x0, y0, x1, y1, tol, ox, oy, cell, nx, ny, e, last, counts, items, fill):
-    """Register segment ``e`` in every cell that its stretch ``tol`` around it may reach: the
-    segment is cut into pieces no longer than a cell, each piece's box grown by ``tol`` (so a
-    long slanted segment marks a band of cells, not its whole box)."""
-    length = np.sqrt((x1 - x0) ** 2 + (y1 - y0) ** 2)
-    pieces = max(1, int(np.ceil(length / cell)))
-    for j in range(pieces):
-        fa, fb = j / pieces, (j + 1) / pieces
-        ax, ay = x0 + fa * (x1 - x0), y0 + fa * (y1 - y0)
-        bx, by = x0 + fb * (x1 - x0), y0 + fb * (y1 - y0)
-        c0 = max(0, int((min(ax, bx) - tol - ox) / cell))
-        c1 = min(nx - 1, int((max(ax, bx) + tol - ox) / cell))
-        r0 = max(0, int((min(ay, by) - tol - oy) / cell))
-        r1 = min(ny - 1, int((max(ay, by) + tol - oy) / cell))
-        for row in range(r0, r1 + 1):
-            for col in range(c0, c1 + 1):
-                c = row * nx + col
-                if last[c] == e:  # already listed by the previous piece
-                    continue
-                last[c] = e
-                if fill:
-                    items[counts[c]] = e
-                counts[c] += 1
-
-
-@_inline
 def _across(ax, ay, bx, by, segs, e):
     """Whether the way from (ax, ay) to (bx, by) crosses segment ``e``: its ends on either side of
     the way's line (one strictly left, the other not: an end on the line counts once between the
@@ -794,13 +777,25 @@ def inside_sections(xyz, run_lo, run_hi, run_sec, run_tol, offsets, segs, ok):
     prepared once for its runs, with the largest of their tolerances.
 
     The section gets a grid of about two cells per segment: each cell lists the segments that
-    come within the tolerance of it, and each row of cells the segments that span some of its
-    heights. A point in a cell that lists no segment is as inside as the cell's centre (looked up
-    once per cell: nothing of the outline passes through the cell); in a cell that lists some, it
-    is inside when one of them is within the tolerance, or else when the ray along its row
-    crosses the outline an odd number of times. So a point costs a look-up, and near the outline
-    a few segments."""
+    may come within the tolerance of it (each segment cut into pieces no longer than a cell, each
+    piece's box grown by the tolerance), and knows whether its centre is inside (the crossings of
+    the row's centre line, in order along it). A point in a cell that lists no segment is as
+    inside as the cell's centre (nothing of the outline passes through the cell); in a cell that
+    lists some, it is inside when one of them is within the tolerance, or else when the way from
+    the centre to the point crosses the listed segments an odd number of times from a centre
+    inside (even from one outside). So a point costs a look-up, and near the outline a few
+    segments; a section costs a few passes over its segments and cells."""
     n_runs = len(run_lo)
+    # work space reused from section to section (grown when a section needs more)
+    last = np.empty(0, np.int64)
+    cell_start = np.empty(0, np.int64)
+    status = np.empty(0, np.bool_)
+    pair_cell = np.empty(1024, np.int64)
+    pair_seg = np.empty(1024, np.int64)
+    items = np.empty(1024, np.int64)
+    rows = np.empty(0, np.int64)
+    row_items = np.empty(1024, np.int64)
+    xs = np.empty(1024)
     i = 0
     while i < n_runs:
         s = run_sec[i]
@@ -828,74 +823,103 @@ def inside_sections(xyz, run_lo, run_hi, run_sec, run_tol, offsets, segs, ok):
         wx, wy = xmax + tol - ox, ymax + tol - oy
         cells = min(_CELLS_PER_SEGMENT * m + _MIN_CELLS, _MAX_CELLS)
         cell = max(np.sqrt(wx * wy / cells), tol, 1e-3)
-        nx = int(wx / cell) + 1
-        ny = int(wy / cell) + 1
+        nx, ny = int(wx / cell) + 1, int(wy / cell) + 1
         while nx * ny > _MAX_CELLS:
             cell *= 1.5
-            nx = int(wx / cell) + 1
-            ny = int(wy / cell) + 1
+            nx, ny = int(wx / cell) + 1, int(wy / cell) + 1
+        inv = 1.0 / cell
         nc = nx * ny
-        # cells: the segments within the tolerance (two passes: count, then fill)
-        counts = np.zeros(nc + 1, np.int64)
-        last = np.full(nc, -1, np.int64)
-        empty = np.zeros(0, np.int64)
+        last = _grow(last, nc)
+        cell_start = _grow(cell_start, nc + 1)
+        status = _grow(status, nc)
+        rows = _grow(rows, ny + 1)
+        last[:nc] = -1
+        # (cell, segment) pairs: the cells each piece of a segment may reach within the tolerance
+        n_pairs = 0
         for e in range(m):
-            _grid_cells(sg[e, 0], sg[e, 1], sg[e, 2], sg[e, 3], tol, ox, oy, cell, nx, ny, e, last, counts,
-                        empty, False)
-        cell_start = np.zeros(nc + 1, np.int64)
+            x0, y0, x1, y1 = sg[e, 0], sg[e, 1], sg[e, 2], sg[e, 3]
+            reach = max(abs(x1 - x0), abs(y1 - y0))
+            pieces = 1 if reach <= cell else int(reach * inv) + 1
+            for k in range(pieces):
+                fa, fb = k / pieces, (k + 1) / pieces
+                ax, ay = x0 + fa * (x1 - x0), y0 + fa * (y1 - y0)
+                bx, by = x0 + fb * (x1 - x0), y0 + fb * (y1 - y0)
+                c0 = int((min(ax, bx) - tol - ox) * inv)
+                c1 = min(nx - 1, int((max(ax, bx) + tol - ox) * inv))
+                r0 = int((min(ay, by) - tol - oy) * inv)
+                r1 = min(ny - 1, int((max(ay, by) + tol - oy) * inv))
+                for row in range(max(r0, 0), r1 + 1):
+                    for col in range(max(c0, 0), c1 + 1):
+                        c = row * nx + col
+                        if last[c] == e:  # listed by the segment's previous piece
+                            continue
+                        last[c] = e
+                        if n_pairs == len(pair_cell):
+                            pair_cell = _grow(pair_cell, n_pairs + 1)
+                            pair_seg = _grow(pair_seg, n_pairs + 1)
+                        pair_cell[n_pairs] = c
+                        pair_seg[n_pairs] = e
+                        n_pairs += 1
+        # the pairs by cell (a counting sort): cell c lists items[cell_start[c]:cell_start[c + 1]]
+        cell_start[:nc + 1] = 0
+        for k in range(n_pairs):
+            cell_start[pair_cell[k] + 1] += 1
         for c in range(nc):
-            cell_start[c + 1] = cell_start[c] + counts[c]
-        items = np.empty(cell_start[nc], np.int64)
-        pos = cell_start.copy()
-        last[:] = -1
+            cell_start[c + 1] += cell_start[c]
+        items = _grow(items, n_pairs)
+        for k in range(n_pairs):
+            c = pair_cell[k]
+            items[cell_start[c]] = pair_seg[k]
+            cell_start[c] += 1
+        for c in range(nc, 0, -1):  # back to the starts
+            cell_start[c] = cell_start[c - 1]
+        cell_start[0] = 0
+        # the segments that span some of each row's heights, then each cell's centre inside or not
+        rows[:ny + 1] = 0
         for e in range(m):
-            _grid_cells(sg[e, 0], sg[e, 1], sg[e, 2], sg[e, 3], tol, ox, oy, cell, nx, ny, e, last, pos,
-                        items, True)
-        # rows: the segments that span some of the row's heights
-        row_start = np.zeros(ny + 1, np.int64)
-        for e in range(m):
-            r0 = int((min(sg[e, 1], sg[e, 3]) - oy) / cell)
-            r1 = int((max(sg[e, 1], sg[e, 3]) - oy) / cell)
-            for row in range(max(r0, 0), min(r1, ny - 1) + 1):
-                row_start[row + 1] += 1
+            r0 = int((min(sg[e, 1], sg[e, 3]) - oy) * inv)
+            r1 = min(int((max(sg[e, 1], sg[e, 3]) - oy) * inv), ny - 1)
+            for row in range(r0, r1 + 1):
+                rows[row + 1] += 1
         for row in range(ny):
-            row_start[row + 1] += row_start[row]
-        row_items = np.empty(row_start[ny], np.int64)
-        rpos = row_start[:-1].copy()
+            rows[row + 1] += rows[row]
+        row_items = _grow(row_items, rows[ny])
         for e in range(m):
-            r0 = int((min(sg[e, 1], sg[e, 3]) - oy) / cell)
-            r1 = int((max(sg[e, 1], sg[e, 3]) - oy) / cell)
-            for row in range(max(r0, 0), min(r1, ny - 1) + 1):
-                row_items[rpos[row]] = e
-                rpos[row] += 1
-        # each cell's centre inside or not: the crossings of the row's centre line, in order
-        status = np.zeros(nc, np.bool_)
-        xs = np.empty(m)
+            r0 = int((min(sg[e, 1], sg[e, 3]) - oy) * inv)
+            r1 = min(int((max(sg[e, 1], sg[e, 3]) - oy) * inv), ny - 1)
+            for row in range(r0, r1 + 1):
+                row_items[rows[row]] = e
+                rows[row] += 1
+        for row in range(ny, 0, -1):
+            rows[row] = rows[row - 1]
+        rows[0] = 0
+        xs = _grow(xs, m)
         for row in range(ny):
             cy = oy + (row + 0.5) * cell
             k = 0
-            for q in range(row_start[row], row_start[row + 1]):
+            for q in range(rows[row], rows[row + 1]):
                 e = row_items[q]
                 sy0, sy1 = sg[e, 1], sg[e, 3]
                 if (sy0 > cy) != (sy1 > cy):
                     xs[k] = sg[e, 0] + (cy - sy0) * (sg[e, 2] - sg[e, 0]) / (sy1 - sy0)
                     k += 1
-            cross = np.sort(xs[:k])
+            xs[:k].sort()
             q = 0
             for col in range(nx):
                 cx = ox + (col + 0.5) * cell
-                while q < k and cross[q] < cx:
+                while q < k and xs[q] < cx:
                     q += 1
                 status[row * nx + col] = q % 2 == 1
+        # the points
         tol2 = tol * tol
         for r in range(i, j):
             for p in range(run_lo[r], run_hi[r]):
                 px, py = np.float64(xyz[p, 0]), np.float64(xyz[p, 1])
-                col = int(np.floor((px - ox) / cell))
-                row = int(np.floor((py - oy) / cell))
-                if col < 0 or row < 0 or col >= nx or row >= ny:
+                fx, fy = (px - ox) * inv, (py - oy) * inv
+                if fx < 0 or fy < 0 or fx >= nx or fy >= ny:
                     ok[p] = False  # beyond the section's box grown by the tolerance
                     continue
+                col, row = int(fx), int(fy)
                 c = row * nx + col
                 inside = status[c]
                 ca, cb = cell_start[c], cell_start[c + 1]
