@@ -10,6 +10,9 @@
 * ``overhang`` (a warning): material laid down with nothing below it: no material whose top is
   at most one layer of air lower (between 2.5 and 0.5 layer heights below) within ``radius``, and
   not on the floor.
+* ``outside-part`` (bundles): material outside the part (the union of the chunk meshes) or
+  outside every chunk of the robot that lays it, by more than half a line width
+  (:func:`outside_part`).
 
 The nozzle is looked at every ``step`` mm of its path (and at every move's ends); material is the
 deposited paths sampled every ``step`` mm (more on prints of more than ``MAX_SAMPLES`` points). The
