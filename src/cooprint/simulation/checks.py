@@ -36,6 +36,7 @@ import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation import kernels
+from cooprint.simulation.inputs import ChunkMesh
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline
 
 #: Spacing of nozzle and material samples, mm.
@@ -478,7 +479,7 @@ HEIGHT_KEY = 1e4
 _NUDGE = 10
 
 
-def _in_chunk(solid, xyz: np.ndarray, lo: np.ndarray, hi: np.ndarray, key: np.ndarray, tol: np.ndarray,
+def _in_chunk(solid: ChunkMesh, xyz: np.ndarray, lo: np.ndarray, hi: np.ndarray, key: np.ndarray, tol: np.ndarray,
               ok: np.ndarray) -> None:
     """``ok[lo[r]:hi[r]]``: the points of run ``r`` lie inside ``solid``'s section at height
     ``key[r] / HEIGHT_KEY``, or within ``tol[r]`` of its outline. The sections are made a block of
@@ -502,7 +503,7 @@ def _in_chunk(solid, xyz: np.ndarray, lo: np.ndarray, hi: np.ndarray, key: np.nd
         a = e
 
 
-def _in_chunk_points(solid, xyz: np.ndarray, key: np.ndarray, tol: np.ndarray) -> np.ndarray:
+def _in_chunk_points(solid: ChunkMesh, xyz: np.ndarray, key: np.ndarray, tol: np.ndarray) -> np.ndarray:
     """(k,) bool: points ``xyz`` (each with its height key and tolerance) inside ``solid``'s
     section at their height, or at one ``_NUDGE`` below or above it."""
     order = np.argsort(key, kind="stable")
@@ -539,9 +540,9 @@ def _runs(r: SimRobot, tl: Timeline, xyz: np.ndarray, t: np.ndarray, h: np.ndarr
     return start, run_chunk, key, np.where(widest > 0, widest, width) / 2
 
 
-def outside_part(robots: list[SimRobot], timelines: dict[str, Timeline], material: Material, chunks: dict,
-                 owners: dict[str, tuple[str, ...]], width: float) -> list[Finding]:
-    """``outside-part``: material outside the part (outside every chunk of ``chunks``, solids by
+def outside_part(robots: list[SimRobot], timelines: dict[str, Timeline], material: Material,
+                 chunks: dict[str, ChunkMesh], owners: dict[str, tuple[str, ...]], width: float) -> list[Finding]:
+    """``outside-part``: material outside the part (outside every chunk of ``chunks``, meshes by
     id) or outside every chunk of the robot that lays it (``owners``: each robot's chunk ids),
     with a tolerance of half the line width (``width`` where a program gives none) plus
     ``OUTSIDE_SLACK``: a bead's centre line may lie on the outline, not further out.

@@ -214,22 +214,37 @@ def _chunk_files(record: dict[str, Any], folder: Path, where: str) -> dict[str, 
     return files
 
 
-def read_chunk_meshes(inp: SimInput) -> dict[str, Any] | None:
-    """The chunk meshes of a bundle (:attr:`SimInput.chunk_files`) as watertight solids, by chunk
-    id, read with cooprint's mesh reader; ``None`` when the input names none. A file that does not
-    read as a closed mesh is a :class:`SimInputError` naming job.json's field and the file."""
-    from cooprint.io.mesh import load_mesh
+@dataclass(frozen=True)
+class ChunkMesh:
+    """A chunk's closed triangle mesh: vertices (n, 3) float64 and faces (m, 3), mm."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def read_chunk_meshes(inp: SimInput) -> dict[str, ChunkMesh] | None:
+    """The chunk meshes of a bundle (:attr:`SimInput.chunk_files`) by chunk id; ``None`` when the
+    input names none. A binary STL is taken as written (cooprint wrote it closed; its triangles
+    are all the sections need); any other file goes through cooprint's mesh reader, and one that
+    does not read as a closed mesh is a :class:`SimInputError` naming job.json's field and the
+    file."""
     from cooprint.errors import UserError
+    from cooprint.io.mesh import binary_stl_soup, load_mesh
 
     if inp.chunk_files is None:
         return None
     out = {}
     where = str(Path(inp.source) / "job.json")
     for n, (cid, path) in enumerate(inp.chunk_files.items()):
+        soup = binary_stl_soup(path)
+        if soup is not None:
+            out[cid] = ChunkMesh(*soup)
+            continue
         try:
-            out[cid] = load_mesh(path)
+            solid = load_mesh(path)
         except UserError as exc:
             raise SimInputError(f"{where}: {key_path('chunks', n)}.file: chunk {cid}'s mesh: {exc}") from None
+        out[cid] = ChunkMesh(solid.vertices, solid.faces)
     return out
 
 
@@ -548,6 +563,6 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     return load_coop_files(list(paths), settings)
 
 
-__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "SimInput", "SimInputError", "check_settings", "coop_facing",
+__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "SimInput", "SimInputError", "check_settings", "coop_facing",
            "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_chunk_meshes",
            "read_gcode"]

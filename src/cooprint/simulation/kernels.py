@@ -675,11 +675,12 @@ def height_runs(z, h, cuts, capacity):
 
 @_inline
 def _cut_edge(vertices, i, j, h):
-    """XY where the edge between vertices ``i`` and ``j`` (on either side of height ``h``) meets
-    it, computed from the ends in index order: both triangles of the edge get the same point."""
-    if i > j:
-        i, j = j, i
+    """XY where the edge between vertices ``i`` and ``j`` (one above height ``h``, the other not)
+    meets it, computed from the lower end: both triangles of the edge get the same point, also
+    when each has its own copy of the corners (an STL's triangle soup)."""
     zi, zj = vertices[i, 2], vertices[j, 2]
+    if zi > zj:
+        i, j, zi, zj = j, i, zj, zi
     f = (h - zi) / (zj - zi)
     return vertices[i, 0] + f * (vertices[j, 0] - vertices[i, 0]), vertices[i, 1] + f * (vertices[j, 1] - vertices[i, 1])
 
