@@ -607,5 +607,6 @@ def outside_part(robots: list[SimRobot], timelines: dict[str, Timeline], materia
     return sorted(findings, key=lambda f: (f.time, f.detail))
 
 
-__all__ = ["FLOOR_TOLERANCE", "Material", "below_floor", "body_box", "body_corners", "footprint_checks", "head_box", "outside_part", "overhangs", "path_samples",
+__all__ = ["FLOOR_TOLERANCE", "Material", "below_floor", "body_box", "body_corners", "footprint_checks", "head_box",
+           "outside_part", "overhangs", "path_samples",
            "robots_collide"]

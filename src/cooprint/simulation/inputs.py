@@ -563,6 +563,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     return load_coop_files(list(paths), settings)
 
 
-__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "SimInput", "SimInputError", "check_settings", "coop_facing",
+__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "SimInput", "SimInputError", "check_settings",
+           "coop_facing",
            "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_chunk_meshes",
            "read_gcode"]

@@ -682,7 +682,8 @@ def _cut_edge(vertices, i, j, h):
     if zi > zj:
         i, j, zi, zj = j, i, zj, zi
     f = (h - zi) / (zj - zi)
-    return vertices[i, 0] + f * (vertices[j, 0] - vertices[i, 0]), vertices[i, 1] + f * (vertices[j, 1] - vertices[i, 1])
+    return (vertices[i, 0] + f * (vertices[j, 0] - vertices[i, 0]),
+            vertices[i, 1] + f * (vertices[j, 1] - vertices[i, 1]))
 
 
 @_jit
