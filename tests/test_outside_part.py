@@ -208,3 +208,16 @@ def test_sections_of_a_mesh_are_its_outline_at_each_height():
     ends = segs.reshape(-1, 2)
     assert np.allclose(np.abs(ends[:, 0]).max(), 20) and np.allclose(np.abs(ends[:, 1]).max(), 30)
     assert np.all(np.isclose(np.abs(ends[:, 0]), 20) | np.isclose(np.abs(ends[:, 1]), 30))
+
+
+def test_sections_made_a_few_at_a_time_give_the_same_findings(bundle, tmp_path, monkeypatch):
+    """The sections are made in blocks of at most SECTION_SEGMENTS segments: blocks of one
+    section each find what one block of all of them finds."""
+    from cooprint.simulation import checks
+
+    job = _copy(bundle, tmp_path)
+    _edit_chunk(job / "robots" / "B.coop", "R1", lambda x, y, z: (x + 0.3 * z, y, z))  # a leaning chunk
+    whole = _outside(simulate(load_inputs([str(job)])))
+    monkeypatch.setattr(checks, "SECTION_SEGMENTS", 1)
+    assert _outside(simulate(load_inputs([str(job)]))) == whole
+    assert len(whole) == 1 and whole[0].robot == "B" and whole[0].count > 0
