@@ -221,3 +221,15 @@ def test_sections_made_a_few_at_a_time_give_the_same_findings(bundle, tmp_path, 
     monkeypatch.setattr(checks, "SECTION_SEGMENTS", 1)
     assert _outside(simulate(load_inputs([str(job)]))) == whole
     assert len(whole) == 1 and whole[0].robot == "B" and whole[0].count > 0
+
+
+def test_the_cli_fails_a_plan_with_material_outside_the_part(bundle, tmp_path, capsys):
+    from cooprint.cli import main
+
+    job = _copy(bundle, tmp_path)
+    _edit_chunk(job / "robots" / "B.coop", "R1", lambda x, y, z: (x - 50.0, y, z))
+    assert main(["simulate", str(job), "-q"]) == 1
+    s = json.loads((job / "sim" / "summary.json").read_text())
+    assert s["finding_counts"]["outside-part"] > 0 and "outside-part" in s["checked"]
+    assert {f["kind"] for f in s["findings"] if f["severity"] == "error"} >= {"outside-part"}
+    assert "outside-part" in capsys.readouterr().err
