@@ -165,6 +165,18 @@ def _read_binary_stl(path: Path, gz: bool) -> np.ndarray | None:
     return corners.reshape(-1, 3)
 
 
+def binary_stl_soup(path: str | Path) -> tuple[np.ndarray, np.ndarray] | None:
+    """A binary STL as written, without merging or repairs: vertices (3n, 3) float64 (each
+    triangle's corners) and faces (n, 3) (``3k, 3k + 1, 3k + 2``); ``None`` when the file is not
+    exactly a binary STL (then :func:`load_mesh` reads it and says what is wrong). For files
+    cooprint wrote itself and reads back (a bundle's chunks), where :func:`load_mesh`'s checks
+    would cost more than the use."""
+    corners = _read_binary_stl(Path(path), False)
+    if corners is None or len(corners) == 0:
+        return None
+    return corners.astype(np.float64), np.arange(len(corners), dtype=np.int64).reshape(-1, 3)
+
+
 def _check_stl(path: Path, data: bytes) -> int | None:
     """The triangle count of a binary STL, ``None`` for a plausible ASCII STL; refuse truncated
     or padded binary STL before a reader guesses."""

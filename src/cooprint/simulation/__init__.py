@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import (STEP, Material, below_floor, chunk_order, footprint_checks, overhangs,
-                                        robots_collide)
-from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
+from cooprint.simulation.checks import (STEP, Material, below_floor, chunk_order, footprint_checks, outside_part,
+                                        overhangs, robots_collide)
+from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs, read_chunk_meshes
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
@@ -57,6 +57,7 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
     profile's ``acceleration`` and ``jerk``; otherwise each move takes length / speed.
     """
     p = inp.profile
+    chunks = read_chunk_meshes(inp) if checks else None  # a bundle's part, read (and refused) before the work
     robots = inp.fleet()  # each robot with its own profile
     limits = ({r.name: inp.limits or MachineLimits.planar(r.profile.acceleration, r.profile.jerk) for r in robots}
               if accel else None)
@@ -76,6 +77,10 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
             checked += ["body-on-material", "robots-collide"]
         findings += overhangs(robots, timelines, material, inp.slicing)
         checked += ["printhead-hits-material", "overhang"]
+        if chunks is not None:  # the part is known: material must lie inside it, in its robot's chunks
+            findings += outside_part(robots, timelines, material, chunks, inp.robot_chunks or {},
+                                     inp.slicing.extrusion_width)
+            checked.append("outside-part")
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(robots, timelines, findings, p, inp.slicing, inp.source, accel,
                      tuple(k for k in KINDS if k in checked), inp.notes, inp.placed)

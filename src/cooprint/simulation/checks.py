@@ -13,6 +13,9 @@
 * ``overhang`` (a warning): material laid down with nothing below it: no material whose top is
   at most one layer of air lower (between 2.5 and 0.5 layer heights below) within ``radius``, and
   not on the floor.
+* ``outside-part`` (bundles): material outside the part (the union of the chunk meshes) or
+  outside every chunk of the robot that lays it, by more than half a line width
+  (:func:`outside_part`).
 
 The nozzle is looked at every ``step`` mm of its path (and at every move's ends); material is the
 deposited paths sampled every ``step`` mm (more on prints of more than ``MAX_SAMPLES`` points). The
@@ -36,6 +39,7 @@ import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation import kernels
+from cooprint.simulation.inputs import ChunkMesh
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline
 
 #: Spacing of nozzle and material samples, mm.
@@ -605,6 +609,148 @@ def _group(hits: list[tuple[np.ndarray, np.ndarray, np.ndarray]], kind: str, r: 
     return sorted(out, key=lambda f: f.time)
 
 
-__all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "OUTLINE_TOLERANCE", "PARTS", "Material", "below_floor", "body_box",
-           "body_corners", "chunk_order", "footprint_checks", "head_box", "outline_boxes", "outline_corners",
-           "outline_tables", "overhangs", "path_samples", "robots_collide"]
+#: ``outside-part``: how much further than half its line width a material point may lie outside
+#: the section of its chunk, mm (the slicer simplifies each section by 0.0125 mm; the programs
+#: round to 1 µm; the samples are float32).
+OUTSIDE_SLACK = 0.02
+#: Segments of chunk sections made at once (32 bytes each): bounds the check's memory.
+SECTION_SEGMENTS = 1 << 19
+#: Test heights are kept as integers in units of 1 / HEIGHT_KEY mm (0.1 µm).
+HEIGHT_KEY = 1e4
+#: A point outside its own chunk's section at its layer's middle is looked at again this many
+#: key units (1 µm, the programs' grid) lower and higher: a horizontal face of the chunk that
+#: lies exactly at a layer's middle belongs to the layer below or above depending on the last bit.
+_NUDGE = 10
+
+
+def _in_chunk(solid: ChunkMesh, xyz: np.ndarray, lo: np.ndarray, hi: np.ndarray, key: np.ndarray, tol: np.ndarray,
+              ok: np.ndarray) -> None:
+    """``ok[lo[r]:hi[r]]``: the points of run ``r`` lie inside ``solid``'s section at height
+    ``key[r] / HEIGHT_KEY``, or within ``tol[r]`` of its outline. The sections are made a block of
+    heights at a time (at most ``SECTION_SEGMENTS`` segments)."""
+    if not len(lo):
+        return
+    keys, sec = np.unique(key, return_inverse=True)
+    heights = keys / HEIGHT_KEY
+    counts = kernels.section_counts(solid.vertices, solid.faces, heights)
+    order = np.argsort(sec, kind="stable")
+    sec_sorted = sec[order]
+    a = 0
+    while a < len(heights):
+        e = a + max(1, int(np.searchsorted(np.cumsum(counts[a:]), SECTION_SEGMENTS, side="right")))
+        offsets = np.concatenate([[0], np.cumsum(counts[a:e])]).astype(np.int64)
+        segs = np.empty((int(offsets[-1]), 4))
+        kernels.section_segments(solid.vertices, solid.faces, heights[a:e], offsets, segs)
+        runs = order[np.searchsorted(sec_sorted, a):np.searchsorted(sec_sorted, e)]
+        kernels.inside_sections(xyz, lo[runs], hi[runs], (sec[runs] - a).astype(np.int64), tol[runs], offsets,
+                                segs, ok)
+        a = e
+
+
+def _in_chunk_points(solid: ChunkMesh, xyz: np.ndarray, key: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """(k,) bool: points ``xyz`` (each with its height key and tolerance) inside ``solid``'s
+    section at their height, or at one ``_NUDGE`` below or above it."""
+    order = np.argsort(key, kind="stable")
+    pts, k = xyz[order], key[order]
+    start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+    lo, hi = start, np.r_[start[1:], len(k)]
+    run_tol = np.maximum.reduceat(tol[order], start) if len(k) else np.zeros(0)
+    ok = np.zeros(len(k), dtype=bool)
+    for nudge in (0, -_NUDGE, _NUDGE):
+        got = np.zeros(len(k), dtype=bool)
+        _in_chunk(solid, pts, lo, hi, k[start] + nudge, run_tol, got)
+        ok |= got
+    out = np.empty(len(k), dtype=bool)
+    out[order] = ok
+    return out
+
+
+def _runs(r: SimRobot, tl: Timeline, xyz: np.ndarray, t: np.ndarray, h: np.ndarray,
+          width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One robot's material points (``xyz``, times ``t``, layer heights ``h``) in runs of one
+    chunk and one test height: each run's first point, chunk (index into the program's
+    ``chunks``, -1 between chunks), height key and half the widest line of its commands (of the
+    commands from its first move to the next run's, ``width`` where the program gives none). A
+    point lies on the first move to end at or after its time."""
+    prog = r.program
+    chunk = prog.chunk[tl.index]  # per move
+    first = np.flatnonzero(chunk[1:] != chunk[:-1]) + 1  # the moves that begin a chunk's span
+    cuts = np.searchsorted(t, tl.t1[first - 1], side="right")  # their first points
+    del chunk
+    start, key = kernels.height_runs(xyz[:, 2], h, cuts, 1024)
+    move = np.searchsorted(tl.t1, t[start], side="left")
+    run_chunk = prog.chunk[tl.index[move]].astype(np.int64)
+    widest = np.maximum.reduceat(prog.width, tl.index[move]) if len(move) else np.zeros(0)
+    return start, run_chunk, key, np.where(widest > 0, widest, width) / 2
+
+
+def outside_part(robots: list[SimRobot], timelines: dict[str, Timeline], material: Material,
+                 chunks: dict[str, ChunkMesh], owners: dict[str, tuple[str, ...]], width: float) -> list[Finding]:
+    """``outside-part``: material outside the part (outside every chunk of ``chunks``, meshes by
+    id) or outside every chunk of the robot that lays it (``owners``: each robot's chunk ids),
+    with a tolerance of half the line width (``width`` where a program gives none) plus
+    ``OUTSIDE_SLACK``: a bead's centre line may lie on the outline, not further out.
+
+    Each material point is tested at its layer's middle (its height less half its layer's
+    height), where the slicer cut the chunk: the tip of the top layer of a chunk lies on the
+    chunk's top face, its middle inside. A point is first tested against the chunk its move is
+    annotated with (when that is one of the robot's); the few that fail, against all the robot's
+    chunks, then the other robots' (each a step of 1 µm lower and higher too). Two findings per
+    robot and chunk, as the case may be: material inside another robot's chunk, and material
+    outside the part, with the first instant and how many points."""
+    findings = []
+    holders: dict[str, list[str]] = {}
+    for name, ids in owners.items():
+        for cid in ids:
+            holders.setdefault(cid, []).append(name)
+    for i, r in enumerate(robots):
+        block = material.robot(i)
+        xyz, t, h = material.xyz[block], material.t[block], material.h[block]
+        tl = timelines[r.name]
+        if len(t) == 0:
+            continue
+        prog = r.program
+        start, run_chunk, key, half = _runs(r, tl, xyz, t, h, width)
+        hi = np.r_[start[1:], len(t)]
+        tol = half + OUTSIDE_SLACK
+        own = [c for c in owners.get(r.name, ()) if c in chunks]
+        ok = np.zeros(len(t), dtype=bool)
+        for c, cid in enumerate(prog.chunks):  # the points of each of its own chunks, against that chunk
+            if cid in own:
+                sel = np.flatnonzero(run_chunk == c)
+                _in_chunk(chunks[cid], xyz, start[sel], hi[sel], key[sel], tol[sel], ok)
+        bad = np.flatnonzero(~ok)
+        if not len(bad):
+            continue
+        run = np.searchsorted(start, bad, side="right") - 1
+        bad_xyz, bad_key, bad_tol = xyz[bad], key[run], tol[run]
+        found = np.full(len(bad), -1, np.int64)  # -1: outside the part; else the chunk (by order) that holds it
+        ids = list(chunks)
+        for c in own + [c for c in ids if c not in own]:  # its own chunks first
+            todo = np.flatnonzero(found < 0)
+            if not len(todo):
+                break
+            inside = _in_chunk_points(chunks[c], bad_xyz[todo], bad_key[todo], bad_tol[todo])
+            found[todo[inside]] = ids.index(c)
+        at = bad + block.start  # indices into the material
+        mine = ", ".join(own) if own else "none"
+        where = found < 0
+        findings += _group([(material.t[at[where]], material.xyz[at[where]], material.moves(at[where], tl))],
+                           "outside-part", r, tl,
+                           "material outside the part: outside every chunk by more than half a line width")
+        for k in sorted(set(found[found >= 0].tolist())):
+            cid = ids[k]
+            if cid in own:
+                continue
+            sel = found == k
+            by = ", ".join(holders.get(cid, [])) or "no robot"
+            findings += _group([(material.t[at[sel]], material.xyz[at[sel]], material.moves(at[sel], tl))],
+                               "outside-part", r, tl,
+                               f"material of robot {r.name} in another robot's chunk: inside chunk {cid} (printed "
+                               f"by {by}), outside every chunk of {r.name} ({mine})")
+    return sorted(findings, key=lambda f: (f.time, f.detail))
+
+
+__all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "OUTLINE_TOLERANCE", "OUTSIDE_SLACK", "PARTS", "Material", "below_floor",
+           "body_box", "body_corners", "chunk_order", "footprint_checks", "head_box", "outline_boxes", "outline_corners",
+           "outline_tables", "outside_part", "overhangs", "path_samples", "robots_collide"]

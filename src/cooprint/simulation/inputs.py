@@ -44,6 +44,10 @@ class SimInput:
     #: Each chunk's dependencies (job.json ``chunks[].deps``): the chunks whose material must be
     #: finished before its own is laid (the ``chunk-order`` check); ``None``: not known.
     deps: dict[str, tuple[str, ...]] | None = None
+    # a bundle's chunk meshes (job.json chunks[].file), in job.json's order, and each robot's
+    # chunk ids (robots[].chunks, or the chunks its program names): the outside-part check
+    chunk_files: dict[str, Path] | None = None
+    robot_chunks: dict[str, tuple[str, ...]] | None = None
 
     def fleet(self) -> list[SimRobot]:
         """The robots, each with its own profile (the input's ``profile`` for those without)."""
@@ -131,8 +135,9 @@ def _read_structured(path: Path, kind: str, parse) -> Any:
         raise SimInputError(f"{path}: not a valid {kind} ({str(exc)[:120]})") from None
 
 
-def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
-    """A bundle's program path: relative, inside the bundle (no ``..``, no symlink out), a file."""
+def _program_in(folder: Path, value: Any, where: str, path: str, what: str = "program file") -> Path:
+    """A bundle's program (or other ``what``) path: relative, inside the bundle (no ``..``, no
+    symlink out), a file."""
     text = check_string(value, where, path, what="a path relative to the bundle")
     rel = PurePosixPath(text)
     if rel.is_absolute() or PureWindowsPath(text).drive or ".." in rel.parts or "\x00" in text or "\\" in text:
@@ -146,8 +151,8 @@ def _program_in(folder: Path, value: Any, where: str, path: str) -> Path:
         raise fail(where, path, "expected a path inside the bundle (it leads outside)", value)
     kind = path_kind(full, SimInputError)
     if kind != "file":
-        raise fail(where, path, "no such program file in the bundle" if kind == "missing" else
-                   "expected a program file in the bundle, not a folder, a named pipe (FIFO) or a device", value)
+        raise fail(where, path, f"no such {what} in the bundle" if kind == "missing" else
+                   f"expected a {what} in the bundle, not a folder, a named pipe (FIFO) or a device", value)
     return full
 
 
@@ -178,9 +183,10 @@ def load_bundle(folder: str | Path) -> SimInput:
     if "picture" in record and record["picture"] is not None:
         check_string(record["picture"], where, "picture", what="a file name or null")
     chunk_ids = _chunk_ids(record, where)
+    chunk_files = _chunk_files(record, d, where)
     settings = check_settings(record["settings"], where, "settings")
     entries = check_list(record["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="robot objects")
-    robots, names = [], set()
+    robots, names, robot_chunks = [], set(), {}
     for n, e in enumerate(entries):
         at = key_path("robots", n)
         check_object(e, where, at, required=BUNDLE_ROBOT_REQUIRED, optional=BUNDLE_ROBOT_OPTIONAL, unknown="typo")
@@ -198,7 +204,9 @@ def load_bundle(folder: str | Path) -> SimInput:
         program = read_coop(program_path, name)
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing),
                                profile=profile))
-    return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where))
+        robot_chunks[name] = tuple(e["chunks"]) if "chunks" in e else tuple(program.chunks)
+    return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
+                    chunk_files=chunk_files, robot_chunks=robot_chunks if chunk_files is not None else None)
 
 
 def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> RobotProfile | None:
@@ -234,6 +242,54 @@ def _chunk_deps(record: dict[str, Any], chunk_ids: set[str] | None, where: str) 
                 raise fail(where, key_path(at + ".deps", k), "a chunk cannot depend on itself", dep)
         deps[own] = tuple(dict.fromkeys(items))  # in order, once each
     return deps
+
+
+def _chunk_files(record: dict[str, Any], folder: Path, where: str) -> dict[str, Path] | None:
+    """Each chunk's mesh file (job.json ``chunks[].file``, a path inside the bundle that must
+    name a file), by chunk id; ``None`` when the record has no chunk list or a chunk without a
+    ``file`` (the part is then not known and the outside-part check is left out)."""
+    if "chunks" not in record:
+        return None
+    files = {}
+    for n, c in enumerate(record["chunks"]):  # checked by _chunk_ids: objects with a string id
+        if "file" not in c:
+            return None
+        files[c["id"]] = _program_in(folder, c["file"], where, key_path("chunks", n) + ".file", "chunk mesh")
+    return files
+
+
+@dataclass(frozen=True)
+class ChunkMesh:
+    """A chunk's closed triangle mesh: vertices (n, 3) float64 and faces (m, 3), mm."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+def read_chunk_meshes(inp: SimInput) -> dict[str, ChunkMesh] | None:
+    """The chunk meshes of a bundle (:attr:`SimInput.chunk_files`) by chunk id; ``None`` when the
+    input names none. A binary STL is taken as written (cooprint wrote it closed; its triangles
+    are all the sections need); any other file goes through cooprint's mesh reader, and one that
+    does not read as a closed mesh is a :class:`SimInputError` naming job.json's field and the
+    file."""
+    from cooprint.errors import UserError
+    from cooprint.io.mesh import binary_stl_soup, load_mesh
+
+    if inp.chunk_files is None:
+        return None
+    out = {}
+    where = str(Path(inp.source) / "job.json")
+    for n, (cid, path) in enumerate(inp.chunk_files.items()):
+        soup = binary_stl_soup(path)
+        if soup is not None:
+            out[cid] = ChunkMesh(*soup)
+            continue
+        try:
+            solid = load_mesh(path)
+        except UserError as exc:
+            raise SimInputError(f"{where}: {key_path('chunks', n)}.file: chunk {cid}'s mesh: {exc}") from None
+        out[cid] = ChunkMesh(solid.vertices, solid.faces)
+    return out
 
 
 def _chunk_ids(record: dict[str, Any], where: str) -> set[str] | None:
@@ -584,5 +640,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     return load_coop_files(list(paths), settings)
 
 
-__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "SimInput", "SimInputError", "check_settings", "coop_facing",
-           "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_gcode"]
+__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "SimInput", "SimInputError", "check_settings",
+           "coop_facing",
+           "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_chunk_meshes",
+           "read_gcode"]

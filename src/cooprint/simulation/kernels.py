@@ -628,3 +628,313 @@ def positions_at(t0, t1, p0, p1, times):
         out[i, 0] = p0[k, 0] + f * (p1[k, 0] - p0[k, 0])
         out[i, 1] = p0[k, 1] + f * (p1[k, 1] - p0[k, 1])
     return out
+
+
+# ----------------------------------------------------------------------------------------------
+# outside-part: material points against the sections of the chunks
+
+
+@_inline
+def _grow(a, n):
+    """``a``, or a copy twice as long when it holds fewer than ``n`` items."""
+    if len(a) >= n:
+        return a
+    b = np.empty(max(n, 2 * len(a)), a.dtype)
+    b[:len(a)] = a
+    return b
+
+
+@_jit
+def height_runs(z, h, cuts, capacity):
+    """Cut one robot's material points (heights ``z``, layer heights ``h``, in the order laid
+    down) into runs of one test height, the layer's middle ``z - h / 2`` as a key in 0.1 µm, and
+    also before each of the sorted point indices ``cuts`` (where a chunk begins). Returns each
+    run's first point and key (arrays of ``capacity`` to start with, grown when more runs come)."""
+    start = np.empty(capacity, np.int64)
+    key = np.empty(capacity, np.int64)
+    r = -1
+    c = 0
+    last_z, last_h = np.float32(np.nan), np.float32(np.nan)
+    k = np.int64(0)
+    for i in range(len(z)):
+        new = False
+        if z[i] != last_z or h[i] != last_h:
+            last_z, last_h = z[i], h[i]
+            kk = np.int64(np.round((np.float64(z[i]) - 0.5 * np.float64(h[i])) * 1e4))
+            new = kk != k or r < 0
+            k = kk
+        while c < len(cuts) and cuts[c] <= i:
+            new = new or cuts[c] == i
+            c += 1
+        if new:
+            r += 1
+            if r == len(start):
+                start, key = _grow(start, r + 1), _grow(key, r + 1)
+            start[r] = i
+            key[r] = k
+    return start[:r + 1], key[:r + 1]
+
+
+@_inline
+def _cut_edge(vertices, i, j, h):
+    """XY where the edge between vertices ``i`` and ``j`` (one above height ``h``, the other not)
+    meets it, computed from the lower end: both triangles of the edge get the same point, also
+    when each has its own copy of the corners (an STL's triangle soup)."""
+    zi, zj = vertices[i, 2], vertices[j, 2]
+    if zi > zj:
+        i, j, zi, zj = j, i, zj, zi
+    f = (h - zi) / (zj - zi)
+    return (vertices[i, 0] + f * (vertices[j, 0] - vertices[i, 0]),
+            vertices[i, 1] + f * (vertices[j, 1] - vertices[i, 1]))
+
+
+@_jit
+def section_counts(vertices, faces, heights):
+    """(H,) how many triangles of a closed mesh each of the sorted ``heights`` crosses (a
+    triangle crosses ``h`` when its lowest corner is at or below it and its highest above: a
+    corner at ``h`` counts as below, as in :mod:`cooprint.slicing.sections`)."""
+    diff = np.zeros(len(heights) + 1, np.int64)
+    for f in range(len(faces)):
+        z0, z1, z2 = vertices[faces[f, 0], 2], vertices[faces[f, 1], 2], vertices[faces[f, 2], 2]
+        a = np.searchsorted(heights, min(z0, min(z1, z2)), side="left")
+        b = np.searchsorted(heights, max(z0, max(z1, z2)), side="left")
+        if b > a:
+            diff[a] += 1
+            diff[b] -= 1
+    return np.cumsum(diff)[:-1]
+
+
+@_jit
+def section_segments(vertices, faces, heights, offsets, segs):
+    """The sections of a closed mesh at sorted ``heights`` as segments ``segs[offsets[k]:
+    offsets[k + 1]]`` (x0, y0, x1, y1) for height ``k`` (``offsets`` from :func:`section_counts`):
+    each triangle that crosses a height gives the segment between the two edges that cross it.
+    The segments of a section form its closed loops; their order and direction do not matter to
+    the point test (:func:`inside_sections`)."""
+    pos = offsets[:-1].copy()
+    for f in range(len(faces)):
+        v = faces[f]
+        z0, z1, z2 = vertices[v[0], 2], vertices[v[1], 2], vertices[v[2], 2]
+        a = np.searchsorted(heights, min(z0, min(z1, z2)), side="left")
+        b = np.searchsorted(heights, max(z0, max(z1, z2)), side="left")
+        for k in range(a, b):
+            h = heights[k]
+            above0, above1, above2 = z0 > h, z1 > h, z2 > h
+            # the lone corner: the one above when one is, else the one at or below
+            lone = 0
+            if int(above0) + int(above1) + int(above2) == 1:
+                lone = 0 if above0 else (1 if above1 else 2)
+            else:
+                lone = 0 if not above0 else (1 if not above1 else 2)
+            p, q, r = v[lone], v[(lone + 1) % 3], v[(lone + 2) % 3]
+            x0, y0 = _cut_edge(vertices, p, q, h)
+            x1, y1 = _cut_edge(vertices, p, r, h)
+            s = pos[k]
+            segs[s, 0], segs[s, 1], segs[s, 2], segs[s, 3] = x0, y0, x1, y1
+            pos[k] = s + 1
+
+
+@_inline
+def _across(ax, ay, bx, by, segs, e):
+    """Whether the way from (ax, ay) to (bx, by) crosses segment ``e``: its ends on either side of
+    the way's line (one strictly left, the other not: an end on the line counts once between the
+    two segments that share it) and the way's ends strictly on either side of the segment's."""
+    x0, y0, x1, y1 = segs[e, 0], segs[e, 1], segs[e, 2], segs[e, 3]
+    dx, dy = bx - ax, by - ay
+    s0 = dx * (y0 - ay) - dy * (x0 - ax)
+    s1 = dx * (y1 - ay) - dy * (x1 - ax)
+    if (s0 > 0) == (s1 > 0):
+        return False
+    ex, ey = x1 - x0, y1 - y0
+    q0 = ex * (ay - y0) - ey * (ax - x0)
+    q1 = ex * (by - y0) - ey * (bx - x0)
+    return (q0 > 0 and q1 < 0) or (q0 < 0 and q1 > 0)
+
+
+@_inline
+def _near(px, py, segs, e, tol2):
+    """Whether point (px, py) lies within ``sqrt(tol2)`` of segment ``e``."""
+    x0, y0, x1, y1 = segs[e, 0], segs[e, 1], segs[e, 2], segs[e, 3]
+    dx, dy = x1 - x0, y1 - y0
+    ll = dx * dx + dy * dy
+    f = 0.0
+    if ll > 0:
+        f = ((px - x0) * dx + (py - y0) * dy) / ll
+        f = min(max(f, 0.0), 1.0)
+    qx, qy = x0 + f * dx - px, y0 + f * dy - py
+    return qx * qx + qy * qy <= tol2
+
+
+#: Cells of a section's grid per segment (and at least this many more), and at most this many
+#: in all.
+_CELLS_PER_SEGMENT = 2
+_MIN_CELLS = 16
+_MAX_CELLS = 1 << 22
+
+
+@_jit
+def inside_sections(xyz, run_lo, run_hi, run_sec, run_tol, offsets, segs, ok):
+    """``ok[i]``: point ``xyz[i]`` (XY) lies inside its section, or within the run's tolerance of
+    its outline (a point on the outline is inside). Runs ``r`` are points ``run_lo[r]:run_hi[r]``
+    tested against section ``run_sec[r]`` (segments ``segs[offsets[s]:offsets[s + 1]]``, closed
+    loops: inside by the parity of the crossings of a ray), sorted by section; each section is
+    prepared once for its runs, with the largest of their tolerances.
+
+    The section gets a grid of about two cells per segment: each cell lists the segments that
+    may come within the tolerance of it (each segment cut into pieces no longer than a cell, each
+    piece's box grown by the tolerance), and knows whether its centre is inside (the crossings of
+    the row's centre line, in order along it). A point in a cell that lists no segment is as
+    inside as the cell's centre (nothing of the outline passes through the cell); in a cell that
+    lists some, it is inside when one of them is within the tolerance, or else when the way from
+    the centre to the point crosses the listed segments an odd number of times from a centre
+    inside (even from one outside). So a point costs a look-up, and near the outline a few
+    segments; a section costs a few passes over its segments and cells."""
+    n_runs = len(run_lo)
+    # work space reused from section to section (grown when a section needs more)
+    last = np.empty(0, np.int64)
+    cell_start = np.empty(0, np.int64)
+    status = np.empty(0, np.bool_)
+    pair_cell = np.empty(1024, np.int64)
+    pair_seg = np.empty(1024, np.int64)
+    items = np.empty(1024, np.int64)
+    rows = np.empty(0, np.int64)
+    row_items = np.empty(1024, np.int64)
+    xs = np.empty(1024)
+    i = 0
+    while i < n_runs:
+        s = run_sec[i]
+        j = i
+        tol = 0.0
+        while j < n_runs and run_sec[j] == s:
+            tol = max(tol, run_tol[j])
+            j += 1
+        a, b = offsets[s], offsets[s + 1]
+        m = b - a
+        if m == 0:  # nothing of the chunk at this height
+            for r in range(i, j):
+                for p in range(run_lo[r], run_hi[r]):
+                    ok[p] = False
+            i = j
+            continue
+        sg = segs[a:b]
+        xmin, xmax, ymin, ymax = np.inf, -np.inf, np.inf, -np.inf
+        for e in range(m):
+            xmin = min(xmin, min(sg[e, 0], sg[e, 2]))
+            xmax = max(xmax, max(sg[e, 0], sg[e, 2]))
+            ymin = min(ymin, min(sg[e, 1], sg[e, 3]))
+            ymax = max(ymax, max(sg[e, 1], sg[e, 3]))
+        ox, oy = xmin - tol, ymin - tol
+        wx, wy = xmax + tol - ox, ymax + tol - oy
+        cells = min(_CELLS_PER_SEGMENT * m + _MIN_CELLS, _MAX_CELLS)
+        cell = max(np.sqrt(wx * wy / cells), tol, 1e-3)
+        nx, ny = int(wx / cell) + 1, int(wy / cell) + 1
+        while nx * ny > _MAX_CELLS:
+            cell *= 1.5
+            nx, ny = int(wx / cell) + 1, int(wy / cell) + 1
+        inv = 1.0 / cell
+        nc = nx * ny
+        last = _grow(last, nc)
+        cell_start = _grow(cell_start, nc + 1)
+        status = _grow(status, nc)
+        rows = _grow(rows, ny + 1)
+        last[:nc] = -1
+        # (cell, segment) pairs: the cells each piece of a segment may reach within the tolerance
+        n_pairs = 0
+        for e in range(m):
+            x0, y0, x1, y1 = sg[e, 0], sg[e, 1], sg[e, 2], sg[e, 3]
+            reach = max(abs(x1 - x0), abs(y1 - y0))
+            pieces = 1 if reach <= cell else int(reach * inv) + 1
+            for k in range(pieces):
+                fa, fb = k / pieces, (k + 1) / pieces
+                ax, ay = x0 + fa * (x1 - x0), y0 + fa * (y1 - y0)
+                bx, by = x0 + fb * (x1 - x0), y0 + fb * (y1 - y0)
+                c0 = int((min(ax, bx) - tol - ox) * inv)
+                c1 = min(nx - 1, int((max(ax, bx) + tol - ox) * inv))
+                r0 = int((min(ay, by) - tol - oy) * inv)
+                r1 = min(ny - 1, int((max(ay, by) + tol - oy) * inv))
+                for row in range(max(r0, 0), r1 + 1):
+                    for col in range(max(c0, 0), c1 + 1):
+                        c = row * nx + col
+                        if last[c] == e:  # listed by the segment's previous piece
+                            continue
+                        last[c] = e
+                        if n_pairs == len(pair_cell):
+                            pair_cell = _grow(pair_cell, n_pairs + 1)
+                            pair_seg = _grow(pair_seg, n_pairs + 1)
+                        pair_cell[n_pairs] = c
+                        pair_seg[n_pairs] = e
+                        n_pairs += 1
+        # the pairs by cell (a counting sort): cell c lists items[cell_start[c]:cell_start[c + 1]]
+        cell_start[:nc + 1] = 0
+        for k in range(n_pairs):
+            cell_start[pair_cell[k] + 1] += 1
+        for c in range(nc):
+            cell_start[c + 1] += cell_start[c]
+        items = _grow(items, n_pairs)
+        for k in range(n_pairs):
+            c = pair_cell[k]
+            items[cell_start[c]] = pair_seg[k]
+            cell_start[c] += 1
+        for c in range(nc, 0, -1):  # back to the starts
+            cell_start[c] = cell_start[c - 1]
+        cell_start[0] = 0
+        # the segments that span some of each row's heights, then each cell's centre inside or not
+        rows[:ny + 1] = 0
+        for e in range(m):
+            r0 = int((min(sg[e, 1], sg[e, 3]) - oy) * inv)
+            r1 = min(int((max(sg[e, 1], sg[e, 3]) - oy) * inv), ny - 1)
+            for row in range(r0, r1 + 1):
+                rows[row + 1] += 1
+        for row in range(ny):
+            rows[row + 1] += rows[row]
+        row_items = _grow(row_items, rows[ny])
+        for e in range(m):
+            r0 = int((min(sg[e, 1], sg[e, 3]) - oy) * inv)
+            r1 = min(int((max(sg[e, 1], sg[e, 3]) - oy) * inv), ny - 1)
+            for row in range(r0, r1 + 1):
+                row_items[rows[row]] = e
+                rows[row] += 1
+        for row in range(ny, 0, -1):
+            rows[row] = rows[row - 1]
+        rows[0] = 0
+        xs = _grow(xs, m)
+        for row in range(ny):
+            cy = oy + (row + 0.5) * cell
+            k = 0
+            for q in range(rows[row], rows[row + 1]):
+                e = row_items[q]
+                sy0, sy1 = sg[e, 1], sg[e, 3]
+                if (sy0 > cy) != (sy1 > cy):
+                    xs[k] = sg[e, 0] + (cy - sy0) * (sg[e, 2] - sg[e, 0]) / (sy1 - sy0)
+                    k += 1
+            xs[:k].sort()
+            q = 0
+            for col in range(nx):
+                cx = ox + (col + 0.5) * cell
+                while q < k and xs[q] < cx:
+                    q += 1
+                status[row * nx + col] = q % 2 == 1
+        # the points
+        tol2 = tol * tol
+        for r in range(i, j):
+            for p in range(run_lo[r], run_hi[r]):
+                px, py = np.float64(xyz[p, 0]), np.float64(xyz[p, 1])
+                fx, fy = (px - ox) * inv, (py - oy) * inv
+                if fx < 0 or fy < 0 or fx >= nx or fy >= ny:
+                    ok[p] = False  # beyond the section's box grown by the tolerance
+                    continue
+                col, row = int(fx), int(fy)
+                c = row * nx + col
+                inside = status[c]
+                ca, cb = cell_start[c], cell_start[c + 1]
+                if ca < cb:  # the outline passes near: within the tolerance, or across the way from the centre
+                    cx, cy = ox + (col + 0.5) * cell, oy + (row + 0.5) * cell
+                    for k in range(ca, cb):
+                        e = items[k]
+                        if _near(px, py, sg, e, tol2):
+                            inside = True
+                            break
+                        if _across(cx, cy, px, py, sg, e):
+                            inside = not inside
+                ok[p] = inside
+        i = j
