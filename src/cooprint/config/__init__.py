@@ -8,8 +8,10 @@ from cooprint.config.settings import (
     RobotProfile,
     SlicingSettings,
     load_settings,
+    outline_rects,
     robot_profile,
 )
 
 __all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "ProgramSettings", "RobotProfile", "SlicingSettings",
-           "load_settings", "robot_profile"]
+           "load_settings", "outline_rects",
+           "robot_profile"]

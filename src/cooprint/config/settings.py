@@ -101,6 +101,26 @@ class RobotProfile:
         """The frame's width, mm: ``frame_width``, or the body's width when it is not given."""
         return self.body_width if self.frame_width is None else self.frame_width
 
+    def outline(self) -> dict[str, tuple[float, float, float, float]]:
+        """The robot's outline (:func:`outline_rects`) from this profile."""
+        return outline_rects(self.build_depth, self.body_length, self.body_width, self.resolved_frame_width,
+                             self.nozzle_depth)
+
+
+def outline_rects(build_depth: float, body_length: float, body_width: float, frame_width: float,
+                  nozzle_depth: float) -> dict[str, tuple[float, float, float, float]]:
+    """A robot's outline (seed Fig. 1 and 3; docs/simulator.md): part -> ``(u_lo, u_hi, v_lo,
+    v_hi)`` relative to the nozzle in the robot's frame (``u`` along its facing, from the body to
+    the nozzle; ``v`` to its left), mm. Each part is a vertical prism, so two robots meet where
+    their rectangles overlap in XY: the ``body`` on its wheels, its front ``build_depth`` behind
+    the nozzle; the ``frame`` from the body's front over the print to the printhead; the
+    ``printhead``, half-side ``nozzle_depth`` around the nozzle (from ``nozzle_height`` above the
+    tip up). The one definition the planner and the simulator share."""
+    bd, bl, nd = build_depth, body_length, nozzle_depth
+    return {"body": (-bd - bl, -bd, -body_width / 2, body_width / 2),
+            "frame": (-bd, -nd, -frame_width / 2, frame_width / 2),
+            "printhead": (-nd, nd, -nd, nd)}
+
 
 @dataclass(frozen=True)
 class ChunkingSettings:

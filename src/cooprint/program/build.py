@@ -24,6 +24,7 @@ from typing import Iterable, Iterator, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
+from cooprint.config import outline_rects
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, make_program, quantize
 from cooprint.slicing.paths import TRAVEL, LayerPaths
 
@@ -177,11 +178,9 @@ class Outline(NamedTuple):
         return Outline(reach, 0.0, 0.0, 0.0, reach)
 
     def rects(self) -> np.ndarray:
-        """(3, 4): ``u_lo, u_hi, v_lo, v_hi`` of the body, the frame and the printhead."""
-        bd, bl, nd = self.build_depth, self.body_length, self.nozzle_depth
-        return np.array([[-bd - bl, -bd, -self.body_width / 2, self.body_width / 2],
-                         [-bd, -nd, -self.frame_width / 2, self.frame_width / 2],
-                         [-nd, nd, -nd, nd]])
+        """(3, 4): ``u_lo, u_hi, v_lo, v_hi`` of the body, the frame and the printhead
+        (:func:`cooprint.config.outline_rects`, the simulator's outline too)."""
+        return np.array(list(outline_rects(*self).values()))
 
     def corners(self, facing: Sequence[float]) -> np.ndarray:
         """(12, 2): the corners of the three rectangles in XY, from the nozzle, for a robot

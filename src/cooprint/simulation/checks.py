@@ -191,12 +191,8 @@ def outline_boxes(profile: RobotProfile, tolerance: dict[str, float] | float | N
     Each is shrunk on every side by ``tolerance`` (mm, one for all or per part; ``None``:
     :data:`OUTLINE_TOLERANCE`), never past its centre line."""
     tol = OUTLINE_TOLERANCE if tolerance is None else tolerance
-    bd, nd, bl = profile.build_depth, profile.nozzle_depth, profile.body_length
-    bw, fw = profile.body_width, profile.resolved_frame_width
-    raw = {"body": (-bd - bl, -bd, -bw / 2, bw / 2), "frame": (-bd, -nd, -fw / 2, fw / 2),
-           "printhead": (-nd, nd, -nd, nd)}
     out = {}
-    for part, (u0, u1, v0, v1) in raw.items():
+    for part, (u0, u1, v0, v1) in profile.outline().items():
         t = tol[part] if isinstance(tol, dict) else float(tol)
         tu, tv = min(t, (u1 - u0) / 2), min(t, (v1 - v0) / 2)
         out[part] = (u0 + tu, u1 - tu, v0 + tv, v1 - tv)
