@@ -13,14 +13,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import STEP, Material, below_floor, footprint_checks, overhangs, robots_collide
+from cooprint.simulation.checks import (STEP, Material, below_floor, footprint_checks, material_checks, overhangs,
+                                        robots_collide)
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
 #: Finding kinds, in the order of the issue's checks (a)-(e), then the nozzle below the floor.
-KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "deadlock", "below-floor", "overhang")
+KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "nozzle-in-material", "double-deposit",
+         "deadlock", "below-floor", "overhang")
 
 
 @dataclass(frozen=True)
@@ -66,8 +68,9 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
         if inp.placed:
             findings += robots_collide(robots, timelines, p)
             checked += ["body-on-material", "robots-collide"]
+        findings += material_checks(robots, timelines, inp.slicing)
         findings += overhangs(robots, timelines, material, inp.slicing)
-        checked += ["printhead-hits-material", "overhang"]
+        checked += ["printhead-hits-material", "nozzle-in-material", "double-deposit", "overhang"]
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(robots, timelines, findings, p, inp.slicing, inp.source, accel,
                      tuple(k for k in KINDS if k in checked), inp.notes, inp.placed)
