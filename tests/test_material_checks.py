@@ -169,6 +169,18 @@ def test_a_layer_printed_twice_is_caught_in_bands_and_on_coarse_cells_the_same()
     assert bands[0].time == one[0].time and bands[0].count == pytest.approx(one[0].count, rel=0.05)
     # coarse cells (a very long print) still find a repeat of the whole layer
     assert [f.kind for f in _found(_robot("A", text), cell=1.0)] == ["double-deposit"]
+    # and the moves merged a few at a time (carrying each robot's deposits and extrusion over)
+    assert _found(_robot("A", text), batch=3) == one
+
+
+def test_two_robots_merged_a_few_moves_at_a_time_find_what_they_find_at_once():
+    text = "".join(_lines(_skin(6), (i + 1) * H, layer=i) for i in range(2))
+    other = _lines(_skin(6, y0=0.2), H, chunk="R1") + _wall(3)
+    robots = (_robot("A", text), _robot("B", "MOVE 5, 5, 5\n" + other, start=(0, 400, 5), facing_deg=-90))
+    at_once = _found(*robots)
+    assert {f.kind for f in at_once} == set(NEW)
+    for batch in (2, 5, 7):
+        assert _found(*robots, batch=batch) == at_once
 
 
 # --- real plans ---------------------------------------------------------------------------------

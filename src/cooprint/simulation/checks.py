@@ -438,7 +438,7 @@ MATERIAL_VISITS = 20_000_000
 #: chimney at z 38.6 mm: two perimeters 0.08 mm apart for between one and two line widths); a
 #: layer or a chunk laid twice doubles whole paths.
 DOUBLE_RUN = 4.0
-#: Moves merged into time order and swept at a time.
+#: Moves merged into time order and swept at a time (divided among the robots of a large fleet).
 MATERIAL_BATCH = 1 << 16
 
 
@@ -512,6 +512,7 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
     cells = np.empty((ncol, ny, kernels.FIELDS), np.float32)  # per cell: top, robot, path position, bead
     run, run_t, run_xyz = np.zeros(nr), np.zeros(nr), np.zeros((nr, 3))
     run_cells, run_slot = np.zeros(nr, np.int64), np.zeros(nr, np.int64)
+    batch = max(min(batch, 1024), batch // nr)  # moves at a time, of all robots (a row of each column per robot)
     out_r, out_k = np.empty(batch, np.int64), np.empty(batch, np.int64)
     heads = np.full((nr, batch), np.inf)
     cols = [np.empty((nr, batch, 3)), np.empty((nr, batch, 3)), np.empty((nr, batch)), np.empty((nr, batch)),
@@ -520,7 +521,6 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
         cells[:, :, kernels.TOP] = -np.inf
         cells[:, :, kernels.WHO] = -1
         run.fill(0.0)
-        x_lo, x_hi = lo[0] + col0 * cell, lo[0] + (col0 + ncol) * cell
         cursor = np.zeros(nr, np.int64)
         carry = [(0.0, 0.0, False)] * nr  # per robot: deposits so far, where its extrusion began, tool on
         while True:
@@ -532,9 +532,12 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
             k = kernels.merge_by_time(heads, n, batch, out_r, out_k)
             if k == 0:
                 break
+            taken = np.bincount(out_r[:k], minlength=nr)
             for j, (_, r, tl) in enumerate(active):  # each robot's moves of the batch, a row each
                 a = int(cursor[j])
-                e = a + int(np.count_nonzero(out_r[:k] == j)) if nr > 1 else a + k
+                e = a + int(taken[j])
+                if e == a:
+                    continue
                 cursor[j] = e
                 part, carry[j] = _move_columns(r, tl, a, e, w, slicing.layer_height, int(offsets[j]), carry[j])
                 for c, src in zip(cols, part):
