@@ -473,26 +473,29 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
     """The nozzle against the material laid down before it (errors, one finding per robot and
     chunk: the first instant and place, and how many cells of path):
 
-    * ``nozzle-in-material``: on any move, tool on or off, the tip goes into material: under its
-      axis lies material whose top is more than half a layer height (the move's) above the tip.
-      Why half a layer: a bead's top is the tip height of the move that laid it, the layers of
-      every chunk share one z grid and coordinates are on a 1 µm grid, so material of the layer
-      the nozzle is in has its top at the tip (a travel across the layer it is printing) and the
-      next material above is a whole layer higher; half a layer is as far from both as can be.
-    * ``double-deposit``: with the tool on, the material under the axis is of the layer the move
-      lays (its top within half a layer height of the tip) where the plan expects the layer below
-      (a whole layer lower) or the floor, along more than one line width of path in a row (the
-      end of a loop meeting its start at the seam, or an infill line ending on the perimeter,
-      overlap for less).
+    * ``nozzle-in-material``: on any move, tool on or off, the tip goes into material: a bead
+      within half a line width of the nozzle's axis whose top is more than half a layer height
+      (the move's) above the tip. Why half a layer: a bead's top is the tip height of the move
+      that laid it, the layers of every chunk share one z grid and coordinates are on a 1 µm
+      grid, so material of the layer the nozzle is in has its top at the tip (a travel across the
+      layer it is printing) and the next material above is a whole layer higher; half a layer is
+      as far from both as can be.
+    * ``double-deposit``: with the tool on, a bead within ``DOUBLE_NEAR`` line widths of the axis
+      is of the layer the move lays (its top within half a layer height of the tip) where the
+      plan expects the layer below (a whole layer lower) or the floor, along more than
+      ``DOUBLE_RUN`` line widths of path in a row (an infill line ending on the perimeter, the
+      seam where a loop closes, two perimeters of a section thinner than two lines overlap for
+      less).
 
-    "Under the axis": the material is a height field of cells of half a line width
-    (``MATERIAL_CELL`` x the slicing settings' ``extrusion_width``), each keeping its top, who laid
-    it and how far along its deposits. Every move is swept in time order over all robots (each
-    moves' start time; a move sees every move that started before it whole); it walks the cells
-    its axis passes through, is checked against them, and then lays its bead into them (a bead
-    sets the cells its axis passes through: its own width covers a cell's worth to either side
-    of them). A robot's own material laid within the last two line widths along its path (the
-    segment before a corner) is its fresh bead, not material laid before. Prints wider than
+    How: the material is a height field of cells of half a line width (``MATERIAL_CELL`` x the
+    slicing settings' ``extrusion_width``; larger on a print of more path than
+    ``MATERIAL_VISITS`` cells), each keeping its top, the robot that laid it, how far along that
+    robot's deposits and the bead's segment (distances to it are exact). The moves of all robots
+    are merged by start time (``batch`` at a time; a move sees every move that started before it
+    whole) and each walks the cells its axis passes through, is checked against them and lays
+    its bead there (:func:`kernels.material_sweep`). A robot's own material is its fresh bead,
+    not material laid before, within the extrusion under way (since the tool went on) and two
+    line widths of deposits before it (the segment before a corner). Prints wider than
     ``max_cells`` cells are swept in bands of columns."""
     w = float(slicing.extrusion_width)
     active = [(i, r, timelines[r.name]) for i, r in enumerate(robots) if len(timelines[r.name].t0)]
@@ -546,10 +549,11 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
                                    DOUBLE_NEAR, DOUBLE_RUN, run, run_cells, run_t, run_xyz, run_slot, count, when,
                                    where)
     findings = []
-    details = (f"the nozzle tip goes into material laid down before (its top more than half a layer above the tip; "
-               f"cells of {cell:g} mm along the nozzle's path)",
-               f"material laid where material of the same layer already lies (more than one line width of path "
-               f"in a row; cells of {cell:g} mm)")
+    details = (f"the nozzle tip goes into material laid down before (a bead within half a line width of its axis, "
+               f"its top more than half a layer above the tip; count: cells of {cell:.3g} mm along the path)",
+               f"material laid where material of the same layer already lies (a bead within {DOUBLE_NEAR:g} line "
+               f"width of the axis, more than {DOUBLE_RUN:g} line widths of path in a row; count: cells of "
+               f"{cell:.3g} mm)")
     for j, (_, r, _) in enumerate(active):
         for check, kind in enumerate(("nozzle-in-material", "double-deposit")):
             for s in np.flatnonzero(count[check, offsets[j]:offsets[j + 1]]):
