@@ -7,6 +7,9 @@
   of half-side ``nozzle_depth`` around the nozzle, in the robot's frame) that rises above the
   printhead's underside (``nozzle_height`` above the nozzle tip), seed Fig. 3b: a chunk whose
   slope is steeper than theta_max = atan(nh / nd) reaches it.
+* ``nozzle-in-material`` and ``double-deposit``: the nozzle's tip inside material laid down
+  before, and material laid where material of the same layer already lies
+  (:func:`material_checks`: a height field swept over every robot's moves in time order).
 * ``overhang`` (a warning): material laid down with nothing below it: no material whose top is
   at most one layer of air lower (between 2.5 and 0.5 layer heights below) within ``radius``, and
   not on the floor.
