@@ -227,3 +227,16 @@ def test_a_stack_of_layers_printed_once_is_clean_and_repeated_is_caught(x0, y0, 
     found = _found(_robot("A", twice))
     assert [f.kind for f in found] == ["double-deposit"]
     assert found[0].position[2] == pytest.approx((k + 1) * H)
+
+
+@pytest.mark.parametrize("dive_early, caught", [(True, True), (False, False)])
+def test_a_transition_that_dives_while_over_the_finished_chunk_is_caught(dive_early, caught):
+    # chunk C: 10 layers of skin over x 0..10, y 0..3.6; then the robot goes to chunk L1 beside it
+    # (x 12..22): diving straight for L1's first point passes through C's upper layers
+    c = "".join(_lines(_skin(10), (i + 1) * H, layer=i) for i in range(10))
+    go = ("MOVE 5, 2, 2.2\nMOVE 12, 2, 0.2\n" if dive_early else
+          "MOVE 5, 2, 2.2\nMOVE 12, 2, 2.2\nMOVE 12, 2, 0.2\n")
+    l1 = _lines(_skin(10, x0=12.0), H, chunk="L1")
+    found = _found(_robot("A", c + ";@chunk -\n" + go + l1))
+    assert _kinds(found) == {"nozzle-in-material": _kinds(found)["nozzle-in-material"], "double-deposit": 0}
+    assert (_kinds(found)["nozzle-in-material"] > 0) is caught
