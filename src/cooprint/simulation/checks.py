@@ -527,6 +527,7 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
         cells[:, :, kernels.TOP] = -np.inf
         cells[:, :, kernels.WHO] = -1
         run.fill(0.0)
+        highest = np.full(1, -np.inf)
         cursor = np.zeros(nr, np.int64)
         carry = [(0.0, 0.0, False)] * nr  # per robot: deposits so far, where its extrusion began, tool on
         while True:
@@ -549,8 +550,8 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
                 for c, src in zip(cols, part):
                     c[j, :e - a] = src
             kernels.material_sweep(out_r[:k], out_k[:k], *cols, float(lo[0]), float(lo[1]), cell, col0, cells,
-                                   DOUBLE_NEAR, DOUBLE_RUN, run, run_cells, run_t, run_xyz, run_slot, count, when,
-                                   where)
+                                   DOUBLE_NEAR, DOUBLE_RUN, highest, run, run_cells, run_t, run_xyz, run_slot, count,
+                                   when, where)
     findings = []
     details = (f"the nozzle tip goes into material laid down before (a bead within half a line width of its axis, "
                f"its top more than half a layer above the tip; count: cells of {cell:.3g} mm along the path)",

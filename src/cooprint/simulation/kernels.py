@@ -714,15 +714,16 @@ def _segments_apart(ax, ay, bx, by, cx, cy, dx, dy):
 
 
 @_jit
-def material_sweep(order_r, order_k, p0, p1, t0, t1, on, slot, h, w, dep, fresh, ox, oy, cell, col0, cells, near, least,
-                   run, run_cells, run_t, run_xyz, run_slot, count, when, where):
+def material_sweep(order_r, order_k, p0, p1, t0, t1, on, slot, h, w, dep, fresh, ox, oy, cell, col0, cells, near,
+                   least, highest, run, run_cells, run_t, run_xyz, run_slot, count, when, where):
     """The nozzle of each move against the material laid down before, and its bead added, in
-    time order: move ``order_k[i]`` of robot ``order_r[i]`` (the columns are (robots, moves, ...)): a sweep over a height field of cells ``cell`` mm square (origin ``ox, oy``; this
-    band, ``cells`` (columns, rows, ``FIELDS``), holds columns ``col0`` on), each keeping the top of the
-    material in it (``TOP``, -inf: none), the robot that laid it (``WHO``), how far along that
-    robot's deposits (``POS``, mm modulo ``POS_PERIOD``) and that bead's segment (``AX, AY`` to
-    ``BX, BY``, relative to ``ox, oy``), so that distances to it are exact.
-    One record per cell, so that a step to the next cell costs one memory line.
+    time order: move ``order_k[i]`` of robot ``order_r[i]`` (the columns are (robots, moves,
+    ...)). A sweep over a height field of cells ``cell`` mm square (origin ``ox, oy``; this band,
+    ``cells`` (columns, rows, ``FIELDS``), holds columns ``col0`` on), each keeping the top of
+    the material in it (``TOP``, -inf: none), the robot that laid it (``WHO``), how far along
+    that robot's deposits (``POS``, mm modulo ``POS_PERIOD``) and that bead's segment (``AX, AY``
+    to ``BX, BY``, relative to ``ox, oy``), so that distances to it are exact. One record per
+    cell, so that a step to the next cell costs one memory line.
 
     A move walks the cells its axis passes through (a grid traversal: every cell the segment
     touches, in order, so two paths that cross share a cell); in each, the material there is
@@ -737,7 +738,8 @@ def material_sweep(order_r, order_k, p0, p1, t0, t1, on, slot, h, w, dep, fresh,
     robot's path for more than ``least`` line widths (``run``: per robot, the doubled length so far, ``run_cells``
     its cells, ``run_t``, ``run_xyz``, ``run_slot`` where it began; a travel ends it). A hit adds
     to ``count[check, slot]``; the earliest of each slot leaves its time and place in ``when``
-    and ``where``."""
+    and ``where``. ``highest[0]``: the top of all the material so far (a travel above it by more
+    than the tolerance meets nothing and is not walked)."""
     ncol, ny = cells.shape[0], cells.shape[1]
     x_lo, x_hi = ox + col0 * cell, ox + (col0 + ncol) * cell
     y_lo, y_hi = oy, oy + ny * cell
@@ -752,8 +754,10 @@ def material_sweep(order_r, order_k, p0, p1, t0, t1, on, slot, h, w, dep, fresh,
         ta, tb = _clip(ay, by, y_lo, y_hi, ta, tb)
         if ta > tb:
             continue
-        length = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
         tol = 0.5 * h[r, k]
+        if not lay and min(az, bz) + tol >= highest[0]:
+            continue
+        length = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
         ax_, ay_, bx_, by_ = ax - ox, ay - oy, bx - ox, by - oy  # the move's segment, from the origin
         fr = np.float32(r)
         dm = dep[r, k] % POS_PERIOD  # the path position at the move's start, modulo the period
@@ -822,6 +826,8 @@ def material_sweep(order_r, order_k, p0, p1, t0, t1, on, slot, h, w, dep, fresh,
             if lay:
                 z = az + 0.5 * (tc + te) * (bz - az)
                 if z >= high:
+                    if z > highest[0]:
+                        highest[0] = z
                     cells[ci, iy, TOP] = z
                     cells[ci, iy, WHO] = fr
                     here = dm + tc * length
