@@ -432,9 +432,10 @@ MATERIAL_CELLS = 2_500_000
 #: infill overlap, so an infill line may run along a perimeter 0.1 mm from it).
 DOUBLE_NEAR = 0.125
 #: At most about this many cell visits in all (the moves' X plus Y extents over the cell size):
-#: on a print of more path than that, the cells grow (nefertiti's 32 km: about 1 mm), so the check
-#: takes at most about half a second; coarser cells miss more (a cell keeps the last bead laid in
-#: it), never find more (the distances to that bead's segment are exact).
+#: on a print of more path than that, the cells grow (nefertiti's 2-robot plan, 48 km of moves in
+#: X plus Y: 2.4 mm), so the sweep stays at a few tenths of a second; coarser cells miss more (a
+#: cell keeps the last bead laid in it: a layer repeated is still found, in fewer cells), never
+#: find more (the distances to that bead's segment are exact).
 MATERIAL_VISITS = 20_000_000
 #: A double deposit is more than this many line widths of doubled path in a row: the slicer's
 #: perimeters may overlap where a section is thinner than two of them (benchy's hull beside its
