@@ -240,3 +240,14 @@ def test_a_transition_that_dives_while_over_the_finished_chunk_is_caught(dive_ea
     found = _found(_robot("A", c + ";@chunk -\n" + go + l1))
     assert _kinds(found) == {"nozzle-in-material": _kinds(found)["nozzle-in-material"], "double-deposit": 0}
     assert (_kinds(found)["nozzle-in-material"] > 0) is caught
+
+
+def test_material_kilometres_apart_is_swept_on_a_bounded_field():
+    # two walls 1.8 km apart, the second with a travel through it: a few bands of coarse cells
+    far = _wall(5).replace("MOVE 0,", "MOVE 900000,").replace("MOVE 20.000,", "MOVE 900020.000,")
+    far = far.replace("MOVE 0.000,", "MOVE 900000.000,")
+    text = _wall(5).replace("MOVE 0.000,", "MOVE -900000.000,").replace("MOVE 20.000,", "MOVE -899980.000,") + far
+    text += ";@chunk -\nMOVE 900010, -10, 5\nMOVE 900010, -10, 0.4\nMOVE 900010, 10, 0.4\n"
+    found = _found(_robot("A", text, start=(900010, -10, 5)))
+    assert [f.kind for f in found] == ["nozzle-in-material"]
+    assert found[0].position[0] == pytest.approx(900010)

@@ -20,7 +20,8 @@ from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
-#: Finding kinds, in the order of the issue's checks (a)-(e), then the nozzle below the floor.
+#: Finding kinds: the body, the robots, the printhead, the nozzle against material laid before and
+#: material laid twice (issue 13), deadlocks, the nozzle below the floor, overhangs.
 KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "nozzle-in-material", "double-deposit",
          "deadlock", "below-floor", "overhang")
 

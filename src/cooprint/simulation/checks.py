@@ -426,6 +426,10 @@ MATERIAL_CELL = 0.5
 #: At most this many cells of the height field at once (28 bytes each): a larger print is swept
 #: in bands of columns, each move in every band it passes through.
 MATERIAL_CELLS = 2_500_000
+#: At most about this many cells in all bands (the cells grow on a print spread wider than
+#: 1 m square at half a line width, so that material kilometres apart is a few bands, not
+#: millions).
+MATERIAL_ALL_CELLS = 4 * MATERIAL_CELLS
 #: Material of the layer a move lays is the same bead again when its axis passes within this
 #: many line widths of the nozzle's: half the closest two beads of one layer come by design (the fill
 #: area's edge is a quarter line spacing from the last perimeter's axis: PrusaSlicer's 25%
@@ -493,14 +497,14 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
 
     How: the material is a height field of cells of half a line width (``MATERIAL_CELL`` x the
     slicing settings' ``extrusion_width``; larger on a print of more path than
-    ``MATERIAL_VISITS`` cells), each keeping its top, the robot that laid it, how far along that
-    robot's deposits and the bead's segment (distances to it are exact). The moves of all robots
-    are merged by start time (``batch`` at a time; a move sees every move that started before it
-    whole) and each walks the cells its axis passes through, is checked against them and lays
-    its bead there (:func:`kernels.material_sweep`). A robot's own material is its fresh bead,
-    not material laid before, within the extrusion under way (since the tool went on) and two
-    line widths of deposits before it (the segment before a corner). Prints wider than
-    ``max_cells`` cells are swept in bands of columns."""
+    ``MATERIAL_VISITS`` cells or wider than ``MATERIAL_ALL_CELLS``), each keeping its top, the
+    robot that laid it, how far along that robot's deposits and the bead's segment (distances to
+    it are exact). The moves of all robots are merged by start time (``batch`` at a time; a move
+    sees every move that started before it whole) and each walks the cells its axis passes
+    through, is checked against them and lays its bead there (:func:`kernels.material_sweep`). A
+    robot's own material is its fresh bead, not material laid before, within the extrusion under
+    way (since the tool went on) and two line widths of deposits before it (the segment before a
+    corner). Prints wider than ``max_cells`` cells are swept in bands of columns."""
     w = float(slicing.extrusion_width)
     active = [(i, r, timelines[r.name]) for i, r in enumerate(robots) if len(timelines[r.name].t0)]
     box = np.array([np.inf, np.inf, -np.inf, -np.inf])
@@ -508,7 +512,8 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
     if not np.isfinite(box).all():
         return []  # nothing is laid down
     if cell is None:
-        cell = max(MATERIAL_CELL * w, walk / MATERIAL_VISITS)
+        area = float(np.prod(box[2:] - box[:2] + w))
+        cell = max(MATERIAL_CELL * w, walk / MATERIAL_VISITS, float(np.sqrt(area / MATERIAL_ALL_CELLS)))
     lo, hi = box[:2] - cell, box[2:] + cell
     nx, ny = (int(np.ceil((hi[k] - lo[k]) / cell)) + 1 for k in range(2))
     ncol = max(1, min(nx, max_cells // ny))
