@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import (STEP, Material, below_floor, chunk_order, footprint_checks, outside_part,
-                                        overhangs, robots_collide)
+from cooprint.simulation.checks import (STEP, Material, below_floor, chunk_order, footprint_checks, material_checks,
+                                        outside_part, overhangs, robots_collide)
 from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs, read_chunk_meshes
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
@@ -75,8 +75,9 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
         if inp.placed:
             findings += robots_collide(robots, timelines, p)
             checked += ["body-on-material", "robots-collide"]
+        findings += material_checks(robots, timelines, inp.slicing)
         findings += overhangs(robots, timelines, material, inp.slicing)
-        checked += ["printhead-hits-material", "overhang"]
+        checked += ["printhead-hits-material", "nozzle-in-material", "double-deposit", "overhang"]
         if chunks is not None:  # the part is known: material must lie inside it, in its robot's chunks
             findings += outside_part(robots, timelines, material, chunks, inp.robot_chunks or {},
                                      inp.slicing.extrusion_width)

@@ -10,6 +10,9 @@
   slope is steeper than theta_max = atan(nh / nd) reaches it.
 * ``chunk-order``: material of a chunk laid down before every chunk it depends on is finished
   (a bundle's ``chunks[].deps``; :func:`chunk_order`).
+* ``nozzle-in-material`` and ``double-deposit``: the nozzle's tip inside material laid down
+  before, and material laid where material of the same layer already lies
+  (:func:`material_checks`: a height field swept over every robot's moves in time order).
 * ``overhang`` (a warning): material laid down with nothing below it: no material whose top is
   at most one layer of air lower (between 2.5 and 0.5 layer heights below) within ``radius``, and
   not on the floor.
@@ -558,6 +561,159 @@ def chunk_order(robots: list[SimRobot], timelines: dict[str, Timeline],
                 ", ".join(f"{d} ({dt:.3f} s early)" for d, dt in early)
             findings.append(Finding("chunk-order", robot, t, tuple(float(x) for x in where), c, detail, len(early)))
     return sorted(findings, key=lambda f: (f.time, f.chunk))
+#: Cells of the material height field, in line widths: half a line width, so that the bead beside
+#: (a line spacing away, at least 0.72 line widths: two points of one cell are at most
+#: 0.71 widths apart) never shares a cell with the nozzle's axis.
+MATERIAL_CELL = 0.5
+#: At most this many cells of the height field at once (28 bytes each): a larger print is swept
+#: in bands of columns, each move in every band it passes through.
+MATERIAL_CELLS = 2_500_000
+#: At most about this many cells in all bands (the cells grow on a print spread wider than
+#: 1 m square at half a line width, so that material kilometres apart is a few bands, not
+#: millions).
+MATERIAL_ALL_CELLS = 4 * MATERIAL_CELLS
+#: Material of the layer a move lays is the same bead again when its axis passes within this
+#: many line widths of the nozzle's: half the closest two beads of one layer come by design (the fill
+#: area's edge is a quarter line spacing from the last perimeter's axis: PrusaSlicer's 25%
+#: infill overlap, so an infill line may run along a perimeter 0.1 mm from it).
+DOUBLE_NEAR = 0.125
+#: At most about this many cell visits in all (the moves' X plus Y extents over the cell size):
+#: on a print of more path than that, the cells grow (nefertiti's 2-robot plan, 48 km of moves in
+#: X plus Y: 2.4 mm), so the sweep stays at a few tenths of a second; coarser cells miss more (a
+#: cell keeps the last bead laid in it: a layer repeated is still found, in fewer cells), never
+#: find more (the distances to that bead's segment are exact).
+MATERIAL_VISITS = 20_000_000
+#: A double deposit is more than this many line widths of doubled path in a row: the slicer's
+#: perimeters may overlap where a section is thinner than two of them (benchy's hull beside its
+#: chimney at z 38.6 mm: two perimeters 0.08 mm apart for between one and two line widths); a
+#: layer or a chunk laid twice doubles whole paths.
+DOUBLE_RUN = 4.0
+#: Moves merged into time order and swept at a time (divided among the robots of a large fleet).
+MATERIAL_BATCH = 1 << 16
+
+
+def _move_columns(r: SimRobot, tl: Timeline, a: int, e: int, width: float, height: float, offset: int,
+                  carry: tuple[float, float, bool]) -> tuple[list[np.ndarray], tuple[float, float, bool]]:
+    """What :func:`kernels.material_sweep` takes of a robot's moves ``a:e``: ends, times, tool on,
+    then chunk slots (after ``offset``), layer heights, widths, deposits before each (mm) and how
+    far back the robot's own material is its fresh bead (the extrusion under way since the tool
+    went on, and two line widths before it: a sliver of a section thinner than a line is a loop
+    whose two sides meet). ``carry``: deposits so far, where the extrusion under way began, and
+    whether the tool was on, at move ``a``; returned for move ``e``."""
+    on = tl.on[a:e]
+    done, began, was_on = carry
+    ch = r.program.chunk[tl.index[a:e]].astype(np.int64)
+    wid, hgt = r.bead(tl.index[a:e], width, height)
+    laid = np.where(on, tl.length[a:e], 0.0)
+    dep = done + np.concatenate([[0.0], np.cumsum(laid)[:-1]])
+    begins = on & ~np.r_[was_on, on[:-1]]
+    first = np.maximum.accumulate(np.where(begins, np.arange(len(on)), -1))
+    since = np.where(first >= 0, dep[np.maximum(first, 0)], began)
+    fresh = np.where(on, dep - since, 0.0) + 2 * wid
+    cols = [tl.p0[a:e], tl.p1[a:e], tl.t0[a:e], tl.t1[a:e], on,
+            np.where(ch < 0, len(r.program.chunks), ch) + offset, hgt, wid, dep, fresh]
+    after = (done + float(laid.sum()), float(since[-1]) if len(since) else began,
+             bool(on[-1]) if len(on) else was_on)
+    return cols, after
+
+
+def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slicing: SlicingSettings,
+                    cell: float | None = None, max_cells: int = MATERIAL_CELLS,
+                    batch: int = MATERIAL_BATCH) -> list[Finding]:
+    """The nozzle against the material laid down before it (errors, one finding per robot and
+    chunk: the first instant and place, and how many cells of path):
+
+    * ``nozzle-in-material``: on any move, tool on or off, the tip goes into material: a bead
+      within half a line width of the nozzle's axis whose top is more than half a layer height
+      (the move's) above the tip. Why half a layer: a bead's top is the tip height of the move
+      that laid it, the layers of every chunk share one z grid and coordinates are on a 1 µm
+      grid, so material of the layer the nozzle is in has its top at the tip (a travel across the
+      layer it is printing) and the next material above is a whole layer higher; half a layer is
+      as far from both as can be.
+    * ``double-deposit``: with the tool on, a bead within ``DOUBLE_NEAR`` line widths of the axis
+      is of the layer the move lays (its top within half a layer height of the tip) where the
+      plan expects the layer below (a whole layer lower) or the floor, along more than
+      ``DOUBLE_RUN`` line widths of path in a row (an infill line ending on the perimeter, the
+      seam where a loop closes, two perimeters of a section thinner than two lines overlap for
+      less).
+
+    How: the material is a height field of cells of half a line width (``MATERIAL_CELL`` x the
+    slicing settings' ``extrusion_width``; larger on a print of more path than
+    ``MATERIAL_VISITS`` cells or wider than ``MATERIAL_ALL_CELLS``), each keeping its top, the
+    robot that laid it, how far along that robot's deposits and the bead's segment (distances to
+    it are exact). The moves of all robots are merged by start time (``batch`` at a time; a move
+    sees every move that started before it whole) and each walks the cells its axis passes
+    through, is checked against them and lays its bead there (:func:`kernels.material_sweep`). A
+    robot's own material is its fresh bead, not material laid before, within the extrusion under
+    way (since the tool went on) and two line widths of deposits before it (the segment before a
+    corner). Prints wider than ``max_cells`` cells are swept in bands of columns."""
+    w = float(slicing.extrusion_width)
+    active = [(i, r, timelines[r.name]) for i, r in enumerate(robots) if len(timelines[r.name].t0)]
+    box = np.array([np.inf, np.inf, -np.inf, -np.inf])
+    walk = sum(kernels.path_extent(tl.p0, tl.p1, tl.on, box) for _, _, tl in active)
+    if not np.isfinite(box).all():
+        return []  # nothing is laid down
+    if cell is None:
+        area = float(np.prod(box[2:] - box[:2] + w))
+        cell = max(MATERIAL_CELL * w, walk / MATERIAL_VISITS, float(np.sqrt(area / MATERIAL_ALL_CELLS)))
+    lo, hi = box[:2] - cell, box[2:] + cell
+    nx, ny = (int(np.ceil((hi[k] - lo[k]) / cell)) + 1 for k in range(2))
+    ncol = max(1, min(nx, max_cells // ny))
+    offsets = np.cumsum([0] + [len(r.program.chunks) + 1 for _, r, _ in active])  # each robot's chunk slots
+    slots = int(offsets[-1])
+    count, when, where = np.zeros((2, slots), np.int64), np.full((2, slots), np.inf), np.zeros((2, slots, 3))
+    nr = len(active)
+    cells = np.empty((ncol, ny, kernels.FIELDS), np.float32)  # per cell: top, robot, path position, bead
+    run, run_t, run_xyz = np.zeros(nr), np.zeros(nr), np.zeros((nr, 3))
+    run_cells, run_slot = np.zeros(nr, np.int64), np.zeros(nr, np.int64)
+    batch = max(min(batch, 1024), batch // nr)  # moves at a time, of all robots (a row of each column per robot)
+    out_r, out_k = np.empty(batch, np.int64), np.empty(batch, np.int64)
+    heads = np.full((nr, batch), np.inf)
+    cols = [np.empty((nr, batch, 3)), np.empty((nr, batch, 3)), np.empty((nr, batch)), np.empty((nr, batch)),
+            np.empty((nr, batch), bool), np.empty((nr, batch), np.int64)] + [np.empty((nr, batch)) for _ in range(4)]
+    for col0 in range(0, nx, ncol):
+        cells[:, :, kernels.TOP] = -np.inf
+        cells[:, :, kernels.WHO] = -1
+        run.fill(0.0)
+        highest = np.full(1, -np.inf)
+        cursor = np.zeros(nr, np.int64)
+        carry = [(0.0, 0.0, False)] * nr  # per robot: deposits so far, where its extrusion began, tool on
+        while True:
+            n = np.zeros(nr, np.int64)
+            for j, (_, _, tl) in enumerate(active):
+                part = tl.t0[cursor[j]:cursor[j] + batch]
+                n[j] = len(part)
+                heads[j, :len(part)] = part
+            k = kernels.merge_by_time(heads, n, batch, out_r, out_k)
+            if k == 0:
+                break
+            taken = np.bincount(out_r[:k], minlength=nr)
+            for j, (_, r, tl) in enumerate(active):  # each robot's moves of the batch, a row each
+                a = int(cursor[j])
+                e = a + int(taken[j])
+                if e == a:
+                    continue
+                cursor[j] = e
+                part, carry[j] = _move_columns(r, tl, a, e, w, slicing.layer_height, int(offsets[j]), carry[j])
+                for c, src in zip(cols, part):
+                    c[j, :e - a] = src
+            kernels.material_sweep(out_r[:k], out_k[:k], *cols, float(lo[0]), float(lo[1]), cell, col0, cells,
+                                   DOUBLE_NEAR, DOUBLE_RUN, highest, run, run_cells, run_t, run_xyz, run_slot, count,
+                                   when, where)
+    findings = []
+    details = (f"the nozzle tip goes into material laid down before (a bead within half a line width of its axis, "
+               f"its top more than half a layer above the tip; count: cells of {cell:.3g} mm along the path)",
+               f"material laid where material of the same layer already lies (a bead within {DOUBLE_NEAR:g} line "
+               f"width of the axis, more than {DOUBLE_RUN:g} line widths of path in a row; count: cells of "
+               f"{cell:.3g} mm)")
+    for j, (_, r, _) in enumerate(active):
+        for check, kind in enumerate(("nozzle-in-material", "double-deposit")):
+            for s in np.flatnonzero(count[check, offsets[j]:offsets[j + 1]]):
+                g = offsets[j] + s
+                findings.append(Finding(kind, r.name, float(when[check, g]), tuple(float(x) for x in where[check, g]),
+                                        r.program.chunks[s] if s < len(r.program.chunks) else None, details[check],
+                                        int(count[check, g])))
+    return sorted(findings, key=lambda f: (f.time, f.kind))
 
 
 #: How far below the floor (z = 0) a nozzle may go before it is a finding, mm: the programs'
@@ -749,4 +905,4 @@ def outside_part(robots: list[SimRobot], timelines: dict[str, Timeline], materia
 
 __all__ = ["FLOOR_TOLERANCE", "ORDER_TOLERANCE", "OUTLINE_TOLERANCE", "OUTSIDE_SLACK", "PARTS", "Material", "below_floor",
            "body_box", "body_corners", "chunk_order", "footprint_checks", "head_box", "outline_boxes", "outline_corners",
-           "outline_tables", "outside_part", "overhangs", "path_samples", "robots_collide"]
+           "material_checks", "outline_tables", "outside_part", "overhangs", "path_samples", "robots_collide"]

@@ -938,3 +938,221 @@ def inside_sections(xyz, run_lo, run_hi, run_sec, run_tol, offsets, segs, ok):
                             inside = not inside
                 ok[p] = inside
         i = j
+@_jit
+def path_extent(p0, p1, on, out):
+    """The XY box of the moves with the tool on (``out[0:4]``: least x, y, greatest x, y; kept
+    from earlier calls) and the sum of every move's X and Y extents (returned)."""
+    walk = 0.0
+    for m in range(len(p0)):
+        walk += abs(p1[m, 0] - p0[m, 0]) + abs(p1[m, 1] - p0[m, 1])
+        if on[m]:
+            for a in range(2):
+                lo, hi = min(p0[m, a], p1[m, a]), max(p0[m, a], p1[m, a])
+                out[a] = min(out[a], lo)
+                out[2 + a] = max(out[2 + a], hi)
+    return walk
+
+
+@_jit
+def merge_by_time(t0, n, size, out_robot, out_k):
+    """The next moves of several robots in time order: ``t0`` (R, size) holds each robot's next
+    start times (its first ``n[r]`` are real, in order); the first ``size`` of all in order of
+    start time (ties: the lower robot first) go to ``out_robot`` and ``out_k`` (the position in
+    the robot's row). Returns how many were taken."""
+    robots = len(n)
+    cur = np.zeros(robots, np.int64)
+    j = 0
+    while j < size:
+        best = -1
+        for r in range(robots):
+            if cur[r] < n[r] and (best < 0 or t0[r, cur[r]] < t0[best, cur[best]]):
+                best = r
+        if best < 0:
+            break
+        out_robot[j], out_k[j] = best, cur[best]
+        cur[best] += 1
+        j += 1
+    return j
+
+
+@_inline
+def _clip(a, b, lo, hi, ta, tb):
+    """The part [ta, tb] of the parameter range in which ``a + t * (b - a)`` lies in [lo, hi]."""
+    d = b - a
+    if d == 0.0:
+        if a < lo or a > hi:
+            return 1.0, 0.0
+        return ta, tb
+    s0, s1 = (lo - a) / d, (hi - a) / d
+    if s0 > s1:
+        s0, s1 = s1, s0
+    return max(ta, s0), min(tb, s1)
+
+
+#: Fields of a cell of the material height field (:func:`material_sweep`), float32 each: the top,
+#: the robot, its path position, the bead's segment (ends relative to the field's origin).
+TOP, WHO, POS, AX, AY, BX, BY = range(7)
+FIELDS = 7
+#: Path positions are kept modulo this many mm (float32 keeps them to 4 µm; a robot's own bead
+#: laid a whole multiple of it earlier, to within two line widths, passes for its fresh one).
+POS_PERIOD = 65536.0
+
+
+@_inline
+def _point_segment(px, py, ax, ay, bx, by):
+    """Distance from the point ``p`` to the segment ``a b`` (XY)."""
+    dx, dy = bx - ax, by - ay
+    d2 = dx * dx + dy * dy
+    f = ((px - ax) * dx + (py - ay) * dy) / d2 if d2 > 0 else 0.0
+    f = min(max(f, 0.0), 1.0)
+    ex, ey = ax + f * dx - px, ay + f * dy - py
+    return np.sqrt(ex * ex + ey * ey)
+
+
+@_inline
+def _segments_apart(ax, ay, bx, by, cx, cy, dx, dy):
+    """Distance between the segments ``a b`` and ``c d`` (XY): 0 when they cross, else the
+    least from an end of one to the other."""
+    d1 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+    d2 = (bx - ax) * (dy - ay) - (by - ay) * (dx - ax)
+    d3 = (dx - cx) * (ay - cy) - (dy - cy) * (ax - cx)
+    d4 = (dx - cx) * (by - cy) - (dy - cy) * (bx - cx)
+    if ((d1 > 0) != (d2 > 0)) and ((d3 > 0) != (d4 > 0)) and d1 != 0 and d2 != 0 and d3 != 0 and d4 != 0:
+        return 0.0
+    return min(min(_point_segment(ax, ay, cx, cy, dx, dy), _point_segment(bx, by, cx, cy, dx, dy)),
+               min(_point_segment(cx, cy, ax, ay, bx, by), _point_segment(dx, dy, ax, ay, bx, by)))
+
+
+@_jit
+def material_sweep(order_r, order_k, p0, p1, t0, t1, on, slot, h, w, dep, fresh, ox, oy, cell, col0, cells, near,
+                   least, highest, run, run_cells, run_t, run_xyz, run_slot, count, when, where):
+    """The nozzle of each move against the material laid down before, and its bead added, in
+    time order: move ``order_k[i]`` of robot ``order_r[i]`` (the columns are (robots, moves,
+    ...)). A sweep over a height field of cells ``cell`` mm square (origin ``ox, oy``; this band,
+    ``cells`` (columns, rows, ``FIELDS``), holds columns ``col0`` on), each keeping the top of
+    the material in it (``TOP``, -inf: none), the robot that laid it (``WHO``), how far along
+    that robot's deposits (``POS``, mm modulo ``POS_PERIOD``) and that bead's segment (``AX, AY``
+    to ``BX, BY``, relative to ``ox, oy``), so that distances to it are exact. One record per
+    cell, so that a step to the next cell costs one memory line.
+
+    A move walks the cells its axis passes through (a grid traversal: every cell the segment
+    touches, in order, so two paths that cross share a cell); in each, the material there is
+    checked, then a move with the tool on lays its bead there (its height, robot, path position
+    and segment, unless higher material is there). Material of another robot, or of this one laid
+    more than ``fresh[r, k]`` mm of its deposits before the move's start, counts: ``nozzle-in-material`` (check 0)
+    when its top is more than half the move's layer height above the lowest the tip is in the
+    cell and its segment is within half the move's width ``w`` of the nozzle's way through the
+    cell; ``double-deposit`` (check 1) on a move with the tool on when its top is within half a
+    layer height of the tip (the same layer) and its segment within ``near`` line widths of the
+    middle of the nozzle's way through the cell, once such cells follow one another along the
+    robot's path for more than ``least`` line widths (``run``: per robot, the doubled length so far, ``run_cells``
+    its cells, ``run_t``, ``run_xyz``, ``run_slot`` where it began; a travel ends it). A hit adds
+    to ``count[check, slot]``; the earliest of each slot leaves its time and place in ``when``
+    and ``where``. ``highest[0]``: the top of all the material so far (a travel above it by more
+    than the tolerance meets nothing and is not walked)."""
+    ncol, ny = cells.shape[0], cells.shape[1]
+    x_lo, x_hi = ox + col0 * cell, ox + (col0 + ncol) * cell
+    y_lo, y_hi = oy, oy + ny * cell
+    for i in range(len(order_r)):
+        r, k = order_r[i], order_k[i]
+        lay = on[r, k]
+        if not lay:
+            run[r] = 0.0
+        ax, ay, az = p0[r, k, 0], p0[r, k, 1], p0[r, k, 2]
+        bx, by, bz = p1[r, k, 0], p1[r, k, 1], p1[r, k, 2]
+        ta, tb = _clip(ax, bx, x_lo, x_hi, 0.0, 1.0)
+        ta, tb = _clip(ay, by, y_lo, y_hi, ta, tb)
+        if ta > tb:
+            continue
+        tol = 0.5 * h[r, k]
+        if not lay and min(az, bz) + tol >= highest[0]:
+            continue
+        length = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2 + (bz - az) ** 2)
+        ax_, ay_, bx_, by_ = ax - ox, ay - oy, bx - ox, by - oy  # the move's segment, from the origin
+        fr = np.float32(r)
+        dm = dep[r, k] % POS_PERIOD  # the path position at the move's start, modulo the period
+        gx, gy = (ax - ox) / cell, (ay - oy) / cell
+        dx, dy = (bx - ax) / cell, (by - ay) / cell
+        ix = min(max(int(np.floor(gx + ta * dx)), col0), col0 + ncol - 1)
+        iy = min(max(int(np.floor(gy + ta * dy)), 0), ny - 1)
+        sx = 1 if dx > 0 else -1
+        sy = 1 if dy > 0 else -1
+        nx_t = ((ix + (1 if dx > 0 else 0)) - gx) / dx if dx != 0 else np.inf
+        ny_t = ((iy + (1 if dy > 0 else 0)) - gy) / dy if dy != 0 else np.inf
+        step_x = abs(1.0 / dx) if dx != 0 else np.inf
+        step_y = abs(1.0 / dy) if dy != 0 else np.inf
+        tc = ta
+        while True:
+            te = min(nx_t, ny_t, tb)
+            ci = ix - col0
+            high = cells[ci, iy, TOP]
+            za, ze = az + tc * (bz - az), az + te * (bz - az)
+            deep = high > min(za, ze) + tol  # above the tip, or (with the tool on) of its layer
+            same = lay and not deep and high > 0.5 * (za + ze) - tol
+            if deep or same:
+                back = dm + tc * length - cells[ci, iy, POS]
+                if back < 0:
+                    back += POS_PERIOD
+                elif back >= POS_PERIOD:
+                    back -= POS_PERIOD
+                if not (cells[ci, iy, WHO] == fr and back < fresh[r, k] + tc * length):
+                    # the nozzle's way through this cell (its ends, its middle) against the bead's segment
+                    qx, qy = cells[ci, iy, AX], cells[ci, iy, AY]
+                    rx, ry = cells[ci, iy, BX], cells[ci, iy, BY]
+                    ux, uy = ax_ + tc * (bx_ - ax_), ay_ + tc * (by_ - ay_)
+                    vx, vy = ax_ + te * (bx_ - ax_), ay_ + te * (by_ - ay_)
+                    apart = _segments_apart(ux, uy, vx, vy, qx, qy, rx, ry) if deep else np.inf
+                    middle = _point_segment(0.5 * (ux + vx), 0.5 * (uy + vy), qx, qy, rx, ry) if same else np.inf
+                    if deep and apart <= 0.5 * w[r, k]:
+                        s = slot[r, k]
+                        count[0, s] += 1
+                        tt = t0[r, k] + tc * (t1[r, k] - t0[r, k])
+                        if tt < when[0, s]:
+                            when[0, s] = tt
+                            for a in range(3):
+                                where[0, s, a] = p0[r, k, a] + tc * (p1[r, k, a] - p0[r, k, a])
+                    elif same and middle <= near * w[r, k]:
+                        if run[r] == 0.0:  # a doubled stretch begins
+                            run_cells[r] = 0
+                            run_t[r] = t0[r, k] + tc * (t1[r, k] - t0[r, k])
+                            for a in range(3):
+                                run_xyz[r, a] = p0[r, k, a] + tc * (p1[r, k, a] - p0[r, k, a])
+                            run_slot[r] = slot[r, k]
+                        before = run[r]
+                        run[r] += max((te - tc) * length, 1e-9)
+                        run_cells[r] += 1
+                        if run[r] > least * w[r, k]:
+                            s = run_slot[r]
+                            # the cells of the stretch before it grew past one line width count too
+                            count[1, s] += run_cells[r] if before <= least * w[r, k] else 1
+                            if run_t[r] < when[1, s]:
+                                when[1, s] = run_t[r]
+                                for a in range(3):
+                                    where[1, s, a] = run_xyz[r, a]
+                    elif lay:
+                        run[r] = 0.0
+            elif lay:
+                run[r] = 0.0
+            if lay:
+                z = az + 0.5 * (tc + te) * (bz - az)
+                if z >= high:
+                    if z > highest[0]:
+                        highest[0] = z
+                    cells[ci, iy, TOP] = z
+                    cells[ci, iy, WHO] = fr
+                    here = dm + tc * length
+                    cells[ci, iy, POS] = here - POS_PERIOD if here >= POS_PERIOD else here
+                    cells[ci, iy, AX], cells[ci, iy, AY] = ax_, ay_
+                    cells[ci, iy, BX], cells[ci, iy, BY] = bx_, by_
+            if te >= tb:
+                break
+            if nx_t <= ny_t:
+                ix += sx
+                tc = nx_t
+                nx_t += step_x
+            else:
+                iy += sy
+                tc = ny_t
+                ny_t += step_y
+            if ix < col0 or ix >= col0 + ncol or iy < 0 or iy >= ny:
+                break

@@ -199,7 +199,7 @@ def severity(kind: str) -> str:
 class Finding:
     """A physical problem of a plan: what, which robot, when, where, in which chunk."""
 
-    kind: str  # body-on-material, robots-collide, printhead-hits-material, deadlock, below-floor, overhang
+    kind: str  # one of simulation.KINDS: body-on-material, robots-collide, printhead-hits-material, ...
     robot: str
     time: float
     position: tuple[float, float, float]
