@@ -8,6 +8,8 @@ every move in time and resolves NOTIFY / WAIT (deadlocks found from the commands
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,21 +72,36 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
         findings += below_floor(robots, timelines)
         checked.append("below-floor")
         material = Material.sample(robots, timelines, STEP, inp.slicing.layer_height)
-        # where a printer's body stands is not known: its G-code gets the printhead check only
-        findings += footprint_checks(robots, timelines, p, material, body=inp.placed)
+        # two independent groups of about equal work: the robot's outline and its nozzle
+        # against material and other robots; what was laid down (supported, inside the part)
+        outline = [lambda: footprint_checks(robots, timelines, p, material, body=inp.placed),  # a G-code's body:
+                   lambda: material_checks(robots, timelines, inp.slicing)]                  # not known
+        laid = [lambda: overhangs(robots, timelines, material, inp.slicing)]
         if inp.placed:
-            findings += robots_collide(robots, timelines, p)
+            outline.append(lambda: robots_collide(robots, timelines, p))
             checked += ["body-on-material", "robots-collide"]
-        findings += material_checks(robots, timelines, inp.slicing)
-        findings += overhangs(robots, timelines, material, inp.slicing)
         checked += ["printhead-hits-material", "nozzle-in-material", "double-deposit", "overhang"]
         if chunks is not None:  # the part is known: material must lie inside it, in its robot's chunks
-            findings += outside_part(robots, timelines, material, chunks, inp.robot_chunks or {},
-                                     inp.slicing.extrusion_width)
+            laid.append(lambda: outside_part(robots, timelines, material, chunks, inp.robot_chunks or {},
+                                             inp.slicing.extrusion_width))
             checked.append("outside-part")
+        findings += _concurrently([outline, laid])
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(robots, timelines, findings, p, inp.slicing, inp.source, accel,
                      tuple(k for k in KINDS if k in checked), inp.notes, inp.placed)
+
+
+def _concurrently(groups: list[list]) -> list[Finding]:
+    """The findings of every check (callables), each group's in order on its own thread when the
+    process may use more than one core: the checks' loops are compiled and release the GIL, and
+    they only read what they share. One core: one after the other. Same findings either way
+    (:func:`simulate` sorts them)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if cores < 2:
+        return [f for group in groups for check in group for f in check()]
+    with ThreadPoolExecutor(max_workers=len(groups)) as pool:
+        futures = [pool.submit(lambda g=group: [f for check in g for f in check()]) for group in groups]
+        return [f for fut in futures for f in fut.result()]
 
 
 def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings) -> np.ndarray:
