@@ -583,11 +583,14 @@ DOUBLE_NEAR = 0.125
 #: cell keeps the last bead laid in it: a layer repeated is still found, in fewer cells), never
 #: find more (the distances to that bead's segment are exact).
 MATERIAL_VISITS = 20_000_000
-#: A double deposit is more than this many line widths of doubled path in a row: the slicer's
-#: perimeters may overlap where a section is thinner than two of them (benchy's hull beside its
-#: chimney at z 38.6 mm: two perimeters 0.08 mm apart for between one and two line widths); a
-#: layer or a chunk laid twice doubles whole paths.
-DOUBLE_RUN = 4.0
+#: A double deposit is more than this many line widths of doubled path in a row (4.5 mm for a
+#: 0.45 mm line): slicers overlap short pieces by design or where a section is thinner than two
+#: perimeters (benchy's hull beside its chimney at z 38.6 mm: two perimeters 0.08 mm apart for
+#: between one and two line widths; PrusaSlicer's own G-code of the OCCT housing at z 224.8 mm:
+#: a 3.6 mm piece run over by an infill line, 8 line widths), a few millimetres of a bead more
+#: than a print can take; a layer or a chunk laid twice, or two robots in one region, double
+#: whole paths (tens of line widths and more).
+DOUBLE_RUN = 10.0
 #: Moves merged into time order and swept at a time (divided among the robots of a large fleet).
 MATERIAL_BATCH = 1 << 16
 

@@ -294,7 +294,12 @@ class _Job:
         sp = extrusion_spacing(w, float(self.heights[layer]))
         loops = []
         for p in range(s.perimeters):
-            rings = _rings(isl.offset(-(w / 2 + p * sp), manifold3d.JoinType.Miter))
+            # PrusaSlicer's perimeter generator: each loop's region is opened by half a line
+            # spacing (offset in by that much more, then back out), so that a part of it thinner
+            # than one spacing (a sliver between a hole and a chunk's cut face) has no loop: its
+            # two sides would be two beads less than a spacing apart, material laid twice
+            rings = _rings(isl.offset(-(w / 2 + p * sp + sp / 2), manifold3d.JoinType.Miter)
+                           .offset(sp / 2, manifold3d.JoinType.Miter))
             if not rings:
                 break
             loops.append((p, rings))
