@@ -212,7 +212,8 @@ def test_the_bar_bundle_of_two_robots_has_neither_and_a_copied_program_doubles(t
 # --- property -----------------------------------------------------------------------------------
 
 @settings(max_examples=15, deadline=None)
-@given(x0=st.floats(-200, 200), y0=st.floats(-200, 200), n=st.integers(3, 12), length=st.floats(2.5, 30),
+@given(x0=st.floats(-200, 200), y0=st.floats(-200, 200), n=st.integers(3, 12),
+       length=st.floats(1.2 * DOUBLE_RUN * W, 30),  # each line is one extrusion: longer than a double run
        layers=st.integers(1, 5), angle=st.floats(0, 180), repeat=st.integers(0, 4))
 def test_a_stack_of_layers_printed_once_is_clean_and_repeated_is_caught(x0, y0, n, length, layers, angle, repeat):
     a = np.radians(angle)
