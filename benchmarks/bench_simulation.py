@@ -110,19 +110,22 @@ def render(result: dict) -> str:
         f"{plural(result['runs'], 'run')} of `cooprint render JOB --format mp4 --duration {FRAMES[0]:g} "
         f"--fps {FRAMES[1]:g} --force` ({int(FRAMES[0] * FRAMES[1])} frames at 1280x720). Medians; "
         "commands/s and frames/s include the process start (about 0.5 s: Python, numpy, numba and its "
-        "cached kernels). CPU s is user + system time, at most the wall time for a process that uses one "
-        "core; the system time is mostly page faults (on this virtual machine, memory a process frees "
+        "cached kernels). CPU s is user + system time: `simulate` runs its checks in two groups on two "
+        "threads on this two-core machine (docs/simulator.md), so it may exceed the wall time; the system "
+        "time is mostly page faults (on this virtual machine, memory a process frees "
         "goes back to the host within seconds, and the next process pays to get it again: 0.3-2 s for "
         "nefertiti's 0.9 GB). One untimed `simulate` runs first, so that numba's cache holds the kernels "
         "(the first run after installing compiles them: about 13 s).",
         "",
-        f"**Targets (issue):** at least {TARGET_CMDS:,} commands/s for simulate on one core (for a program "
+        f"**Targets (issues 5 and 13):** at least {TARGET_CMDS:,} commands/s for simulate (for a program "
         f"of at least {TARGET_SIZE:,} commands), at least {TARGET_FPS:g} frames/s for the MP4, and a print "
-        f"time within ±{TARGET_TIME:.0%} of PrusaSlicer's estimate.",
+        f"time within ±{TARGET_TIME:.0%} of PrusaSlicer's estimate. Issue 5 asked for the rate on one core: "
+        "commands per CPU second is that rate (what one core would do), judged apart.",
         "",
         "| mesh | commands | makespan h | findings: errors, overhang warnings | simulate s | CPU s | commands/s "
+        "| commands per CPU s "
         "| peak MB | MP4 s | frames/s | MP4 peak MB |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     prusa_rows = []
     for row in result["meshes"]:
@@ -131,11 +134,12 @@ def render(result: dict) -> str:
             continue
         sim, mp4 = row["simulate"], row["mp4"]
         rate = row["commands"] / sim["wall_median_s"] if sim["wall_median_s"] else None
+        per_cpu = row["commands"] / sim["cpu_median_s"] if sim.get("cpu_median_s") else None
         fps = row["frames"] / mp4["wall_median_s"] if mp4["wall_median_s"] else None
         lines.append(f"| `{row['mesh']}` | {row['commands']:,} | {row['makespan_s'] / 3600:.1f} | "
                      f"{_errors(row['findings'])}, {row['findings'].get('overhang', 0):,} | "
                      f"{fmt(sim['wall_median_s'], '.2f')} | {fmt(sim.get('cpu_median_s'), '.2f')} | "
-                     f"{fmt(rate, ',.0f')} | "
+                     f"{fmt(rate, ',.0f')} | {fmt(per_cpu, ',.0f')} | "
                      f"{fmt(sim['peak_median_mb'], '.0f')} | {fmt(mp4['wall_median_s'], '.2f')} | {fmt(fps, '.1f')} | "
                      f"{fmt(mp4['peak_median_mb'], '.0f')} |")
         p = row.get("prusa")
@@ -163,9 +167,12 @@ def render(result: dict) -> str:
         fps = row["frames"] / row["mp4"]["wall_median_s"]
         p = row.get("prusa") or {}
         close = (abs(p["ours_s"] / p["estimate_s"] - 1) <= TARGET_TIME) if p.get("estimate_s") else None
+        cpu = row["simulate"].get("cpu_median_s")
+        one_core = f"; one core {'met' if row['commands'] / cpu >= TARGET_CMDS else 'missed'} " \
+            f"({row['commands'] / cpu:,.0f} commands per CPU second)" if cpu and row["commands"] >= TARGET_SIZE else ""
         speed = ("met" if rate >= TARGET_CMDS else "missed") if row["commands"] >= TARGET_SIZE else \
             f"not judged: {row['commands']:,} commands, under {TARGET_SIZE:,}"
         lines.append(f"- `{row['mesh']}`: simulate {speed} "
-                     f"({rate:,.0f} commands/s), MP4 {'met' if fps >= TARGET_FPS else 'missed'} ({fps:.1f} frames/s)"
+                     f"({rate:,.0f} commands/s{one_core}), MP4 {'met' if fps >= TARGET_FPS else 'missed'} ({fps:.1f} frames/s)"
                      + ("" if close is None else f", time estimate {'met' if close else 'missed'}") + ".")
     return "\n".join(lines) + "\n"
