@@ -204,6 +204,18 @@ def test_two_robots_keep_the_centre_chunk_two_printheads_wide_at_the_top():
     assert one.max_height == pytest.approx(300 * (100 / 30) / 2)
 
 
+def test_a_part_too_tall_for_two_robots_is_advised_one_not_a_narrower_top():
+    """550 mm: two robots keep C 50 mm wide at the top (500 mm at most); the fix offered is one
+    robot's wedge, not a top width that would bring the printheads together."""
+    v = np.array([[0, 0, 0], [100, 400, 550.0]])
+    two = feasibility(v, RobotProfile(), ChunkingSettings(), 2)
+    assert not two.feasible and two.max_height == pytest.approx(500.0)
+    assert two.hints[0].startswith("--robots 1") and not any(h.startswith("chunking.top_width") for h in two.hints)
+    assert feasibility(v, RobotProfile(), ChunkingSettings(), 1).feasible
+    given = feasibility(v, RobotProfile(), ChunkingSettings(top_width=50.0), 2)  # set by the user: it may go lower
+    assert any(h.startswith("chunking.top_width <= 25.0") for h in given.hints)
+
+
 def test_largest_printable_height_is_the_centre_chunk_bound():
     robot = RobotProfile(build_depth=300, nozzle_height=100, nozzle_depth=25)
     f = feasibility(np.array([[0, 0, 0], [10, 400, 100.0]]), robot, ChunkingSettings(top_width=20.0))

@@ -366,7 +366,9 @@ def _plan(vertices: np.ndarray, robot: RobotProfile, settings: ChunkingSettings,
             hints.append(f"chunking.theta_deg >= {math.degrees(math.atan2(2 * h, bd - tw)):.2f} "
                          f"(theta_max {theta_max:.2f})")
         if tw > 0 and 2 * run < bd:
-            hints.append(f"chunking.top_width <= {bd - 2 * run:.1f} (now {tw:g})")
+            # the two robots' width (2 x nozzle_depth) is not given up: one robot prints a wedge
+            hints.append(f"chunking.top_width <= {bd - 2 * run:.1f} (now {tw:g})" if settings.top_width is not None
+                         else "--robots 1 (one robot prints a wedge-topped centre chunk)")
         hints += robot_hints
         at = f"theta_max {theta:.2f}" if theta >= theta_max - 1e-9 else f"theta {theta:.2f}"
         return result(False, "cut", f"centre chunk base {2 * a:.1f} mm > build depth "
