@@ -35,16 +35,22 @@ def _arrow(draw: ImageDraw.ImageDraw, a: tuple[float, float], b: tuple[float, fl
     """A dimension line from ``a`` to ``b`` with end ticks and ``label`` beside its middle."""
     draw.line([a, b], fill=DIM, width=1)
     horizontal = abs(a[1] - b[1]) < abs(a[0] - b[0])
-    for p in (a, b):
+    for p, q in ((a, b), (b, a)):
         if horizontal:
             draw.line([(p[0], p[1] - 5), (p[0], p[1] + 5)], fill=DIM, width=1)
         else:
             draw.line([(p[0] - 5, p[1]), (p[0] + 5, p[1])], fill=DIM, width=1)
+        # an arrowhead at each end, pointing out to the tick: a dimension, not an edge of a part
+        length = max(abs(q[0] - p[0]), abs(q[1] - p[1]))
+        if length > 16:
+            ex, ey = (q[0] - p[0]) / length, (q[1] - p[1]) / length
+            draw.polygon([p, (p[0] + 7 * ex - 3 * ey, p[1] + 7 * ey + 3 * ex),
+                          (p[0] + 7 * ex + 3 * ey, p[1] + 7 * ey - 3 * ex)], fill=DIM)
     font = _font(15)
     w = draw.textlength(label, font=font)
     mx, my = (a[0] + b[0]) / 2, (a[1] + b[1]) / 2
     if horizontal:
-        draw.text((mx - w / 2, my - 20 if above else my + 4), label, fill=DIM, font=font)
+        draw.text((mx - w / 2, my - 24 if above else my + 6), label, fill=DIM, font=font)
     else:
         draw.text((mx + 6, my - 8), label, fill=DIM, font=font)
 
@@ -68,7 +74,7 @@ def main() -> None:
         u0, u1, v0, v1 = boxes[part]
         draw.rectangle([top(u0, v1), top(u1, v0)], fill=COLOURS[part], outline=INK, width=2)
     font = _font(17)
-    draw.text(top(-bd - bl / 2 - 20, 8), "body", fill=INK, font=font)
+    draw.text(top(-bd - bl / 2, 60), "body", fill=INK, font=font)
     draw.text(top(-bd * 0.75, 8), "frame", fill=INK, font=font)
     draw.text(top(-nd - 20, -nd - 6), "printhead", fill=INK, font=font)
     nx, ny = top(0, 0)
@@ -79,9 +85,8 @@ def main() -> None:
     bw, fw = robot.body_width, robot.resolved_frame_width
     _arrow(draw, top(-bd, bw / 2 + 25), top(0, bw / 2 + 25), "build_depth")
     _arrow(draw, top(-bd - bl, bw / 2 + 25), top(-bd, bw / 2 + 25), "body_length")
-    _arrow(draw, top(-bd - bl - 25, -bw / 2), top(-bd - bl - 25, bw / 2), "")
-    draw.text(top(-bd - bl + 5, -bw / 2 - 8), "body_width", fill=DIM, font=_font(15))
-    _arrow(draw, top(-bd * 0.4, -fw / 2), top(-bd * 0.4, fw / 2), "frame_width")
+    _arrow(draw, top(-bd - bl + 40, -bw / 2), top(-bd - bl + 40, bw / 2), "body_width")
+    _arrow(draw, top(-bd * 0.5, -fw / 2), top(-bd * 0.5, fw / 2), "frame_width")
     _arrow(draw, top(0, nd + 15), top(nd, nd + 15), "nozzle_depth")
     draw.text((40, 600), "the dot: the nozzle; the printhead is a square of half-side nozzle_depth around it",
               fill=DIM, font=_font(14))

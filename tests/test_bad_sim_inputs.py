@@ -264,6 +264,8 @@ MANIFEST_CASES = [
     ("profile-of-no-robot", ROBOT + "[profiles.C]\nprint_speed = 20\n", "m.toml: profiles.C: no robot C in [[robots]]"),
     ("profile-of-a-near-name", ROBOT + "[profiles.A1]\nprint_speed = 20\n",
      "profiles.A1: no robot A1 in [[robots]] (did you mean [profiles.A]?)"),
+    ("profile-of-the-name-in-lower-case", ROBOT + "[profiles.a]\nprint_speed = 20\n",
+     "profiles.a: no robot a in [[robots]] (did you mean [profiles.A]?)"),
     ("profile-typo", ROBOT + "[profiles.A]\nprint_sped = 20\n",
      "profiles.A.print_sped: unknown key (did you mean 'print_speed'?)"),
     ("profile-slicing-field", ROBOT + "[profiles.A]\nlayer_height = 0.2\n", "profiles.A.layer_height: unknown key"),

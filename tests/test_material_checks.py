@@ -84,6 +84,17 @@ def test_a_travel_through_a_finished_wall_is_nozzle_in_material():
     assert _kinds(found)["double-deposit"] == 0
 
 
+@pytest.mark.parametrize("start, end", [((10, 0, 5), (10, 0, 1)), ((10, -0.5, 5), (10, 0.5, 0.5))])
+def test_a_move_down_into_the_wall_is_found_where_the_tip_goes_in(start, end):
+    # from 5 mm straight down into the wall (top 2.0 mm), or diving across it: the tip enters the
+    # material at the top less the tolerance (half a layer), not at 5 mm where the move starts
+    go = "".join(f"MOVE {x}, {y}, {z}\n" for x, y, z in (start, end, start))
+    found = _found(_robot("A", _wall(10) + ";@chunk -\n" + go))
+    (f,) = [f for f in found if f.kind == "nozzle-in-material"]
+    assert f.position[2] == pytest.approx(2.0 - H / 2, abs=1e-6)
+    assert abs(f.position[1]) <= W / 2
+
+
 @pytest.mark.parametrize("below_top, caught", [(0.0, False), (0.09, False), (0.11, True), (1.8, True)])
 def test_the_tip_may_go_down_to_half_a_layer_below_the_material_top(below_top, caught):
     # a travel in the plane of the wall's top layer (2.0 mm) is what every layer's travel does;

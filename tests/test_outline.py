@@ -92,6 +92,24 @@ def test_the_same_robots_1_mm_further_apart_than_the_outlines_need_are_clean():
     assert collisions(facing_across(2 * PROFILE.nozzle_depth - 0.3)) != []
 
 
+@pytest.mark.parametrize("a_x, apart", [(-90.0, 0.0), (-110.0, 0.0), (-90.0, 50.2), (-90.0, 49.6)])
+def test_printheads_that_cross_head_on_between_two_instants_are_caught(a_x, apart):
+    """A (facing +y) and B (facing -y) travel towards each other along x at 120 mm/s each, their
+    printheads ``apart`` in y: they overlap (|dx| < 49.8 mm) for 0.42 s. From 180 mm apart that
+    is 0.54-0.96 s, between the check's instants 0.5 and 1.0 s; from 200 mm, 0.63-1.04 s. One
+    printhead passing 0.4 mm into the other is found; 50.2 mm apart, touching, is not."""
+    a = f"MOVE {a_x} 0 5\nMOVE 300 0 5\n"
+    b = f"MOVE 90 {apart} 5\nMOVE -300 {apart} 5\n"
+    found = collisions(two_robots(a, [a_x, 0, 5], 90.0, b, [90, apart, 5], -90.0))
+    if apart > 50:
+        assert found == []
+        return
+    (f,) = found
+    assert f.detail == "the printhead of A meets the printhead of B"
+    enter = (90 - a_x - 49.8) / 240  # when |dx| first drops under 49.8 mm
+    assert enter <= f.time <= enter + 0.25
+
+
 def test_a_frame_over_another_robots_printhead_is_caught_and_frame_width_counts():
     """A faces +y at the origin: its frame spans y -300 .. -25 over x -150 .. 150. B faces -x
     with its nozzle at (140, -150): its printhead (x 115 .. 165) lies under A's frame, its own

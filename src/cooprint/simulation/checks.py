@@ -56,6 +56,10 @@ MAX_SAMPLES = 8_000_000
 MAX_CELLS = 8_000_000
 #: At most this many instants of the collision check (its step grows past 8,000 h of plan).
 MAX_INSTANTS = 4_000_000
+#: Between two instants the collision check looks closer wherever the robots could have met,
+#: down to windows in which they move this little relative to each other, mm: an overlap that
+#: lasts less than such a window is at most this deep beyond the parts' tolerances.
+COLLIDE_DEPTH = 0.05
 #: The printhead check keeps the highest material over blocks of this many cells square too,
 #: and over blocks of this many blocks square.
 HEAD_BLOCK = 8
@@ -439,11 +443,13 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     """Pairs of robots whose outlines overlap at the same instant: body, frame and printhead of
     each (:func:`outline_boxes`, each robot's own profile, shrunk by ``tolerance``, by default
     :data:`OUTLINE_TOLERANCE`) against those of the other, each robot in the facing in force at
-    that instant, sampled every ``dt`` s (or at ``MAX_INSTANTS`` instants over a longer plan).
+    that instant, sampled every ``dt`` s (or at ``MAX_INSTANTS`` instants over a longer plan),
+    and between the instants wherever the robots could have met (:func:`_between_instants`).
 
     One finding per pair of robots: the first instant they meet, with the parts that meet then
     in its detail (``the printhead of A meets the printhead of B``) and, when others meet later,
-    how many instants each pair of parts met; ``count`` is the instants they overlap at all."""
+    how many instants each pair of parts met; ``count`` is the instants they overlap at all
+    (an instant stands for the ``dt`` around it)."""
     findings = []
     if len(robots) < 2:
         return findings
@@ -457,28 +463,130 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
         spans = r.facing_spans(timelines[r.name])
         starts = np.array([sp.time for sp in spans])
         facing[r.name] = ([sp.facing for sp in spans], np.searchsorted(starts[1:], times, side="right"))
+    turns, speed = {}, {}
+    for r in robots:
+        spans = r.facing_spans(timelines[r.name])
+        turns[r.name] = np.array([sp.time for sp in spans[1:]])
+        speed[r.name] = _top_speed(timelines[r.name])
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
-            (fa, ka), (fb, kb) = facing[a.name], facing[b.name]
             pa, pb = a.profile or profile, b.profile or profile  # each robot's own outline
-            mask = np.zeros(len(times), np.int32)
-            # runs of instants with the same pair of facings in force (spans come in time order)
-            cuts = np.r_[0, np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1, len(times)]
-            tables = {}
-            for s, e in zip(cuts[:-1], cuts[1:]):
-                key = (int(ka[s]), int(kb[s]))
-                if key not in tables:
-                    tables[key] = outline_tables(pa, fa[key[0]], pb, fb[key[1]], tolerance)
-                mask[s:e] = kernels.outlines_overlap(nozzle[a.name][s:e], nozzle[b.name][s:e], *tables[key])
+            pair = _Pair(a, b, pa, pb, facing, tolerance)
+            at_times = (nozzle[a.name], nozzle[b.name], facing[a.name][1], facing[b.name][1])
+            mask = pair.mask(times, at_times[2], at_times[3], at_times[0], at_times[1])
+            when = times.copy()
+            _between_instants(pair, times, dt, mask, when, speed[a.name] + speed[b.name],
+                              np.sort(np.r_[turns[a.name], turns[b.name]]), timelines, at_times)
             k = np.flatnonzero(mask)
             if len(k):
-                t = float(times[k[0]])
+                k = k[np.argsort(when[k], kind="stable")]
+                t = float(when[k[0]])
                 tl = timelines[a.name]
                 pos = tl.position(t) if len(tl.t1) else np.asarray(a.start, dtype=np.float64)
                 findings.append(Finding("robots-collide", a.name, t, tuple(float(x) for x in pos),
                                         _chunk_of(a, timelines[a.name], t), _collide_detail(a.name, b.name, mask[k]),
                                         int(len(k))))
     return findings
+
+
+class _Pair:
+    """Two robots' outlines against each other (:func:`robots_collide`): the kernel's tables for
+    each pair of facings in force, kept, for the parts shrunk by ``tolerance`` less a margin."""
+
+    def __init__(self, a: SimRobot, b: SimRobot, pa: RobotProfile, pb: RobotProfile, facing: dict,
+                 tolerance: dict[str, float] | float | None) -> None:
+        self.a, self.b, self.pa, self.pb = a, b, pa, pb
+        self.fa, self.fb = facing[a.name][0], facing[b.name][0]
+        self.tol = OUTLINE_TOLERANCE if tolerance is None else tolerance
+        self.tables: dict = {}
+
+    def mask(self, times: np.ndarray, ka: np.ndarray, kb: np.ndarray, na: np.ndarray, nb: np.ndarray,
+             margin: float = 0.0) -> np.ndarray:
+        """The kernel's bit masks at ``times`` (robot a's facing ``ka``, b's ``kb``, nozzles ``na``,
+        ``nb`` there), every part grown by ``margin`` mm (0: as the check compares them)."""
+        tol = ({p: t - margin for p, t in self.tol.items()} if isinstance(self.tol, dict)
+               else float(self.tol) - margin)
+        mask = np.zeros(len(times), np.int32)
+        if len(times) == 0:
+            return mask
+        # runs of instants with the same pair of facings in force
+        cuts = np.r_[0, np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1, len(times)]
+        for s, e in zip(cuts[:-1], cuts[1:]):
+            key = (int(ka[s]), int(kb[s]), margin)
+            if key not in self.tables:
+                self.tables[key] = outline_tables(self.pa, self.fa[key[0]], self.pb, self.fb[key[1]], tol)
+            mask[s:e] = kernels.outlines_overlap(na[s:e], nb[s:e], *self.tables[key])
+        return mask
+
+
+def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarray, when: np.ndarray,
+                      speed: float, turns: np.ndarray, timelines: dict[str, Timeline], at_times: tuple) -> None:
+    """Overlaps that begin and end between two instants of the collision check, added to
+    ``mask`` (and their first time to ``when``) at the instant whose window (``dt`` wide) holds
+    them: two printheads crossing head-on at travel speed overlap for less than ``dt``.
+
+    Within half a window ``h`` of an instant the robots move at most ``speed * h`` relative to
+    each other (``speed``: the sum of their fastest moves in XY; the timelines interpolate each
+    move linearly), so outlines that do not meet there with every part grown by ``speed * h / 2``
+    do not meet anywhere in the window (each axis's interval grows by at least ``speed * h``).
+    Windows that may hold an overlap are halved and looked at again, down to ``COLLIDE_DEPTH``
+    of relative motion (at most ``MAX_INSTANTS`` windows at a time); a window in which a robot
+    turns is always halved (its outline changes).
+    ``at_times``: both nozzles and facings at ``times``, as :func:`_pair_state` gives them."""
+    if speed <= 0.0:
+        return
+    owner = np.flatnonzero(mask == 0)
+    centre, h = times[owner], dt / 2
+    # the instants' own nozzles and facings are known already
+    state = at_times if len(owner) == len(times) else tuple(x[owner] for x in at_times)
+    while len(centre) and speed * h > COLLIDE_DEPTH:
+        na, nb, ka, kb = state if state is not None else _pair_state(pair, centre, timelines)
+        state = None
+        near = pair.mask(centre, ka, kb, na, nb, margin=speed * h / 2) != 0
+        if len(turns):
+            near |= np.searchsorted(turns, centre - h) != np.searchsorted(turns, centre + h, side="right")
+        centre, owner = centre[near], owner[near]
+        if 2 * len(centre) > MAX_INSTANTS:  # bounded work: robots that stay within a hair of each other for days
+            break
+        h /= 2
+        centre, owner = np.r_[centre - h, centre + h], np.r_[owner, owner]
+        order = np.argsort(centre, kind="stable")
+        centre, owner = centre[order], owner[order]
+        na, nb, ka, kb = _pair_state(pair, centre, timelines)
+        hit = pair.mask(centre, ka, kb, na, nb)
+        got = hit != 0
+        if got.any():
+            first = np.unique(owner[got], return_index=True)[1]  # each window's earliest (sorted)
+            k = np.flatnonzero(got)[first]
+            mask[owner[k]] = hit[k]
+            when[owner[k]] = centre[k]
+            keep = mask[owner] == 0
+            centre, owner = centre[keep], owner[keep]
+            na, nb, ka, kb = na[keep], nb[keep], ka[keep], kb[keep]
+        state = (na, nb, ka, kb)
+
+
+def _pair_state(pair: _Pair, t: np.ndarray, timelines: dict[str, Timeline]):
+    """Both robots' nozzles in XY and the facings in force at sorted times ``t``."""
+    out = []
+    for r in (pair.a, pair.b):
+        out.append(_nozzle_xy(r, timelines[r.name], t))
+    ks = []
+    for r in (pair.a, pair.b):
+        spans = r.facing_spans(timelines[r.name])
+        starts = np.array([sp.time for sp in spans])
+        ks.append(np.searchsorted(starts[1:], t, side="right"))
+    return out[0], out[1], ks[0], ks[1]
+
+
+def _top_speed(tl: Timeline) -> float:
+    """At least the fastest the nozzle moves in XY on any move of ``tl``, mm/s (its fastest in
+    XYZ; 0: it never moves)."""
+    if len(tl.t1) == 0:
+        return 0.0
+    span = tl.t1 - tl.t0
+    moving = span > 0
+    return float(np.max(tl.length[moving] / span[moving], initial=0.0))
 
 
 def _collide_detail(a: str, b: str, masks: np.ndarray) -> str:

@@ -400,7 +400,9 @@ def _manifest_profiles(data: Any, names: list[str], fleet: RobotProfile, where: 
     for name, values in data.items():
         at = key_path("profiles", str(name))
         if name not in names:
-            close = difflib.get_close_matches(str(name), names, n=1, cutoff=0.6)
+            # names are case-sensitive; one letter in the wrong case is the likeliest slip
+            close = [n for n in names if n.lower() == str(name).lower()] or \
+                difflib.get_close_matches(str(name), names, n=1, cutoff=0.6)
             raise SimInputError(f"{where}: {_clip(at)}: no robot {_clip(str(name))} in [[robots]]"
                                 + (f" (did you mean [profiles.{close[0]}]?)" if close else ""))
         check_object(values, where, at, optional=ROBOT_FIELDS)  # a misspelt field: did you mean

@@ -1106,11 +1106,17 @@ def material_sweep(order_r, order_k, p0, p1, t0, t1, on, slot, h, w, dep, fresh,
                     if deep and apart <= 0.5 * w[r, k]:
                         s = slot[r, k]
                         count[0, s] += 1
-                        tt = t0[r, k] + tc * (t1[r, k] - t0[r, k])
+                        # where the tip goes in: a move that comes down in this cell (a plunge,
+                        # a dive) enters the material where its height passes the top less the
+                        # tolerance, not where it came into the cell, above the material
+                        ti = tc
+                        if za > high - tol:
+                            ti = min(max((high - tol - az) / (bz - az), tc), te)
+                        tt = t0[r, k] + ti * (t1[r, k] - t0[r, k])
                         if tt < when[0, s]:
                             when[0, s] = tt
                             for a in range(3):
-                                where[0, s, a] = p0[r, k, a] + tc * (p1[r, k, a] - p0[r, k, a])
+                                where[0, s, a] = p0[r, k, a] + ti * (p1[r, k, a] - p0[r, k, a])
                     elif same and middle <= near * w[r, k]:
                         if run[r] == 0.0:  # a doubled stretch begins
                             run_cells[r] = 0
