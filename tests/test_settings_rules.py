@@ -216,6 +216,14 @@ def test_a_part_too_tall_for_two_robots_is_advised_one_not_a_narrower_top():
     assert any(h.startswith("chunking.top_width <= 25.0") for h in given.hints)
 
 
+def test_a_top_narrower_than_two_printheads_for_two_robots_is_warned(tmp_path, capsys):
+    bar = stl(tmp_path / "bar.stl", cube(40, 420, 30))
+    for args, warned in (([], False), (["--set", "chunking.top_width=0"], True),
+                         (["--set", "chunking.top_width=0", "--robots", "1"], False)):
+        code, _, err = cli(["chunk", bar, "--out", tmp_path / "o", "--force", "-q", *args], capsys)
+        assert code == 0 and ("narrower than the two printheads" in err) == warned, (args, err)
+
+
 def test_largest_printable_height_is_the_centre_chunk_bound():
     robot = RobotProfile(build_depth=300, nozzle_height=100, nozzle_depth=25)
     f = feasibility(np.array([[0, 0, 0], [10, 400, 100.0]]), robot, ChunkingSettings(top_width=20.0))
