@@ -51,6 +51,20 @@ def test_cube_perimeters_are_exact_squares(cube):
             assert np.allclose(np.sort(np.abs(ring[:-1]), axis=0), half)  # only the four corners
 
 
+@pytest.mark.parametrize("gap, loops", [(0.05, 0), (0.2, 1)])
+def test_a_perimeter_loop_is_not_laid_in_a_sliver_whose_sides_nearly_coincide(gap, loops):
+    """A strip whose inner loop's region is ``gap`` wide: 0.05 mm (the OCCT housing's sliver
+    between a hole and a cut face, where two loop sides 0.05 mm apart laid material twice) gets
+    no inner loop; 0.2 mm, wider than a quarter line, keeps it."""
+    w = 0.45
+    sp = extrusion_spacing(w, 0.2)
+    wide = w + 2 * sp + gap  # the inner loop's centre line region: gap wide
+    layers = slice_solid(solid(box(wide, 20, 1)), SlicingSettings()).layers
+    for layer in layers:
+        roles = [layer.role[k] for k in range(len(layer))]
+        assert roles.count(PERIMETER_OUTER) == 1 and roles.count(PERIMETER_INNER) == loops
+
+
 def test_skins_on_top_and_bottom_layers_only(cube):
     roles = [set(layer.role.tolist()) for layer in cube.layers]
     for i, r in enumerate(roles):

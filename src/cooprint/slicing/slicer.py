@@ -94,6 +94,11 @@ SIMPLIFY = 0.0125
 #: Top and bottom surfaces are grown by this much into the fill area before they become solid
 #: skin, mm (PrusaSlicer's EXTERNAL_INFILL_MARGIN): skins anchor on the sparse infill.
 EXTERNAL_MARGIN = 3.0
+#: Each perimeter loop's region is opened by this many line widths: a part of it thinner than a
+#: quarter line (the two sides of the loop nearer than that: material laid twice, what the
+#: simulator's double-deposit looks for within an eighth) gets no loop; a wall wider than a line
+#: and a quarter keeps its one loop.
+LOOP_OPENING = 0.125
 #: From this many blocks on, slice_solid uses worker processes by default.
 PARALLEL_BLOCKS = 3
 
@@ -294,12 +299,14 @@ class _Job:
         sp = extrusion_spacing(w, float(self.heights[layer]))
         loops = []
         for p in range(s.perimeters):
-            # PrusaSlicer's perimeter generator: each loop's region is opened by half a line
-            # spacing (offset in by that much more, then back out), so that a part of it thinner
-            # than one spacing (a sliver between a hole and a chunk's cut face) has no loop: its
-            # two sides would be two beads less than a spacing apart, material laid twice
-            rings = _rings(isl.offset(-(w / 2 + p * sp + sp / 2), manifold3d.JoinType.Miter)
-                           .offset(sp / 2, manifold3d.JoinType.Miter))
+            # each loop's region is opened (offset in by ``r`` more, then back out), so that a
+            # sliver of it thinner than 2 r (between a hole and a chunk's cut face) gets no loop,
+            # whose two sides would lay material twice (PrusaSlicer's perimeter generator opens
+            # by half a spacing and gap-fills what that leaves; cooprint has no gap fill yet, so
+            # it removes only the slivers whose sides nearly coincide)
+            r = LOOP_OPENING * w
+            rings = _rings(isl.offset(-(w / 2 + p * sp + r), manifold3d.JoinType.Miter)
+                           .offset(r, manifold3d.JoinType.Miter))
             if not rings:
                 break
             loops.append((p, rings))
