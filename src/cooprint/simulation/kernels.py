@@ -7,7 +7,7 @@ plain definition: the rasters and the overhang test to brute force over every pa
 the footprint sweep to the per-sample checks.
 
 Arrays: positions float32 (as the samples are kept), times float64. Large work arrays are
-allocated by the callers with numpy (huge pages), not here.
+allocated by the callers with numpy, not here.
 """
 
 from __future__ import annotations
@@ -424,8 +424,8 @@ def overhang_band(xyz, h, t, cellid, ny, zmin, x0, x1, rec, heights, out):
     lowest first, keep the earliest time material was at them (``heights``,
     :data:`OVERHANG_HEIGHT`). A point looks in its own cell first, while that cell is at hand
     (its points lowest first, the band's start found by a pointer that follows them), then in
-    the 24 around (by bisection). The work space comes from numpy, which asks the OS for huge
-    pages: the scatter into cells misses the TLB less.
+    the 24 around (by bisection). Each point's cell comes from :func:`overhang_cells` (``cellid``:
+    ``column * ny + row``), so a band picks its points with one comparison each.
     """
     lo_x, hi_x = x0 - 2, x1 + 2  # with the columns around
     cells = (hi_x - lo_x) * ny
