@@ -231,7 +231,11 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     program = r.program
     start = np.zeros(3) if r.start is None else np.asarray(r.start, dtype=np.float64)
     k = int(np.count_nonzero(program.kind == MOVE))
-    mv, p0, p1, on, length = np.empty(k, np.int64), np.empty((k, 3)), np.empty((k, 3)), np.empty(k, bool), np.empty(k)
+    # the moves' ends in one array, move j from row j to row j + 1 (each move starts where the one
+    # before ends): start and end positions are two views of it, not two copies
+    ends = np.empty((k + 1, 3))
+    p0, p1 = ends[:-1], ends[1:]
+    mv, on, length = np.empty(k, np.int64), np.empty(k, bool), np.empty(k)
     move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
     if r.profile is not None:
         print_speed, travel_speed = r.profile.print_speed, r.profile.travel_speed
