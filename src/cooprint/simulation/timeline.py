@@ -298,10 +298,9 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
                 progress = True
     out, findings = {}, []
     for name, (r, p0, p1, on, length, dur, mv, before, sync) in prep.items():
-        shift = np.zeros(len(r.program.kind) + 1)
-        for i, d in delay[name]:
-            shift[i + 1] += d
-        shift = np.cumsum(shift)
+        # the waits' delays so far before each command: of the WAITs above it (in program order)
+        at = np.array([i for i, _ in delay[name]], dtype=np.int64)
+        waited_before = np.concatenate([[0.0], np.cumsum([d for _, d in delay[name]])])
         keep = len(mv)
         if pos[name] < len(sync):  # stuck: nothing after the WAIT happens
             i = sync[pos[name]]
@@ -314,7 +313,7 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
             findings.append(Finding("deadlock", name, t, tuple(float(x) for x in at), chunk,
                                     f"WAIT {', '.join(prog.events[prog.event[i]])} (command {i + 1}) never ends: "
                                     f"{', '.join(missing)} is never announced by a robot that can still move"))
-        t0 = before[mv[:keep]] + shift[mv[:keep]]
+        t0 = before[mv[:keep]] + waited_before[np.searchsorted(at, mv[:keep], side="left")]
         out[name] = Timeline(name, t0, t0 + dur[:keep], p0[:keep], p1[:keep], on[:keep], mv[:keep], waits[name],
                              notifies[name], length[:keep])
     return out, findings
