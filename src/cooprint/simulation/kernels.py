@@ -410,6 +410,54 @@ def overhang_cells(xyz, cell, ox, oy, ny):
     return out
 
 
+@_inline
+def _by_height(rec, a, b, order, spare, runs):
+    """Indices ``a:b`` of ``rec`` in order of height (``rec.z``; equal heights in any order), in
+    ``order`` or ``spare`` (work space of at least ``b - a``; ``runs`` one more), returned. A
+    cell's points come as a few runs already in order (a robot's layers, one chunk after the
+    other, then the next robot's), so the runs are found and merged pairwise (a natural merge
+    sort): linear when the points are in order, ``n log(runs)`` otherwise."""
+    n = b - a
+    nr = 0
+    runs[0] = 0
+    for i in range(n):
+        order[i] = a + i
+        if i > 0 and rec[a + i].z < rec[a + i - 1].z:
+            nr += 1
+            runs[nr] = i
+    nr += 1
+    runs[nr] = n
+    src, dst = order, spare
+    while nr > 1:
+        m = 0
+        for q in range(0, nr, 2):  # runs q and q + 1 into one
+            lo, mid = runs[q], runs[q + 1]
+            hi = runs[q + 2] if q + 2 <= nr else mid
+            i, j, out = lo, mid, lo
+            while i < mid and j < hi:
+                if rec[src[j]].z < rec[src[i]].z:
+                    dst[out] = src[j]
+                    j += 1
+                else:
+                    dst[out] = src[i]
+                    i += 1
+                out += 1
+            while i < mid:
+                dst[out] = src[i]
+                i += 1
+                out += 1
+            while j < hi:
+                dst[out] = src[j]
+                j += 1
+                out += 1
+            runs[m] = lo
+            m += 1
+        runs[m] = n
+        nr = m
+        src, dst = dst, src
+    return src[:n]
+
+
 @_jit
 def overhang_band(xyz, h, t, cellid, ny, zmin, x0, x1, rec, heights, out):
     """The overhang test of the points in the columns of cells ``x0:x1`` (of
@@ -447,18 +495,17 @@ def overhang_band(xyz, h, t, cellid, ny, zmin, x0, x1, rec, heights, out):
     zmin_um = np.rint(zmin * 1000.0)
     first = np.zeros(cells + 1, np.int64)  # each cell's distinct heights: heights[first[c]:first[c + 1]]
     todo = np.zeros(start[cells], np.bool_)
+    most = 0
+    for c in range(cells):
+        most = max(most, start[c + 1] - start[c])
+    order, spare, runs = np.empty(most, np.int64), np.empty(most, np.int64), np.empty(most + 1, np.int64)
     k = 0
     for c in range(cells):
         first[c] = k
         a, b = start[c], start[c + 1]
         if a == b:
             continue
-        ordered = True  # a cell's points mostly come in layer order already
-        for j in range(a + 1, b):
-            if rec[j].z < rec[j - 1].z:
-                ordered = False
-                break
-        o = np.arange(a, b) if ordered else np.argsort(rec.z[a:b]) + a
+        o = _by_height(rec, a, b, order, spare, runs)
         for j in o:
             if k > first[c] and heights[k - 1].z == rec[j].z:
                 heights[k - 1].t = min(heights[k - 1].t, rec[j].t)
