@@ -96,8 +96,13 @@ class SimRobot:
     def bead(self, index: np.ndarray, width: float, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Width and height of the material laid by commands ``index``: their annotations, or
         ``width`` and ``height`` (the slicing settings') where a program has none."""
-        w, h = self.program.width[index], self.program.height[index]
-        return np.where(w > 0, w, width), np.where(h > 0, h, height)
+        w = self.program.width[index]
+        return np.where(w > 0, w, width), self.layer_heights(index, height)
+
+    def layer_heights(self, index: np.ndarray, height: float) -> np.ndarray:
+        """The height of the material laid by commands ``index`` (:meth:`bead`'s second half)."""
+        h = self.program.height[index]
+        return np.where(h > 0, h, height)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
