@@ -565,11 +565,12 @@ def _heap_malloc() -> None:
     page by page, so the 4 KB pages cost less in all: nefertiti's 2-robot plan 4.3-4.7 s CPU
     (user + sys) instead of 5.8-6.3 s, same findings. One heap for all threads: 10 % fewer page
     faults, 950 MB at peak instead of 1.07 GB."""
-    try:
-        from numpy._core.multiarray import _set_madvise_hugepage  # numpy >= 2
-    except ImportError:  # numpy 1.x
-        from numpy.core.multiarray import _set_madvise_hugepage
-    _set_madvise_hugepage(False)
+    import numpy as np
+
+    core = getattr(np, "_core", None) or getattr(np, "core", None)  # numpy 2, numpy 1
+    no_huge_pages = getattr(getattr(core, "multiarray", None), "_set_madvise_hugepage", None)
+    if no_huge_pages is not None:
+        no_huge_pages(False)
     try:
         import ctypes
 
