@@ -117,7 +117,7 @@ class Material:
             tl = timelines[r.name]
             if len(sel):
                 kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, False, xyz, t, np.zeros(0, np.int64),
-                                     r.bead(tl.index, 0.0, layer_height)[1].astype(np.float32), h, bounds[i])
+                                     r.layer_heights(tl.index, layer_height).astype(np.float32), h, bounds[i])
         return Material(xyz, t, h, bounds)
 
     def moves(self, points: np.ndarray, timeline: Timeline) -> np.ndarray:

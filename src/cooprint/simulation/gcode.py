@@ -49,13 +49,17 @@ HOST_CAP = 4096
 #: plan: 1e308 would overflow every extent computed from it).
 COORD_LIMIT = 1e6  # = cooprint.simulation.inputs.COORD_LIMIT (a start)
 
+#: The helpers called for every word and line: inlined into the sweep (a call passes each array
+#: with a reference count taken and dropped, atomic operations that cost more than the work).
+_inline = numba.njit(cache=True, nogil=True, inline="always")
 
-@numba.njit(cache=True, nogil=True)
+
+@_inline
 def _end_of_line(c):
     return c == 10 or c == 13
 
 
-@numba.njit(cache=True, nogil=True)
+@_inline
 def _rest_of_line(buf, i):
     """The index of the line break (or the end) at or after ``i``, skipping text that does not
     matter (a comment, the rest of a line the reader ignores); -1 if the text holds a character
@@ -79,7 +83,7 @@ def _rest_of_line(buf, i):
     return i
 
 
-@numba.njit(cache=True, nogil=True)
+@_inline
 def _code(buf, a, b):
     """Which of the words the reader acts on ``buf[a:b]`` is (any case), or ``_OTHER``; the host
     words M0, M00, M1, M01 and M118 are ``_HOST``."""
@@ -118,13 +122,13 @@ def _code(buf, a, b):
     return _OTHER
 
 
-@numba.njit(cache=True, nogil=True)
+@_inline
 def _word_end(c):
     """Whether byte ``c`` ends a G-code word: a blank, a tab, ``;`` or a line break."""
     return c == 32 or c == 9 or c == 59 or c == 10 or c == 13
 
 
-@numba.njit(cache=True, nogil=True)
+@_inline
 def _number(buf, i, pow10):
     """The plain decimal number at ``buf[i:]``, up to the word's end: ``(value, next index,
     how many characters)``; ``(0.0, -1, 0)`` when it is not in the plain form."""

@@ -7,7 +7,7 @@ plain definition: the rasters and the overhang test to brute force over every pa
 the footprint sweep to the per-sample checks.
 
 Arrays: positions float32 (as the samples are kept), times float64. Large work arrays are
-allocated by the callers with numpy (huge pages), not here.
+allocated by the callers with numpy, not here.
 """
 
 from __future__ import annotations
@@ -400,7 +400,66 @@ def overhang_grid(xyz, cell):
 
 
 @_jit
-def overhang_band(xyz, h, t, cell, ox, oy, ny, zmin, x0, x1, rec, heights, out):
+def overhang_cells(xyz, cell, ox, oy, ny):
+    """(k,) int32: the cell of each point (``column * ny + row`` of :func:`overhang_grid`'s
+    cells), computed once so that each band of :func:`overhang_band` finds its points by one
+    comparison instead of two divisions per point and band."""
+    out = np.empty(len(xyz), np.int32)
+    for i in range(len(xyz)):
+        out[i] = _column(xyz[i, 0], cell, ox) * ny + int(np.floor(xyz[i, 1] / cell)) - oy
+    return out
+
+
+@_inline
+def _by_height(rec, a, b, order, spare, runs):
+    """Indices ``a:b`` of ``rec`` in order of height (``rec.z``; equal heights in any order), in
+    ``order`` or ``spare`` (work space of at least ``b - a``; ``runs`` one more), returned. A
+    cell's points come as a few runs already in order (a robot's layers, one chunk after the
+    other, then the next robot's), so the runs are found and merged pairwise (a natural merge
+    sort): linear when the points are in order, ``n log(runs)`` otherwise."""
+    n = b - a
+    nr = 0
+    runs[0] = 0
+    for i in range(n):
+        order[i] = a + i
+        if i > 0 and rec[a + i].z < rec[a + i - 1].z:
+            nr += 1
+            runs[nr] = i
+    nr += 1
+    runs[nr] = n
+    src, dst = order, spare
+    while nr > 1:
+        m = 0
+        for q in range(0, nr, 2):  # runs q and q + 1 into one
+            lo, mid = runs[q], runs[q + 1]
+            hi = runs[q + 2] if q + 2 <= nr else mid
+            i, j, out = lo, mid, lo
+            while i < mid and j < hi:
+                if rec[src[j]].z < rec[src[i]].z:
+                    dst[out] = src[j]
+                    j += 1
+                else:
+                    dst[out] = src[i]
+                    i += 1
+                out += 1
+            while i < mid:
+                dst[out] = src[i]
+                i += 1
+                out += 1
+            while j < hi:
+                dst[out] = src[j]
+                j += 1
+                out += 1
+            runs[m] = lo
+            m += 1
+        runs[m] = n
+        nr = m
+        src, dst = dst, src
+    return src[:n]
+
+
+@_jit
+def overhang_band(xyz, h, t, cellid, ny, zmin, x0, x1, rec, heights, out):
     """The overhang test of the points in the columns of cells ``x0:x1`` (of
     :func:`overhang_grid`'s cells): ``out[i]`` is set when point ``i`` (``xyz`` (k, 3) float32 mm,
     its layer height ``h``, its time ``t``) has nothing below it: no point laid down before it
@@ -413,41 +472,40 @@ def overhang_band(xyz, h, t, cell, ox, oy, ny, zmin, x0, x1, rec, heights, out):
     lowest first, keep the earliest time material was at them (``heights``,
     :data:`OVERHANG_HEIGHT`). A point looks in its own cell first, while that cell is at hand
     (its points lowest first, the band's start found by a pointer that follows them), then in
-    the 24 around (by bisection). The work space comes from numpy, which asks the OS for huge
-    pages: the scatter into cells misses the TLB less.
+    the 24 around (by bisection). Each point's cell comes from :func:`overhang_cells` (``cellid``:
+    ``column * ny + row``), so a band picks its points with one comparison each.
     """
     lo_x, hi_x = x0 - 2, x1 + 2  # with the columns around
     cells = (hi_x - lo_x) * ny
+    base = lo_x * ny  # the band's cells are cellid base:base + cells
     start = np.zeros(cells + 1, np.int64)  # counting sort by cell
-    for i in range(len(xyz)):
-        x = _column(xyz[i, 0], cell, ox)
-        if lo_x <= x < hi_x:
-            start[(x - lo_x) * ny + int(np.floor(xyz[i, 1] / cell)) - oy + 1] += 1
+    for i in range(len(cellid)):
+        c = cellid[i] - base
+        if 0 <= c < cells:
+            start[c + 1] += 1
     for c in range(cells):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
-    for i in range(len(xyz)):  # each point to its place, in one record (one stream of writes per cell)
-        x = _column(xyz[i, 0], cell, ox)
-        if lo_x <= x < hi_x:
-            c = (x - lo_x) * ny + int(np.floor(xyz[i, 1] / cell)) - oy
+    for i in range(len(cellid)):  # each point to its place, in one record (one stream of writes per cell)
+        c = cellid[i] - base
+        if 0 <= c < cells:
             j = fill[c]
             fill[c] += 1
             rec[j].z, rec[j].t, rec[j].h, rec[j].p = int(np.rint((xyz[i, 2] - zmin) * 1000.0)), t[i], h[i], i
     zmin_um = np.rint(zmin * 1000.0)
     first = np.zeros(cells + 1, np.int64)  # each cell's distinct heights: heights[first[c]:first[c + 1]]
     todo = np.zeros(start[cells], np.bool_)
+    most = 0
+    for c in range(cells):
+        most = max(most, start[c + 1] - start[c])
+    order, spare, runs = np.empty(most, np.int64), np.empty(most, np.int64), np.empty(most + 1, np.int64)
     k = 0
     for c in range(cells):
         first[c] = k
         a, b = start[c], start[c + 1]
         if a == b:
             continue
-        ordered = True  # a cell's points mostly come in layer order already
-        for j in range(a + 1, b):
-            if rec[j].z < rec[j - 1].z:
-                ordered = False
-                break
-        o = np.arange(a, b) if ordered else np.argsort(rec.z[a:b]) + a
+        o = _by_height(rec, a, b, order, spare, runs)
         for j in o:
             if k > first[c] and heights[k - 1].z == rec[j].z:
                 heights[k - 1].t = min(heights[k - 1].t, rec[j].t)
@@ -520,8 +578,9 @@ def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, b
     cuts[-1] = nx
     most = max(int(columns[max(a - 2, 0):b + 2].sum()) for a, b in zip(cuts[:-1], cuts[1:]))
     rec, heights = np.empty(most, OVERHANG_POINT), np.empty(most, OVERHANG_HEIGHT)
+    cellid = overhang_cells(xyz, cell, ox, oy, ny)
     for a, b in zip(cuts[:-1], cuts[1:]):
-        overhang_band(xyz, h, t, cell, ox, oy, ny, zmin, a, b, rec, heights, out)
+        overhang_band(xyz, h, t, cellid, ny, zmin, a, b, rec, heights, out)
     return out
 
 
@@ -560,7 +619,7 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
         local[:, 1] = renumbered[inverse.ravel()[in_order]] + 0.5
         local[:, 2] = xyz[idx, 2]
         sub = np.zeros(len(idx), dtype=bool)
-        overhang_band(local, h[idx], t[idx], 1.0, 0, -2, ny, zmin, 2, b - a + 2,
+        overhang_band(local, h[idx], t[idx], overhang_cells(local, 1.0, 0, -2, ny), ny, zmin, 2, b - a + 2,
                       np.empty(len(idx), OVERHANG_POINT), np.empty(len(idx), OVERHANG_HEIGHT), sub)
         out[idx] |= sub
 

@@ -96,8 +96,13 @@ class SimRobot:
     def bead(self, index: np.ndarray, width: float, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Width and height of the material laid by commands ``index``: their annotations, or
         ``width`` and ``height`` (the slicing settings') where a program has none."""
-        w, h = self.program.width[index], self.program.height[index]
-        return np.where(w > 0, w, width), np.where(h > 0, h, height)
+        w = self.program.width[index]
+        return np.where(w > 0, w, width), self.layer_heights(index, height)
+
+    def layer_heights(self, index: np.ndarray, height: float) -> np.ndarray:
+        """The height of the material laid by commands ``index`` (:meth:`bead`'s second half)."""
+        h = self.program.height[index]
+        return np.where(h > 0, h, height)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -231,7 +236,11 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     program = r.program
     start = np.zeros(3) if r.start is None else np.asarray(r.start, dtype=np.float64)
     k = int(np.count_nonzero(program.kind == MOVE))
-    mv, p0, p1, on, length = np.empty(k, np.int64), np.empty((k, 3)), np.empty((k, 3)), np.empty(k, bool), np.empty(k)
+    # the moves' ends in one array, move j from row j to row j + 1 (each move starts where the one
+    # before ends): start and end positions are two views of it, not two copies
+    ends = np.empty((k + 1, 3))
+    p0, p1 = ends[:-1], ends[1:]
+    mv, on, length = np.empty(k, np.int64), np.empty(k, bool), np.empty(k)
     move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
     if r.profile is not None:
         print_speed, travel_speed = r.profile.print_speed, r.profile.travel_speed
@@ -294,10 +303,9 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
                 progress = True
     out, findings = {}, []
     for name, (r, p0, p1, on, length, dur, mv, before, sync) in prep.items():
-        shift = np.zeros(len(r.program.kind) + 1)
-        for i, d in delay[name]:
-            shift[i + 1] += d
-        shift = np.cumsum(shift)
+        # the waits' delays so far before each command: of the WAITs above it (in program order)
+        at = np.array([i for i, _ in delay[name]], dtype=np.int64)
+        waited_before = np.concatenate([[0.0], np.cumsum([d for _, d in delay[name]])])
         keep = len(mv)
         if pos[name] < len(sync):  # stuck: nothing after the WAIT happens
             i = sync[pos[name]]
@@ -310,7 +318,7 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
             findings.append(Finding("deadlock", name, t, tuple(float(x) for x in at), chunk,
                                     f"WAIT {', '.join(prog.events[prog.event[i]])} (command {i + 1}) never ends: "
                                     f"{', '.join(missing)} is never announced by a robot that can still move"))
-        t0 = before[mv[:keep]] + shift[mv[:keep]]
+        t0 = before[mv[:keep]] + waited_before[np.searchsorted(at, mv[:keep], side="left")]
         out[name] = Timeline(name, t0, t0 + dur[:keep], p0[:keep], p1[:keep], on[:keep], mv[:keep], waits[name],
                              notifies[name], length[:keep])
     return out, findings
