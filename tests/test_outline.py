@@ -78,7 +78,7 @@ def facing_across(gap: float):
 @pytest.mark.parametrize("gap", [2 * 25.0 - 1.0, 30.0, 1.0])
 def test_printheads_crossing_while_the_bodies_stay_apart_are_caught(gap):
     (f,) = collisions(facing_across(gap))
-    assert f.detail == "the printhead of A meets the printhead of B"
+    assert f.detail.split(" (B\'s nozzle at ")[0] == "the printhead of A meets the printhead of B"
     assert f.time == 0.0 and f.count > 1
 
 
@@ -105,7 +105,7 @@ def test_printheads_that_cross_head_on_between_two_instants_are_caught(a_x, apar
         assert found == []
         return
     (f,) = found
-    assert f.detail == "the printhead of A meets the printhead of B"
+    assert f.detail.split(" (B\'s nozzle at ")[0] == "the printhead of A meets the printhead of B"
     enter = (90 - a_x - 49.8) / 240  # when |dx| first drops under 49.8 mm
     assert enter <= f.time <= enter + 0.25
 
@@ -117,13 +117,13 @@ def test_a_frame_over_another_robots_printhead_is_caught_and_frame_width_counts(
     still = "MOVE {x} {y} 50\nMOVE {x} {y} 60\n"
     a, b = still.format(x=0, y=0), still.format(x=140, y=-150)
     (f,) = collisions(two_robots(a, [0, 0, 50], 90.0, b, [140, -150, 50], 180.0))
-    assert f.detail == "the frame of A meets the printhead of B"
+    assert f.detail.split(" (B\'s nozzle at ")[0] == "the frame of A meets the printhead of B"
     narrow = dataclasses.replace(PROFILE, frame_width=200.0)
     assert collisions(two_robots(a, [0, 0, 50], 90.0, b, [140, -150, 50], 180.0, a_profile=narrow)) == []
     # and the other way round: B's own profile is B's (the printhead's half-side 10 mm: x 130 .. 150)
     small_head = dataclasses.replace(PROFILE, nozzle_depth=10.0)
     (f,) = collisions(two_robots(b, [140, -150, 50], 180.0, a, [0, 0, 50], 90.0, a_profile=small_head))
-    assert f.detail == "the printhead of A meets the frame of B"
+    assert f.detail.split(" (B\'s nozzle at ")[0] == "the printhead of A meets the frame of B"
     assert collisions(two_robots(b, [140, -150, 50], 180.0, a, [0, 0, 50], 90.0, a_profile=small_head,
                                  b_profile=narrow)) == []
 
@@ -134,6 +134,7 @@ def test_a_robot_without_moves_stands_at_its_start():
     assert collisions(far) == []  # (it was taken to stand at the origin, on B's line)
     (f,) = collisions(two_robots("", [40, 10, 5], 90.0, LINE_PROGRAM, [-100, 0, 5], 90.0))
     assert "A printhead / B printhead" in f.detail and f.position == (40.0, 10.0, 5.0)
+    assert "B's nozzle at (" in f.detail  # the finding's position is A's; the detail says where B was
 
 
 def test_the_parts_met_later_are_counted():
@@ -349,7 +350,8 @@ def test_a_manifest_frame_width_is_the_robots(tmp_path):
     robots = ('[[robots]]\nname = "A"\nprogram = "A.coop"\nfacing_deg = 90\n'
               '[[robots]]\nname = "B"\nprogram = "B.coop"\nfacing_deg = 180\n')
     m.write_text(robots)
-    assert [f.detail for f in collisions(simulate(load_inputs([], str(m))))] == ["the frame of A meets the printhead of B"]
+    assert [f.detail.split(" (")[0] for f in collisions(simulate(load_inputs([], str(m))))] == \
+        ["the frame of A meets the printhead of B"]
     m.write_text("[robot]\nframe_width = 100\n" + robots)
     assert collisions(simulate(load_inputs([], str(m)))) == []
 

@@ -524,3 +524,16 @@ def test_the_overhang_check_over_a_huge_area_agrees_with_the_dense_bands(seed, s
         far_from_others = all(np.abs(centres[c] - centres[d]).max() > 60 for d in range(4) if d != c)
         if far_from_others:
             assert np.array_equal(sparse[near], alone)
+
+
+def test_every_finding_says_what_its_count_counts():
+    """summary.json and the CLI name the unit of each finding's count (instants for collisions,
+    cells for the nozzle checks, material points, nozzle samples...)."""
+    from cooprint.simulation import KINDS
+    from cooprint.simulation.timeline import COUNT_UNITS, Finding
+
+    assert set(COUNT_UNITS) == set(KINDS)
+    f = Finding("robots-collide", "A", 1.0, (0.0, 0.0, 0.0), "C", "the printhead of A meets the printhead of B", 7)
+    assert f.to_dict()["count"] == 7 and f.to_dict()["count_of"] == "instants"
+    assert Finding("double-deposit", "A", 0.0, (0, 0, 0), None, "", 2).count_of == "cells"
+

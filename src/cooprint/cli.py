@@ -473,7 +473,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         for f in result.findings[:10]:
             click.echo(f"  {f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
                        f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
-                       f"{f.detail}" + (f" ({f.count} samples)" if f.count > 1 else ""))
+                       f"{f.detail}" + (f" ({f.count:,} {f.count_of})" if f.count > 1 else ""))
         click.echo("wrote " + ", ".join(map(str, targets)))
     _judge(record, strict, quiet, "the simulation", target)
 

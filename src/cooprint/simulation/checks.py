@@ -481,11 +481,15 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
             if len(k):
                 k = k[np.argsort(when[k], kind="stable")]
                 t = float(when[k[0]])
-                tl = timelines[a.name]
+                tl, tb = timelines[a.name], timelines[b.name]
                 pos = tl.position(t) if len(tl.t1) else np.asarray(a.start, dtype=np.float64)
+                other = tb.position(t) if len(tb.t1) else np.asarray(b.start, dtype=np.float64)
+                chunk_b = _chunk_of(b, tb, t) if len(tb.t1) else None
+                where_b = f"{b.name}'s nozzle at ({other[0]:.1f}, {other[1]:.1f}, {other[2]:.1f}) mm" + \
+                    (f" in chunk {chunk_b}" if chunk_b else "")
                 findings.append(Finding("robots-collide", a.name, t, tuple(float(x) for x in pos),
-                                        _chunk_of(a, timelines[a.name], t), _collide_detail(a.name, b.name, mask[k]),
-                                        int(len(k))))
+                                        _chunk_of(a, timelines[a.name], t),
+                                        _collide_detail(a.name, b.name, mask[k], where_b), int(len(k))))
     return findings
 
 
@@ -589,16 +593,17 @@ def _top_speed(tl: Timeline) -> float:
     return float(np.max(tl.length[moving] / span[moving], initial=0.0))
 
 
-def _collide_detail(a: str, b: str, masks: np.ndarray) -> str:
+def _collide_detail(a: str, b: str, masks: np.ndarray, where_b: str = "") -> str:
     """Which parts of robots ``a`` and ``b`` meet: at the first instant of ``masks`` (the
-    kernel's bit masks of the instants they overlap), and how many instants each pair of parts
-    meets when more than one pair does."""
+    kernel's bit masks of the instants they overlap; ``where_b``: where b is then, the finding's
+    position being a's), and how many instants each pair of parts meets when more than one pair
+    does."""
     n = len(PARTS)
     pairs = [(PARTS[p // n], PARTS[p % n]) for p in range(n * n)]
     first = [f"the {x} of {a} meets the {y} of {b}" for p, (x, y) in enumerate(pairs) if masks[0] >> p & 1]
     counts = [(x, y, int(np.count_nonzero(masks >> p & 1))) for p, (x, y) in enumerate(pairs)]
     counts = [c for c in counts if c[2]]
-    detail = " and ".join(first)
+    detail = " and ".join(first) + (f" ({where_b})" if where_b else "")
     if len(counts) > 1:
         detail += "; instants met: " + ", ".join(f"{a} {x} / {b} {y} {c}" for x, y, c in counts)
     return detail

@@ -195,6 +195,13 @@ class Timeline:
 WARNING_KINDS = frozenset({"overhang"})
 
 
+#: What a finding's ``count`` counts, by kind (each check counts what it looks at).
+COUNT_UNITS = {"body-on-material": "nozzle samples", "printhead-hits-material": "nozzle samples",
+               "robots-collide": "instants", "nozzle-in-material": "cells", "double-deposit": "cells",
+               "chunk-order": "unfinished dependencies", "outside-part": "material points",
+               "deadlock": "WAITs", "below-floor": "moves", "overhang": "material points"}
+
+
 def severity(kind: str) -> str:
     """``warning`` or ``error``: how bad a finding of ``kind`` is."""
     return "warning" if kind in WARNING_KINDS else "error"
@@ -219,7 +226,13 @@ class Finding:
 
     def to_dict(self) -> dict[str, object]:
         return {"kind": self.kind, "severity": self.severity, "robot": self.robot, "time_s": self.time,
-                "position": list(self.position), "chunk": self.chunk, "detail": self.detail, "count": self.count}
+                "position": list(self.position), "chunk": self.chunk, "detail": self.detail, "count": self.count,
+                "count_of": self.count_of}
+
+    @property
+    def count_of(self) -> str:
+        """What ``count`` counts (:data:`COUNT_UNITS`): instants, cells, points, samples..."""
+        return COUNT_UNITS.get(self.kind, "places")
 
 
 def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
@@ -345,4 +358,4 @@ def _chunk_at(program: Program, i: int) -> str | None:
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["FacingSpan", "Finding", "SimRobot", "Timeline", "WARNING_KINDS", "move_durations", "schedule", "severity"]
+__all__ = ["COUNT_UNITS", "FacingSpan", "Finding", "SimRobot", "Timeline", "WARNING_KINDS", "move_durations", "schedule", "severity"]
