@@ -1,6 +1,9 @@
-"""Small whole-array helpers on triangle meshes: (n, 3) float vertices, (m, 3) int faces."""
+"""Small whole-array helpers on triangle meshes: (n, 3) float vertices, (m, 3) int faces; and the
+unit XY direction every stage takes a robot's facing as."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -9,6 +12,17 @@ import numpy as np
 #: no stage meets a size its arrays cannot hold (a plan 1e308 mm wide, rasters of terabytes).
 #: Nothing cooprint prints is near it; anything past it is a unit or file error.
 MAX_COORD_MM = 1e6
+
+
+def unit_xy(v) -> np.ndarray:
+    """(2,) float64: the XY part of ``v`` scaled to length 1 (a robot's facing, a direction)."""
+    a = np.asarray(v, dtype=np.float64)[:2]
+    return a / np.linalg.norm(a)
+
+
+def unit_deg(deg: float) -> np.ndarray:
+    """(2,) float64: the unit XY vector at ``deg`` degrees from +X (a facing given in degrees)."""
+    return np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
 
 
 def edge_table(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:

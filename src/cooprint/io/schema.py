@@ -69,7 +69,7 @@ def key_path(path: str, key: str | int) -> str:
     return f"{path}.{key}" if path else key
 
 
-def _key(key: str, chars: int = 40) -> str:
+def shown_key(key: str, chars: int = 40) -> str:
     """A key as a message shows it: control and non-ASCII characters escaped, clipped."""
     text = key[:chars].encode("unicode_escape").decode("ascii")
     return text + ("..." if len(key) > chars else "")
@@ -107,7 +107,7 @@ def check_object(value: Any, where: str, path: str, *, required: Iterable[str] =
             hint = did_you_mean(str(k), known)
             if unknown == "error" or hint:  # the key meant, or (none close) the keys known
                 listed = ", ".join(known[:12]) + (", ..." if len(known) > 12 else "")
-                raise fail(where, key_path(path, _key(str(k))),
+                raise fail(where, key_path(path, shown_key(str(k))),
                            f"unknown key{hint}" if hint else f"unknown key; expected one of: {listed}")
     for k in required:
         if k not in value:

@@ -25,6 +25,7 @@ from typing import Iterable, Iterator, Mapping, NamedTuple, Sequence
 import numpy as np
 
 from cooprint.config import outline_rects
+from cooprint.geometry import unit_deg, unit_xy
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, make_program, quantize
 from cooprint.slicing.paths import TRAVEL, LayerPaths
 
@@ -185,7 +186,7 @@ class Outline(NamedTuple):
     def corners(self, facing: Sequence[float]) -> np.ndarray:
         """(12, 2): the corners of the three rectangles in XY, from the nozzle, for a robot
         facing ``facing``."""
-        a = _unit(facing)
+        a = unit_xy(facing)
         left = np.array([-a[1], a[0]])
         r = self.rects()
         u = r[:, [0, 0, 1, 1]].ravel()
@@ -195,12 +196,7 @@ class Outline(NamedTuple):
     def reach(self, facing: Sequence[float], direction: Sequence[float]) -> float:
         """How far the outline of a robot facing ``facing`` reaches beyond its nozzle in the XY
         ``direction`` (a unit vector), mm: the largest of its corners' components along it."""
-        return float((self.corners(facing) @ _unit(direction)).max())
-
-
-def _unit(v: Sequence[float]) -> np.ndarray:
-    a = np.asarray(v, dtype=np.float64)[:2]
-    return a / np.linalg.norm(a)
+        return float((self.corners(facing) @ unit_xy(direction)).max())
 
 
 @dataclass(frozen=True)
@@ -257,8 +253,7 @@ def turn_round(here: np.ndarray, p4: np.ndarray, facing: np.ndarray, material: M
     the nozzle). Only the last leg (when ``p4`` lies within ``build_depth`` of the box) brings
     the body back towards the print, where the next chunk needs it anyway.
     """
-    a = np.asarray(facing, dtype=np.float64)[:2]
-    a = a / np.linalg.norm(a)
+    a = unit_xy(facing)
     p = np.array([-a[1], a[0]])
     printed = list(printed)
     s_lo, s_hi, q_lo, q_hi = _extent(material, printed, a, p)
@@ -495,7 +490,7 @@ def clear_limit(facing: Sequence[float], occupants: Iterable[tuple[np.ndarray, S
     ``facing`` between the two then separates the outlines, whatever their positions across
     it: a separating axis, so the rule holds for any facings and any outline sizes.
     """
-    f = _unit(facing)
+    f = unit_xy(facing)
     near = math.inf
     for pts, g, o in occupants:
         if len(pts):
@@ -516,7 +511,7 @@ def park(here: np.ndarray, facing: Sequence[float], occupants: Iterable[tuple[np
     where their nozzles go, more than ``margin`` + two printhead reaches ahead of it.
     """
     here = np.asarray(here, dtype=np.float64)[:2]
-    f = _unit(facing)
+    f = unit_xy(facing)
     limit = clear_limit(f, occupants, outline, margin)
     s = float(here @ f)
     return here if s <= limit else here - (s - limit) * f
@@ -545,12 +540,12 @@ def _program_occupants(program: Program, facing: Sequence[float], outline: Outli
     :attr:`Program.turns`: the place of a turn counts in each facing it passes through)."""
     mv = program.kind == MOVE
     xy = program.xyz[:, :2]
-    out, k, g = [], 0, _unit(facing)
+    out, k, g = [], 0, unit_xy(facing)
     for i, deg in program.turns:
         pts = xy[k:i][mv[k:i]]
         at = xy[:i][mv[:i]][-1:]  # where it turns: the last position before the turn
         out.append((np.vstack([pts, at]) if len(pts) or len(at) else pts, g, outline))
-        g, k = np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))]), i
+        g, k = unit_deg(deg), i
         out.append((at, g, outline))
     out.append((xy[k:][mv[k:]], g, outline))
     return [o for o in out if len(o[0])]
@@ -566,7 +561,7 @@ def _parking(others: list[tuple[np.ndarray, np.ndarray, Outline]], material: Mat
     body and frame stand over the floor, its printhead off the part. With nothing printed at
     all, the part's own extent (the chunks' triangle boxes, as if printed by a robot facing
     this one) stands in, so that two idle robots still park apart, one on each side."""
-    f = _unit(facing)
+    f = unit_xy(facing)
     if not others:  # nothing printed: the corners of the part's triangle boxes
         corners = [b[:, [0, 1]] for b in material.boxes.values() if len(b)] + \
                   [b[:, [2, 3]] for b in material.boxes.values() if len(b)]

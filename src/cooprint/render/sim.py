@@ -306,23 +306,25 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
     return path
 
 
-def _footprint(result: SimResult, r, nozzle: np.ndarray, t: float) -> np.ndarray:
-    """(4, 3) corners of a robot's body on the floor with its nozzle at ``nozzle`` at time ``t``
-    (in the facing in force then: a robot that turns round is drawn as it stands)."""
+def _outline_at(result: SimResult, r, nozzle: np.ndarray, t: float) -> dict[str, np.ndarray]:
+    """Part -> (4, 2) world XY corners of a robot's outline (:func:`outline_corners`, no
+    tolerance) with its nozzle at ``nozzle`` at time ``t``, in the facing in force then (a robot
+    that turns round is drawn as it stands)."""
     facing = r.facing_at(result.timelines[r.name], t) if r.program.turns else r.facing
-    xy = nozzle[:2] + body_corners(r.profile or result.profile, facing)
-    return np.column_stack([xy, np.zeros(4)])
+    return {part: nozzle[:2] + c for part, c in outline_corners(r.profile or result.profile, facing, 0.0).items()}
+
+
+def _footprint(result: SimResult, r, nozzle: np.ndarray, t: float) -> np.ndarray:
+    """(4, 3) corners of a robot's body on the floor with its nozzle at ``nozzle`` at time ``t``."""
+    return np.column_stack([_outline_at(result, r, nozzle, t)["body"], np.zeros(4)])
 
 
 def _upper_parts(result: SimResult, r, nozzle: np.ndarray, t: float) -> list[np.ndarray]:
-    """(4, 3) corners of a robot's frame and printhead (:func:`outline_corners`, no tolerance) at
-    the height of the printhead's underside (``nozzle_height`` above the tip), with its nozzle at
-    ``nozzle`` at time ``t``, in the facing in force then."""
-    profile = r.profile or result.profile
-    facing = r.facing_at(result.timelines[r.name], t) if r.program.turns else r.facing
-    corners = outline_corners(profile, facing, 0.0)
-    z = float(nozzle[2]) + profile.nozzle_height
-    return [np.column_stack([nozzle[:2] + corners[p], np.full(4, z)]) for p in ("frame", "printhead")]
+    """(4, 3) corners of a robot's frame and printhead at the height of the printhead's underside
+    (``nozzle_height`` above the tip), with its nozzle at ``nozzle`` at time ``t``."""
+    parts = _outline_at(result, r, nozzle, t)
+    z = float(nozzle[2]) + (r.profile or result.profile).nozzle_height
+    return [np.column_stack([parts[p], np.full(4, z)]) for p in ("frame", "printhead")]
 
 
 def _overlay(draw: ImageDraw.ImageDraw, scene: _Scene, t: float, size: tuple[int, int]) -> None:

@@ -16,8 +16,9 @@ from typing import Any, Iterable
 import numpy as np
 
 from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings, robot_profile
+from cooprint.geometry import unit_deg
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
-                                key_path)
+                                key_path, shown_key)
 from cooprint.io.files import path_kind, regular_file
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
@@ -54,8 +55,7 @@ class SimInput:
         return [r if r.profile is not None else replace(r, profile=self.profile) for r in self.robots]
 
 
-def _facing(deg: float) -> np.ndarray:
-    return np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+_facing = unit_deg  # a robot's facing in degrees (job.json facing_deg) as its unit vector
 
 
 # ----------------------------------------------------------------------------------------------
@@ -403,17 +403,11 @@ def _manifest_profiles(data: Any, names: list[str], fleet: RobotProfile, where: 
             # names are case-sensitive; one letter in the wrong case is the likeliest slip
             close = [n for n in names if n.lower() == str(name).lower()] or \
                 difflib.get_close_matches(str(name), names, n=1, cutoff=0.6)
-            raise SimInputError(f"{where}: {_clip(at)}: no robot {_clip(str(name))} in [[robots]]"
+            raise SimInputError(f"{where}: {shown_key(at, 60)}: no robot {shown_key(str(name), 60)} in [[robots]]"
                                 + (f" (did you mean [profiles.{close[0]}]?)" if close else ""))
         check_object(values, where, at, optional=ROBOT_FIELDS)  # a misspelt field: did you mean
         out[name] = robot_profile(values, f"{where}: profiles.", str(name), fleet)
     return out
-
-
-def _clip(text: str, chars: int = 60) -> str:
-    """A name from a file as a message shows it: escaped, at most ``chars`` characters."""
-    shown = text[:chars].encode("unicode_escape").decode("ascii")
-    return shown + ("..." if len(text) > chars else "")
 
 
 def coop_facing(program: Any) -> float:

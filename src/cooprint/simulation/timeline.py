@@ -19,6 +19,7 @@ import numpy as np
 
 from typing import TYPE_CHECKING
 
+from cooprint.geometry import unit_deg, unit_xy
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program
 
 if TYPE_CHECKING:
@@ -66,7 +67,7 @@ class SimRobot:
         order. A turn before command ``i`` takes effect from the first move at or after ``i``,
         at that move's start (where and when the robot turns); two turns at the same place give
         a span without moves (the robot passes through that facing while turning there)."""
-        spans = [FacingSpan(0, len(tl.t0), _unit(self.facing), 0.0 if not len(tl.t0) else float(tl.t0[0]),
+        spans = [FacingSpan(0, len(tl.t0), unit_xy(self.facing), 0.0 if not len(tl.t0) else float(tl.t0[0]),
                             self._start_position(tl))]
         for i, deg in self.program.turns:
             k = int(np.searchsorted(tl.index, i, side="left"))
@@ -78,7 +79,7 @@ class SimRobot:
                 when, where = 0.0, self._start_position(tl)
             last = spans[-1]
             spans[-1] = FacingSpan(last.start, k, last.facing, last.time, last.position)
-            spans.append(FacingSpan(k, len(tl.t0), _unit_deg(deg), when, np.asarray(where, dtype=np.float64)))
+            spans.append(FacingSpan(k, len(tl.t0), unit_deg(deg), when, np.asarray(where, dtype=np.float64)))
         return spans
 
     def facing_at(self, tl: "Timeline", t: np.ndarray | float) -> np.ndarray:
@@ -103,15 +104,6 @@ class SimRobot:
         """The height of the material laid by commands ``index`` (:meth:`bead`'s second half)."""
         h = self.program.height[index]
         return np.where(h > 0, h, height)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    v = np.asarray(v, dtype=np.float64)[:2]
-    return v / np.linalg.norm(v)
-
-
-def _unit_deg(deg: float) -> np.ndarray:
-    return np.array([np.cos(np.radians(deg)), np.sin(np.radians(deg))])
 
 
 @dataclass(frozen=True)
