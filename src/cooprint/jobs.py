@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Sequence
 import numpy as np
 
 from cooprint.chunking import ChunkSet, cut_chunks, plan_chunks
+from cooprint.chunking.planes import safe_top_width
 from cooprint.config import JobSettings, SlicingSettings, load_settings
 from cooprint.errors import UserError, warn
 from cooprint.io.bundle import atomic_dir, write_json, write_stl
@@ -92,8 +93,8 @@ def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, rob
                   progress: Progress | None) -> ChunkJob:
     """Plan, cut and assign a placed solid."""
     plan = plan_chunks(solid.vertices, settings.robot, settings.chunking, robots)
-    safe = 2 * settings.robot.nozzle_depth
-    if robots >= 2 and plan.mode == "cut" and plan.top_width < safe:
+    safe = safe_top_width(settings.robot, robots)
+    if plan.mode == "cut" and plan.top_width < safe:
         warn(f"chunking.top_width = {plan.top_width:g} mm is narrower than the two printheads "
              f"(2 x robot.nozzle_depth = {safe:g} mm): the robots printing the centre chunk's two neighbours "
              "may meet near its top (the simulator's robots-collide says whether they do)")

@@ -278,8 +278,12 @@ def top_width(robot: RobotProfile, settings: ChunkingSettings, robots: int) -> f
     around each nozzle) into each other near the top, whatever their speeds; ``2 nozzle_depth``
     keeps them apart at every instant and every speed. Their frames and bodies stand behind
     their nozzles, on opposite sides, so they cannot meet."""
-    if settings.top_width is not None:
-        return settings.top_width
+    return settings.top_width if settings.top_width is not None else safe_top_width(robot, robots)
+
+
+def safe_top_width(robot: RobotProfile, robots: int) -> float:
+    """The narrowest top of the centre chunk at which ``robots`` robots like ``robot`` cannot meet
+    (:func:`top_width`): ``2 nozzle_depth`` for two or more, 0 for one."""
     return 2 * robot.nozzle_depth if robots >= 2 else 0.0
 
 

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.geometry import unit_xy
 from cooprint.simulation import kernels
 from cooprint.simulation.inputs import ChunkMesh
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline
@@ -145,15 +146,15 @@ class Material:
 
 def _frame(facing: np.ndarray) -> np.ndarray:
     """(2, 2) rows: the facing direction and its left."""
-    f = np.asarray(facing, dtype=np.float64) / np.linalg.norm(facing)
+    f = unit_xy(facing)
     return np.array([f, [-f[1], f[0]]])
 
 
 def body_box(profile: RobotProfile, tolerance: float = 0.0) -> tuple[float, float, float, float]:
     """(u_lo, u_hi, v_lo, v_hi) of the body relative to the nozzle, in the robot's frame (u along
     the facing, v to its left), shrunk by ``tolerance``."""
-    bd, length, w = profile.build_depth, profile.body_length, profile.body_width
-    return (-bd - length + tolerance, -bd - tolerance, -w / 2 + tolerance, w / 2 - tolerance)
+    u_lo, u_hi, v_lo, v_hi = profile.outline()["body"]
+    return (u_lo + tolerance, u_hi - tolerance, v_lo + tolerance, v_hi - tolerance)
 
 
 def body_corners(profile: RobotProfile, facing: np.ndarray, tolerance: float = 0.0) -> np.ndarray:
@@ -166,7 +167,7 @@ def body_corners(profile: RobotProfile, facing: np.ndarray, tolerance: float = 0
 def head_box(profile: RobotProfile, tolerance: float = 0.0) -> tuple[float, float, float, float]:
     """(u_lo, u_hi, v_lo, v_hi) of the printhead's reach around the nozzle (a square of half-side
     ``nozzle_depth``), shrunk by ``tolerance``."""
-    r = max(profile.nozzle_depth - tolerance, 0.0)
+    r = max(profile.outline()["printhead"][1] - tolerance, 0.0)
     return (-r, r, -r, r)
 
 
@@ -311,11 +312,18 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
                                     (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state,
                                     count, when, where)
         for k, (kind, detail) in enumerate(((_BodyCheck.kind, _BodyCheck.detail), (_HeadCheck.kind, _head_detail(profile)))):
-            for slot in np.flatnonzero(count[k]):
-                findings.append(Finding(kind, r.name, float(when[k, slot]), tuple(float(x) for x in where[k, slot]),
-                                        r.program.chunks[slot] if slot < len(r.program.chunks) else None, detail,
-                                        int(count[k, slot])))
+            findings += _slot_findings(kind, r, count[k], when[k], where[k], detail)
     return sorted(findings, key=lambda f: (f.time, f.kind))
+
+
+def _slot_findings(kind: str, r: SimRobot, count: np.ndarray, when: np.ndarray, where: np.ndarray,
+                   detail: str) -> list[Finding]:
+    """One finding per chunk slot of robot ``r`` that a sweep counted hits in (``count``, the
+    first instant ``when`` and place ``where`` per slot; the last slot, past the program's
+    chunks, is its moves between chunks)."""
+    return [Finding(kind, r.name, float(when[slot]), tuple(float(x) for x in where[slot]),
+                    r.program.chunks[slot] if slot < len(r.program.chunks) else None, detail, int(count[slot]))
+            for slot in np.flatnonzero(count)]
 
 
 def _head_detail(profile: RobotProfile) -> str:
@@ -674,6 +682,8 @@ def chunk_order(robots: list[SimRobot], timelines: dict[str, Timeline],
                 ", ".join(f"{d} ({dt:.3f} s early)" for d, dt in early)
             findings.append(Finding("chunk-order", robot, t, tuple(float(x) for x in where), c, detail, len(early)))
     return sorted(findings, key=lambda f: (f.time, f.chunk))
+
+
 #: Cells of the material height field, in line widths: half a line width, so that the bead beside
 #: (a line spacing away, at least 0.72 line widths: two points of one cell are at most
 #: 0.71 widths apart) never shares a cell with the nozzle's axis.
@@ -823,12 +833,9 @@ def material_checks(robots: list[SimRobot], timelines: dict[str, Timeline], slic
                f"width of the axis, more than {DOUBLE_RUN:g} line widths of path in a row; count: cells of "
                f"{cell:.3g} mm)")
     for j, (_, r, _) in enumerate(active):
+        own = slice(int(offsets[j]), int(offsets[j + 1]))  # the robot's chunk slots
         for check, kind in enumerate(("nozzle-in-material", "double-deposit")):
-            for s in np.flatnonzero(count[check, offsets[j]:offsets[j + 1]]):
-                g = offsets[j] + s
-                findings.append(Finding(kind, r.name, float(when[check, g]), tuple(float(x) for x in where[check, g]),
-                                        r.program.chunks[s] if s < len(r.program.chunks) else None, details[check],
-                                        int(count[check, g])))
+            findings += _slot_findings(kind, r, count[check, own], when[check, own], where[check, own], details[check])
     return sorted(findings, key=lambda f: (f.time, f.kind))
 
 

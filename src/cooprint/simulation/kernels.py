@@ -997,6 +997,8 @@ def inside_sections(xyz, run_lo, run_hi, run_sec, run_tol, offsets, segs, ok):
                             inside = not inside
                 ok[p] = inside
         i = j
+
+
 @_jit
 def path_extent(p0, p1, on, out):
     """The XY box of the moves with the tool on (``out[0:4]``: least x, y, greatest x, y; kept
