@@ -49,6 +49,14 @@ class Chunk:
     planes : tuple of Plane
         The cutting planes that bound it, each normal pointing away from the chunk (so every
         vertex has signed distance <= 0 to every plane).
+    row, col : int
+        Where it lies (issue 14): ``row`` 0 for the centre row, ``-k`` for the k-th row on the
+        left (-axis) side, ``+k`` on the right; ``col`` the column along the centre line, from 0
+        at its -u end (the seed2 layout: one column, 0).
+    facing : (2,) float or None
+        The direction its robot faces while printing it (unit XY, from the body to the nozzle):
+        from the unprinted side towards the faces it leans on. ``None``: the layout leaves it
+        to the scheduler (seed2's centre chunk, printed from either side).
     """
 
     id: str
@@ -58,6 +66,9 @@ class Chunk:
     faces: np.ndarray
     volume: float
     planes: tuple[Plane, ...]
+    row: int = 0
+    col: int = 0
+    facing: tuple[float, float] | None = None
 
     @property
     def bounds(self) -> np.ndarray:
@@ -90,15 +101,19 @@ class ChunkSet:
     deps : dict
         ``{chunk id: tuple of chunk ids that must be finished first}`` — every side chunk
         depends on its inner neighbour (the nearest non-empty chunk towards the centre): it leans
-        on that chunk's sloped face, and its robot stands where the next chunk out will be.
+        on that chunk's sloped face, and its robot stands where the next chunk out will be
+        (precedence (a) of issue 14: the chunks whose faces it leans on).
     solid_volume : float
         Volume of the uncut solid, mm^3.
+    layout : str
+        The layout strategy that made it (``seed2``, ``grid``).
     """
 
     plan: ChunkPlan
     chunks: tuple[Chunk, ...]
     deps: dict[str, tuple[str, ...]]
     solid_volume: float
+    layout: str = "seed2"
 
     def __getitem__(self, cid: str) -> Chunk:
         for ch in self.chunks:
@@ -198,6 +213,15 @@ def dependencies(chunks: tuple[Chunk, ...]) -> dict[str, tuple[str, ...]]:
     return deps
 
 
+def _seed_facing(role: str, plan: ChunkPlan) -> tuple[float, float] | None:
+    """A side chunk is printed from outside, towards the centre (a left chunk along ``+axis``, a
+    right one against it); the centre chunk from either side (``None``)."""
+    if role == "centre":
+        return None
+    sign = 1.0 if role == "left" else -1.0
+    return (sign * float(plan.axis[0]), sign * float(plan.axis[1]))
+
+
 def cut_chunks(solid: Solid, plan: ChunkPlan,
                progress: Callable[[int, int], None] | None = None) -> ChunkSet:
     """Cut ``solid`` along ``plan`` into watertight chunks.
@@ -229,7 +253,8 @@ def cut_chunks(solid: Solid, plan: ChunkPlan,
     for i, (cid, role, k, piece, planes_k) in enumerate(specs):
         verts, faces, vol = kernel.extract(piece)
         if vol > dust:
-            chunks.append(Chunk(cid, role, k, verts, faces, vol, planes_k))
+            row = {"centre": 0, "left": -k, "right": k}[role]
+            chunks.append(Chunk(cid, role, k, verts, faces, vol, planes_k, row, 0, _seed_facing(role, plan)))
         if progress:
             progress(i + 1, total)
     return ChunkSet(plan, tuple(chunks), dependencies(tuple(chunks)), solid.volume)

@@ -6,12 +6,13 @@ from cooprint.config.settings import (
     MeshSettings,
     ProgramSettings,
     RobotProfile,
+    SchedulingSettings,
     SlicingSettings,
     load_settings,
     outline_rects,
     robot_profile,
 )
 
-__all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "ProgramSettings", "RobotProfile", "SlicingSettings",
+__all__ = ["ChunkingSettings", "JobSettings", "MeshSettings", "ProgramSettings", "RobotProfile", "SchedulingSettings", "SlicingSettings",
            "load_settings", "outline_rects",
            "robot_profile"]

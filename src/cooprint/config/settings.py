@@ -135,6 +135,12 @@ class ChunkingSettings:
                                     "2 x robot.nozzle_depth for two (their printheads never meet)"))
     centre_angle_deg: float = field(default=0.0, metadata=_num(-360, 360, unit="deg"))
     centre_offset: float = field(default=0.0, metadata=_num(-1e6, 1e6, unit="mm"))
+    layout: str = field(default="auto", metadata=_choice("auto", "seed2", "grid", doc="chunk layout: seed2 (the "
+                        "seed's centre and side chunks, 1 or 2 robots), grid (rows cut into columns, any number of "
+                        "robots) or auto (the one with the shorter estimated makespan)"))
+    column_width: float | None = field(default=None, metadata=_num(MIN_SHIFT, 1e6, unit="mm", optional=True,
+                                       doc="grid layout: base width of a column along the centre line; absent: "
+                                           "from the robots' outline and their number"))
 
 
 @dataclass(frozen=True)
@@ -205,6 +211,17 @@ class ProgramSettings:
 
 
 @dataclass(frozen=True)
+class SchedulingSettings:
+    """Which robot prints which chunk, when (issue 14, :mod:`cooprint.scheduling`)."""
+
+    strategy: str = field(default="auto", metadata=_choice("auto", "seed", "list", "exact", doc="seed (the seed's "
+                          "two-robot order, seed2 layout only), list (critical-path list scheduling), exact "
+                          "(OR-Tools CP-SAT, falls back to list) or auto (seed for seed2, list otherwise)"))
+    time_limit_s: float = field(default=10.0, metadata=_num(0, 86400, unit="s", lo_open=True,
+                                doc="the exact scheduler's time limit"))
+
+
+@dataclass(frozen=True)
 class JobSettings:
     """Everything a job needs besides the mesh."""
 
@@ -213,6 +230,7 @@ class JobSettings:
     mesh: MeshSettings = field(default_factory=MeshSettings)
     slicing: SlicingSettings = field(default_factory=SlicingSettings)
     program: ProgramSettings = field(default_factory=ProgramSettings)
+    scheduling: SchedulingSettings = field(default_factory=SchedulingSettings)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain dict for job.json (``None`` fields dropped, as TOML has no null)."""
@@ -220,7 +238,8 @@ class JobSettings:
 
 
 _SECTIONS: dict[str, type] = {"robot": RobotProfile, "chunking": ChunkingSettings, "mesh": MeshSettings,
-                              "slicing": SlicingSettings, "program": ProgramSettings}
+                              "slicing": SlicingSettings, "program": ProgramSettings,
+                              "scheduling": SchedulingSettings}
 
 
 def _expectation(meta: Mapping[str, Any]) -> str:
