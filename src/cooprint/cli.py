@@ -117,6 +117,15 @@ CHUNK_FLAGS: tuple[tuple[str, str, str, Any, str], ...] = (
     ("--top-width", "top_width", "chunking.top_width", float, "Width of the centre chunk at the top, mm [0 for one robot, 2 x nozzle_depth for two]."),
     ("--centre-angle", "centre_angle", "chunking.centre_angle_deg", float,
      "Direction of the centre line, degrees from +X [0]."),
+    ("--layout", "layout", "chunking.layout", click.Choice(["auto", "seed2", "grid"]),
+     "Chunk layout: seed2 (the seed's centre and side chunks, 1-2 robots), grid (rows of columns, any number) "
+     "or auto [auto: seed2 for 1-2 robots, else grid]."),
+    ("--column-width", "column_width", "chunking.column_width", float,
+     "Grid layout: column width at half the part's height, mm [from the robots' outline and number]."),
+    ("--schedule", "schedule", "scheduling.strategy", click.Choice(["auto", "seed", "list", "exact"]),
+     "Scheduler: list (critical path first), exact (OR-Tools CP-SAT, proven bound), seed (seed2 only) "
+     "[auto: seed for seed2, else list]."),
+    ("--time-limit", "time_limit", "scheduling.time_limit_s", float, "Time limit of --schedule exact, s [10]."),
 )
 
 
@@ -174,8 +183,8 @@ chunking_options = _with_flags(CHUNK_FLAGS, [], lambda kw, overrides: None)
 @click.argument("mesh", type=click.Path(dir_okay=False))
 @chunking_options
 @settings_options
-@click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
-              help="Number of robots (seed strategy).")
+@click.option("--robots", type=click.IntRange(1, 64), default=2, show_default=True,
+              help="Number of robots (1 to 64).")
 def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: int) -> None:
     """Report a mesh (triangles, size, volume, repairs, placement) and whether the robot can print it:
     the feasibility rule of `chunk` and `run`, the largest printable height, the number of chunks.
@@ -208,8 +217,8 @@ def plan_options(command: Any) -> Any:
         click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder."),
         chunking_options,
         settings_options,
-        click.option("--robots", type=click.IntRange(1, 2), default=2, show_default=True,
-                     help="Number of robots (seed strategy)."),
+        click.option("--robots", type=click.IntRange(1, 64), default=2, show_default=True,
+                     help="Number of robots (1 to 64)."),
         click.option("--force", is_flag=True, help="Replace OUT if it exists."),
         click.option("--no-picture", is_flag=True, help="Skip chunks.png."),
         click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary."),

@@ -9,22 +9,23 @@ from __future__ import annotations
 
 import os
 from contextlib import closing
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
-from cooprint.chunking import ChunkSet, cut_chunks, plan_chunks
+from cooprint.chunking import ChunkSet
 from cooprint.chunking.planes import safe_top_width
 from cooprint.config import JobSettings, SlicingSettings, load_settings
 from cooprint.errors import UserError, warn
 from cooprint.io.bundle import atomic_dir, write_json, write_stl
 from cooprint.io.mesh import Solid, load_mesh
 from cooprint.io.place import Placement, place
-from cooprint.scheduling import Assignment, assign
+from cooprint.scheduling import Assignment, Schedule
 
 if TYPE_CHECKING:
+    from cooprint.scheduling import ChunkDAG
     from cooprint.slicing import SlicedModel
 
 #: ``progress(stage, done, total)``: called as work advances.
@@ -36,15 +37,23 @@ def robot_names(n: int) -> tuple[str, ...]:
     return tuple(chr(ord("A") + i) if i < 26 else f"R{i + 1}" for i in range(n))
 
 
+#: The most robots a fleet may have (``--robots``).
+MAX_ROBOTS = 64
+
+
 @dataclass(frozen=True)
 class ChunkJob:
-    """A chunked and assigned object: the chunker's and scheduler's output together."""
+    """A chunked and scheduled object: the chunker's and scheduler's output together.
+
+    ``assignment`` is a :class:`~cooprint.scheduling.Schedule` (the sequences and their nominal
+    times); ``dag`` the constraints it was made under (issue 14)."""
 
     solid: Solid
     settings: JobSettings
     chunks: ChunkSet
     assignment: Assignment
     placement: Placement | None = None
+    dag: "ChunkDAG | None" = None
 
 
 def load_placed(mesh: str | Path | Solid, settings: JobSettings, *, bed: bool = False,
@@ -90,44 +99,140 @@ def _load_with_progress(mesh: str | Path | Solid, settings: JobSettings,
 
 
 def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, robots: int,
-                  progress: Progress | None) -> ChunkJob:
-    """Plan, cut and assign a placed solid."""
-    plan = plan_chunks(solid.vertices, settings.robot, settings.chunking, robots)
-    safe = safe_top_width(settings.robot, robots)
-    if plan.mode == "cut" and plan.top_width < safe:
-        warn(f"chunking.top_width = {plan.top_width:g} mm is narrower than the two printheads "
-             f"(2 x robot.nozzle_depth = {safe:g} mm): the robots printing the centre chunk's two neighbours "
-             "may meet near its top (the simulator's robots-collide says whether they do)")
+                  progress: Progress | None, preliminary: bool = False) -> ChunkJob:
+    """Lay out (:func:`choose_layout`), cut and schedule a placed solid; the chunks' work is
+    estimated from their volume here. ``preliminary``: :func:`coop_job` schedules again from the
+    sliced paths, so an exact schedule is left for then (a list schedule stands in)."""
+    from cooprint.scheduling.graph import work_from_volume
+
+    if not 1 <= robots <= MAX_ROBOTS:
+        raise UserError(f"--robots {robots}: expected 1 to {MAX_ROBOTS}")
     cut_progress = (lambda d, t: progress("cut", d, t)) if progress else None
-    chunks = cut_chunks(solid, plan, cut_progress)
-    return ChunkJob(solid, settings, chunks, assign(chunks, robot_names(robots)), placement)
+    chunks = choose_layout(solid, settings, robots, cut_progress)
+    if chunks.layout == "seed2":
+        safe = safe_top_width(settings.robot, robots)
+        if chunks.plan.mode == "cut" and chunks.plan.top_width < safe:
+            warn(f"chunking.top_width = {chunks.plan.top_width:g} mm is narrower than the two printheads "
+                 f"(2 x robot.nozzle_depth = {safe:g} mm): the robots printing the centre chunk's two neighbours "
+                 "may meet near its top (the simulator's robots-collide says whether they do)")
+    dag = chunk_dag(chunks, settings, work_from_volume(chunks, settings.robot, settings.slicing))
+    quick = settings
+    if preliminary and settings.scheduling.strategy == "exact":
+        quick = replace(settings, scheduling=replace(settings.scheduling, strategy="list"))
+    sched = make_schedule_for(dag, chunks, quick, robots)
+    return ChunkJob(solid, settings, chunks, sched, placement, dag)
+
+
+def chunk_dag(chunks: ChunkSet, settings: JobSettings, work: dict[str, float],
+              ends: dict[str, tuple[np.ndarray, np.ndarray]] | None = None) -> "ChunkDAG":
+    """The scheduling record of ``chunks`` (:func:`cooprint.scheduling.graph.build_dag`): the
+    precedences, the body rule and the exclusions for this robot, with ``work`` (s per chunk)."""
+    from cooprint.scheduling.graph import build_dag
+
+    return build_dag(chunks, settings.robot, settings.program.clearance, work, settings.robot.travel_speed, ends)
+
+
+def make_schedule_for(dag: "ChunkDAG", chunks: ChunkSet, settings: JobSettings, robots: int) -> Schedule:
+    """Schedule ``dag`` for ``robots`` robots with the strategy of ``settings.scheduling``
+    (``auto``: the seed's order for the seed2 layout, list scheduling otherwise)."""
+    from cooprint.scheduling import make_schedule
+
+    strategy = settings.scheduling.strategy
+    if strategy == "auto":
+        strategy = "seed" if chunks.layout == "seed2" else "list"
+    if strategy == "seed" and chunks.layout != "seed2":
+        raise UserError(f"scheduling.strategy = seed: the seed's order is for the seed2 layout, this is "
+                        f"{chunks.layout}; use list or exact")
+    return make_schedule(dag, robot_names(robots), replace(settings.scheduling, strategy=strategy), chunks)
+
+
+def choose_layout(solid: Solid, settings: JobSettings, robots: int,
+                  progress: Callable[[int, int], None] | None = None) -> ChunkSet:
+    """The chunk layout of ``settings.chunking.layout``; ``auto``: the seed's (seed2) for one or
+    two robots when the part fits it (the issue's default), else the grid with the column width
+    whose list schedule (volume-estimated work) finishes first."""
+    from cooprint.chunking.layouts import LAYOUTS
+    from cooprint.scheduling.graph import work_from_volume
+
+    name = settings.chunking.layout
+    if name != "auto":
+        return LAYOUTS[name](solid, settings, robots, progress)
+    if robots <= 2:  # the grid's rows are seed2's: a part seed2 refuses, the grid refuses too
+        return LAYOUTS["seed2"](solid, settings, robots, progress)
+    if settings.chunking.column_width is not None:
+        return LAYOUTS["grid"](solid, settings, robots, progress)
+    best: tuple[float, ChunkSet] | None = None
+    first = LAYOUTS["grid"](solid, settings, robots, progress)
+    widths = [None] + [w for w in _wider_columns(first) if w]
+    for width in widths:
+        try:
+            chunks = first if width is None else LAYOUTS["grid"](
+                solid, replace(settings, chunking=replace(settings.chunking, column_width=width)), robots, None)
+        except UserError:
+            continue
+        dag = chunk_dag(chunks, settings, work_from_volume(chunks, settings.robot, settings.slicing))
+        est = make_schedule_for(dag, chunks, replace(settings, scheduling=replace(settings.scheduling,
+                                                                                  strategy="list")), robots)
+        if best is None or est.makespan < best[0] * (1 - 1e-9):
+            best = (est.makespan, chunks)
+    assert best is not None
+    return best[1]
+
+
+def _wider_columns(chunks: ChunkSet) -> list[float]:
+    """Wider column widths for ``auto`` to weigh against the grid's default (fewer, larger
+    columns: less waiting between neighbours, less parallel work)."""
+    width = getattr(chunks.plan, "column_width", None)
+    return [1.5 * width, 2.0 * width] if width else []
 
 
 def job_record(job: ChunkJob) -> dict[str, Any]:
-    """The ``job.json`` content: settings, robots, chunk table, schedule, statistics."""
+    """The ``job.json`` content: settings, robots, chunk table (with each chunk's place, its
+    constraints and its scheduled times), schedule (with the lower bound, the gap to it and the
+    critical path), statistics."""
     ch, asg = job.chunks, job.assignment
     rows = []
     axis = np.asarray(ch.plan.axis)
+    dag = job.dag
     for c in ch.chunks:
         lo, hi = c.bounds
-        rows.append({
-            "id": c.id, "role": c.role, "robot": asg.robot_of(c.id), "order": asg.order_of(c.id),
+        row: dict[str, Any] = {
+            "id": c.id, "role": c.role, "row": c.row, "col": c.col,
+            "facing": None if c.facing is None else list(c.facing),
+            "robot": asg.robot_of(c.id), "order": asg.order_of(c.id),
             "deps": list(ch.deps[c.id]), "volume_mm3": c.volume,
             "reach_mm": float(np.ptp(c.vertices @ axis)),
             "bbox": [lo.tolist(), hi.tolist()], "triangles": int(len(c.faces)),
             "planes": [p.to_dict() for p in c.planes], "file": f"chunks/{c.id}.stl",
-        })
+        }
+        if dag is not None:
+            excl = dag.exclusive_with()
+            row |= {"body_deps": list(dag.body_deps.get(c.id, ())), "exclusive": sorted(excl[c.id]),
+                    "work_s": float(dag.work[dag.index[c.id]])}
+        if isinstance(asg, Schedule):
+            row |= {"start_s": asg.start[c.id], "end_s": asg.end[c.id]}
+        rows.append(row)
     rel = abs(ch.volume - ch.solid_volume) / ch.solid_volume
+    schedule: dict[str, Any] = {
+        "strategy": asg.strategy, "sequences": {r: list(s) for r, s in asg.sequences.items()},
+        "sync": [{"after": b, "before": a} for b, a in asg.cross_robot_deps(ch.deps)]}
+    if isinstance(asg, Schedule):
+        schedule |= {"makespan_s": asg.makespan, "lower_bound_s": asg.lower_bound, "gap": asg.gap,
+                     "bound_s": asg.bound, "note": asg.note, "idle_robots": list(asg.idle_robots)}
+    if dag is not None:
+        length, path = dag.critical_path()
+        schedule |= {"critical_path": list(path), "critical_path_s": length,
+                     "total_work_s": float(dag.work.sum()), "exclusive_pairs": len(dag.exclusive)}
     return {
         "format": "cooprint-job/1",
+        "layout": ch.layout,
         "mesh": job.solid.report.to_dict() | ({"placement": job.placement.to_dict()} if job.placement else {}),
         "settings": job.settings.to_dict(),
         "plan": ch.plan.to_dict(),
         "robots": [{"name": r, "profile": job.settings.robot.name, "chunks": list(seq)}
                    for r, seq in asg.sequences.items()],
         "chunks": rows,
-        "schedule": {"strategy": asg.strategy, "sequences": {r: list(s) for r, s in asg.sequences.items()},
-                     "sync": [{"after": b, "before": a} for b, a in asg.cross_robot_deps(ch.deps)]},
+        "schedule": schedule,
         "stats": {"chunks": len(ch.chunks), "volume_mm3": ch.volume, "solid_volume_mm3": ch.solid_volume,
                   "volume_rel_error": rel},
     }
@@ -306,7 +411,7 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     settings = settings or load_settings()
     solid, placement = _load_with_progress(mesh, settings, progress)
     _check_work(solid, settings.slicing)  # before the cuts
-    chunked = _chunk_placed(solid, placement, settings, robots, progress)
+    chunked = _chunk_placed(solid, placement, settings, robots, progress, preliminary=True)
     s = settings.slicing
     base = float(chunked.solid.bounds[0, 2])
     layers: dict[str, list] = {}
@@ -321,16 +426,37 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
             progress("slice", done, total)
     if progress:
         progress("program", 0, 1)
+    chunked = _rescheduled(chunked, layers, robots)
     material = MaterialIndex.of(chunked.chunks.chunks, margin=max(s.layer_height, s.first_layer_height))
-    programs, placements = robot_programs(
-        dict(chunked.assignment.sequences), layers, chunked.chunks.deps, material,
-        reach=settings.robot.nozzle_depth, clearance=settings.program.clearance,
-        axis=chunked.chunks.plan.axis, roles={c.id: c.role for c in chunked.chunks.chunks},
-        body=BodySize(settings.robot.build_depth, settings.robot.body_length, settings.robot.body_width,
-                      settings.robot.frame_width))  # None: as wide as the body
+    if chunked.assignment.strategy == "seed":
+        programs, placements = robot_programs(
+            dict(chunked.assignment.sequences), layers, chunked.chunks.deps, material,
+            reach=settings.robot.nozzle_depth, clearance=settings.program.clearance,
+            axis=chunked.chunks.plan.axis, roles={c.id: c.role for c in chunked.chunks.chunks},
+            body=BodySize(settings.robot.build_depth, settings.robot.body_length, settings.robot.body_width,
+                          settings.robot.frame_width))  # None: as wide as the body
+    else:
+        from cooprint.program.fleet import fleet_programs
+
+        assert isinstance(chunked.assignment, Schedule) and chunked.dag is not None
+        programs, placements = fleet_programs(chunked.assignment, chunked.dag, layers, material,
+                                              {r: settings.robot for r in chunked.assignment.sequences},
+                                              settings.program.clearance)
     if progress:
         progress("program", 1, 1)
     return CoopJob(chunked, layers, programs, placements)
+
+
+def _rescheduled(chunked: ChunkJob, layers: dict[str, list], robots: int) -> ChunkJob:
+    """The job scheduled again with each chunk's work timed from its sliced paths (the volume
+    estimate of :func:`chunk_job` was for the choice of layout) and its real first and last
+    points (for the travel between chunks)."""
+    from cooprint.scheduling.graph import ends_from_layers, work_from_layers
+
+    settings = chunked.settings
+    dag = chunk_dag(chunked.chunks, settings, work_from_layers(layers, settings.robot, settings.slicing),
+                    ends_from_layers(layers))
+    return replace(chunked, dag=dag, assignment=make_schedule_for(dag, chunked.chunks, settings, robots))
 
 
 def program_stats(program: Any, s: SlicingSettings) -> dict[str, Any]:
