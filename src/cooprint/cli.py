@@ -248,13 +248,33 @@ def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], o
         from cooprint.io.place import Placement
 
         click.echo(Placement.from_dict(record["mesh"]["placement"]).describe())
-    if plan.get("mode") == "whole":
+    if plan.get("mode") == "whole" and len(record["chunks"]) == 1:
         click.echo(f"1 chunk: the part is within the build depth {plan['build_depth_mm']:g} mm (no cut)")
     else:
-        click.echo(f"{len(record['chunks'])} chunks, theta {plan['theta_deg']:.2f} deg (limits "
-                   f"{plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), shift {plan['shift_mm']:.1f} mm, "
-                   f"volume error {st['volume_rel_error']:.1e}")
+        click.echo(f"{len(record['chunks'])} chunks ({record.get('layout', 'seed2')} layout), theta "
+                   f"{plan['theta_deg']:.2f} deg (limits {plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), "
+                   f"shift {plan['shift_mm']:.1f} mm, volume error {st['volume_rel_error']:.1e}")
+    line = schedule_line(record["schedule"])
+    if line:
+        click.echo(line)
     return record
+
+
+def schedule_line(sched: dict[str, Any]) -> str:
+    """One line on the schedule: strategy, estimated makespan, the lower bound and the gap to it,
+    idle robots, and the scheduler's note (a fallback, a time limit)."""
+    if "makespan_s" not in sched:
+        return ""
+    text = (f"schedule ({sched['strategy']}): makespan estimate {sched['makespan_s'] / 3600:.2f} h, lower bound "
+            f"{sched['lower_bound_s'] / 3600:.2f} h (+{100 * sched['gap']:.1f}%)")
+    if sched.get("bound_s"):
+        text += f", proven bound {sched['bound_s'] / 3600:.2f} h"
+    idle = sched.get("idle_robots") or []
+    if idle:
+        text += f"; {len(idle)} robot{'s' if len(idle) > 1 else ''} idle ({', '.join(idle[:8])}{', ...' if len(idle) > 8 else ''}): more robots than the part has room or work for"
+    if sched.get("note"):
+        text += f"; {sched['note']}"
+    return text
 
 
 @cli.command()
