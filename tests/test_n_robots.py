@@ -1,0 +1,123 @@
+"""N robots end to end (issue 14): `cooprint run --robots N --layout grid` writes a plan whose own
+simulation is clean, at constant speed and with every robot's speed perturbed; job.json records the
+DAG, the schedule, its lower bound and its gap; bad robot counts and layouts are refused."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import solids
+from badinput import assert_rejected
+from cooprint.cli import main
+from cooprint.config import load_settings
+from cooprint.io.bundle import write_stl
+from cooprint.jobs import coop_job
+from cooprint.simulation import load_inputs, simulate
+
+# a slab with a 2 mm nozzle: the same logic as the defaults at a fraction of the work
+BIG = {"slicing.nozzle_diameter": 2.0, "slicing.layer_height": 1.6, "slicing.first_layer_height": 1.6,
+       "slicing.extrusion_width": 3.0, "slicing.infill_density": 0.05, "slicing.top_layers": 1,
+       "slicing.bottom_layers": 1, "slicing.perimeters": 1}
+FLAGS = [f"--set={k}={v}" for k, v in BIG.items()]
+
+
+@pytest.fixture(scope="module")
+def slab(tmp_path_factory):
+    """A 1500 x 800 x 20 mm slab as an STL file."""
+    path = tmp_path_factory.mktemp("slab") / "slab.stl"
+    mesh = solids.plate().to_mesh64()
+    import numpy as np
+
+    write_stl(path, np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts), name="slab")
+    return path
+
+
+@pytest.mark.parametrize("robots", [4, 9])
+def test_grid_plan_is_clean_and_records_its_bound(slab, tmp_path, robots, capsys):
+    out = tmp_path / f"n{robots}"
+    code = main(["run", str(slab), "--out", str(out), "--robots", str(robots), "--layout", "grid", "--simulate",
+                 "--strict", *FLAGS])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    record = json.loads((out / "job.json").read_text())
+    assert record["layout"] == "grid"
+    sched = record["schedule"]
+    # the schedule's estimate can never beat its own lower bound; the simulated makespan neither
+    assert sched["makespan_s"] >= sched["lower_bound_s"] - 1e-6
+    assert sched["gap"] == pytest.approx(sched["makespan_s"] / sched["lower_bound_s"] - 1, abs=1e-9)
+    summary = json.loads((out / "sim" / "summary.json").read_text())
+    assert summary["makespan_s"] >= sched["lower_bound_s"] * (1 - 1e-6)
+    assert sum(summary["finding_counts"].values()) == 0
+    assert "lower bound" in text
+    busy = [r for r in record["robots"] if r["chunks"]]
+    assert len(busy) >= min(robots, 2)
+    # every chunk after its dependencies in the schedule's times
+    times = {c["id"]: (c["start_s"], c["end_s"]) for c in record["chunks"]}
+    for c in record["chunks"]:
+        for d in c["deps"] + c["body_deps"]:
+            assert times[d][1] <= times[c["id"]][0] + 1e-6
+        for e in c["exclusive"]:
+            a, b = times[c["id"]], times[e]
+            assert a[1] <= b[0] + 1e-6 or b[1] <= a[0] + 1e-6
+
+
+def test_grid_plan_is_clean_under_perturbation(slab, tmp_path, capsys):
+    out = tmp_path / "n4"
+    assert main(["run", str(slab), "--out", str(out), "--robots", "4", "--layout", "grid", "-q", *FLAGS]) == 0
+    sim = tmp_path / "sim"
+    code = main(["simulate", str(out), "--out", str(sim), "--perturb", "0.3", "--runs", "5", "--seed", "1"])
+    text = capsys.readouterr()
+    assert code == 0, text.out + text.err
+    summary = json.loads((sim / "summary.json").read_text())
+    runs = summary["perturb"]
+    assert len(runs["runs"]) == 5
+    assert all(sum(r["finding_counts"].values()) == 0 for r in runs["runs"])
+
+
+def test_more_robots_than_work_are_idle_not_an_error():
+    settings = load_settings(overrides=BIG)
+    from cooprint.jobs import chunk_job
+    from test_plans import as_solid
+
+    job = chunk_job(as_solid(solids.box(200.0, 200.0, 20.0), "small"), settings, robots=12)
+    idle = job.assignment.idle_robots
+    assert len(idle) >= 12 - len(job.chunks.chunks)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--robots", "0"], "0"),
+    (["--robots", "65"], "65"),
+    (["--robots", "3", "--layout", "seed2"], "seed2"),
+    (["--layout", "grid", "--schedule", "seed"], "seed"),
+    (["--layout", "grid", "--column-width", "100"], "column"),
+])
+def test_bad_fleet_settings_are_refused(slab, tmp_path, capsys, args, words):
+    line = assert_rejected(["run", str(slab), "--out", str(tmp_path / "o"), *args, *FLAGS], capsys, watch=[tmp_path])
+    assert words in line
+
+
+def test_exact_schedule_reports_its_bound(slab, tmp_path):
+    settings = load_settings(overrides={**BIG, "chunking.layout": "grid", "scheduling.strategy": "exact",
+                                        "scheduling.time_limit_s": 5.0})
+    from test_plans import as_solid
+
+    job = coop_job(as_solid(solids.plate(), "slab"), settings, robots=4)
+    sched = job.chunked.assignment
+    assert sched.strategy in ("exact", "list")
+    if sched.strategy == "exact":
+        assert sched.bound is not None and sched.bound <= sched.makespan + 1e-6
+    else:
+        assert sched.note  # a fallback is said
+    assert sched.makespan >= sched.lower_bound - 1e-6
+    result = simulate(load_inputs_from_job(job, tmp_path))
+    assert not [f for f in result.findings if f.severity == "error"]
+
+
+def load_inputs_from_job(job, tmp_path):
+    from cooprint.jobs import write_coop_bundle
+
+    out = tmp_path / "bundle"
+    write_coop_bundle(job, out, picture=False)
+    return load_inputs([str(out)])
