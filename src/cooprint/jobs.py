@@ -424,7 +424,7 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
         if picture:
             from cooprint.render.chunks import render_chunks
 
-            render_chunks(job.chunked.chunks, tmp / "chunks.png")
+            render_chunks(job.chunked.chunks, tmp / "chunks.png", schedule=job.chunked.assignment)  # by robot
             record["picture"] = "chunks.png"
         write_json(tmp / "job.json", record)
     return record

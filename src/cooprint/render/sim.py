@@ -410,7 +410,7 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     label_font = _font(min(13, max(9, bar - 4)))
     title = f"makespan {_hms(result.makespan)} ({result.makespan:.0f} s)"
     if lower_bound:
-        title += f"   lower bound {_hms(lower_bound)} ({lower_bound:.0f} s, makespan +{result.makespan / lower_bound - 1:.1%})"
+        title += f"   lower bound {_hms(lower_bound)} ({lower_bound:.0f} s; makespan {result.makespan / lower_bound - 1:+.1%})"
     draw.text((left, 12), title, fill=(20, 20, 20), font=_font(20))
     for i, r in enumerate(result.robots):
         tl = result.timelines[r.name]
