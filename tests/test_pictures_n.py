@@ -17,7 +17,7 @@ from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.jobs import chunk_job, robot_names
 from cooprint.models import car
 from cooprint.program.commands import parse_coop
-from cooprint.render.chunks import CENTRE_COLOUR, render_chunks
+from cooprint.render.chunks import CENTRE_COLOUR, UNASSIGNED_COLOUR, order_label, render_chunks
 from cooprint.render.palette import robot_colour, robot_palette
 from cooprint.render.sim import BOUND_COLOUR, CRITICAL_COLOUR, WAIT_COLOUR, gantt_height, render_gantt
 from cooprint.scheduling import Assignment
@@ -94,6 +94,13 @@ def test_chunk_picture_of_200_chunks_and_16_robots(tmp_path):
     # labels: each a white box, fewer than the chunks where they would overlap, and some drawn
     white = (np.abs(img - 255).sum(axis=-1) < 3)[100:]
     assert 200 * 30 < white.sum()
+
+
+def test_labels_say_robot_and_order_and_a_chunk_of_no_robot_is_grey(car_chunks, tmp_path):
+    assert order_label("B", 2) == "B3" and order_label("R27", 0) == "R27#1"  # not "R271"
+    ids = [c.id for c in car_chunks.chunks]
+    img = _pixels(render_chunks(car_chunks, tmp_path / "u.png", schedule=Assignment({"A": tuple(ids[1:])}, "test")))
+    assert _shaded(img[100:], UNASSIGNED_COLOUR) > 500 and _shaded(img[100:], robot_colour(0)) > 2000
 
 
 def _gantt_result(n: int):

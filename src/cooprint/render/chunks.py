@@ -103,6 +103,26 @@ RADIAL_EXPLODE = 6.0
 LABEL_SIZES = ((20, 18), (80, 14), (10**9, 11))
 
 
+#: A chunk the schedule gives to no robot (drawn anyway, so that the gap shows).
+UNASSIGNED_COLOUR = (170, 170, 170)
+
+
+def order_label(robot: str, order: int) -> str:
+    """A chunk's label: its robot and its place in that robot's order, from 1 ("B3": robot B's
+    third chunk); a ``#`` between them when the robot's name ends in a digit ("R27#3", not
+    "R273")."""
+    return f"{robot}{'#' if robot[-1:].isdigit() else ''}{order + 1}"
+
+
+def _robot_of(schedule: "Assignment | None", cid: str) -> str | None:
+    if schedule is None:
+        return None
+    try:
+        return schedule.robot_of(cid)
+    except KeyError:
+        return None
+
+
 def render_chunks(chunks: ChunkSet, path: str | Path, size: tuple[int, int] = (1200, 800),
                   azimuth_deg: float = -35.0, elevation_deg: float = 22.0,
                   explode: float = 0.025, title: str | None = None,
@@ -174,10 +194,12 @@ def render_chunks(chunks: ChunkSet, path: str | Path, size: tuple[int, int] = (1
         proj = tri[:, :, :3] @ basis.T
         depth = proj[:, :, 2].mean(axis=1)
         order = np.argsort(depth, kind="stable")  # far (small depth) first
-        if schedule is not None:
-            robot = schedule.robot_of(ch.id)
+        robot = _robot_of(schedule, ch.id)
+        if robot is not None:
             colour = np.asarray(robot_colour(robots.index(robot)), dtype=np.float64)
-            text = f"{robot}{schedule.order_of(ch.id) + 1}"
+            text = order_label(robot, schedule.order_of(ch.id))  # type: ignore[union-attr]
+        elif schedule is not None:  # a chunk no robot prints: grey, by its id
+            colour, text = np.asarray(UNASSIGNED_COLOUR, dtype=np.float64), ch.id
         else:
             robot, colour, text = None, np.asarray(chunk_colour(ch.role, ch.index), dtype=np.float64), ch.id
         polys.append(proj[order, :, :2])

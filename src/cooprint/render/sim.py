@@ -17,11 +17,12 @@ from PIL import Image, ImageDraw
 
 from cooprint.errors import UserError
 from cooprint.render.chunks import BACKGROUND, _font, _view_basis
-from cooprint.render.palette import FIXED as ROBOT_COLOURS, robot_colour
+from cooprint.render.palette import FIXED, robot_colour
 from cooprint.render.paths import _fit
 from cooprint.simulation import SimResult
 from cooprint.simulation.checks import body_corners, outline_corners
 
+ROBOT_COLOURS = FIXED  # the first robots' colours (render/palette.py)
 WAIT_COLOUR = (235, 200, 60)
 TRAVEL_COLOUR = (185, 185, 185)
 #: The frame of a chunk on the schedule's critical path, and the lower bound's line, in the Gantt chart.
@@ -356,14 +357,13 @@ def _overlay(draw: ImageDraw.ImageDraw, scene: _Scene, t: float, size: tuple[int
 #: Gantt rows: the pitch (pixels from one robot's row to the next) for few robots, the least for
 #: many; the picture grows with the count rather than squeezing rows below the least.
 ROW_PITCH, MIN_ROW_PITCH = 60, 18
+#: Height of the Gantt chart's header (title and legend) and of its time axis, pixels.
+GANTT_TOP, GANTT_AXIS = 80, 60
 
 
 def gantt_height(robots: int) -> int:
-    """Height of the Gantt chart of ``robots`` rows, pixels: a header, one row per robot, the axis."""
-    return _GANTT_TOP + _row_pitch(robots) * robots + 60
-
-
-_GANTT_TOP = 80
+    """Height of the Gantt chart of ``robots`` rows, pixels: the header, one row per robot, the axis."""
+    return GANTT_TOP + _row_pitch(robots) * robots + GANTT_AXIS
 
 
 def _row_pitch(robots: int) -> int:
@@ -398,7 +398,7 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     w = size[0]
     img = Image.new("RGB", (w, h), BACKGROUND)
     draw = ImageDraw.Draw(img)
-    left, right, top = 110, w - 30, _GANTT_TOP
+    left, right, top = 110, w - 30, GANTT_TOP
     span = max(result.makespan, lower_bound or 0.0, 1e-9)
     marked = set(critical or ())
 
