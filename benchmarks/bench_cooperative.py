@@ -357,8 +357,8 @@ def render(result: dict) -> str:
         "`../shared/meshes`. *est* is the scheduler's makespan (nominal speeds), *LB* = max(critical path, total "
         "work / N), *gap* = makespan / LB - 1 (the scheduler's and the simulated one), speed-up T1/TN and "
         "efficiency T1/(N TN) from the simulated constant-speed makespans, *sched s* the wall time spent in "
-        "`cooprint.scheduling` (not slicing), *errors* the error-level findings of both simulations. Rows marked "
-        "*seed2* use the seed's two-robot layout, *exact* the CP-SAT scheduler (jobs of at most "
+        "`cooprint.scheduling` (not slicing), *errors* the error-level findings of both simulations; *k idle* "
+        "after N: robots the schedule gave no chunk. Rows marked *seed2* use the seed's two-robot layout, *exact* the CP-SAT scheduler (jobs of at most "
         f"{EXACT_MAX_CHUNKS} chunks). A layout or strategy shown other than asked is the one cooprint used.",
         "",
         f"**Targets (issue 14):** gap to LB <= {GAP_LIST:.0%} (list) and <= {GAP_EXACT:.0%} (exact) on every job; "
@@ -382,8 +382,9 @@ def render(result: dict) -> str:
                 continue
             shown = lambda got, asked: got if _same(got, asked) else f"{got} (asked {asked})"  # noqa: E731
             errs = ", ".join(f"{k} {v:,}" for k, v in r["errors"].items()) or "0"
+            idle = f", {len(r['idle'])} idle" if r.get("idle") else ""
             lines.append(
-                f"| {r['robots']}{variant} | {shown(r['layout'], r['layout_asked'])} | "
+                f"| {r['robots']}{variant}{idle} | {shown(r['layout'], r['layout_asked'])} | "
                 f"{shown(r['strategy'], r['strategy_asked'])} | {r['chunks']} | {_h(r.get('estimate_s'))} | "
                 f"{_h(r.get('lb_s'))} | {_pct(r.get('gap_est'))} | {_h(r['makespan_s'])} | "
                 f"{_h(r['makespan_accel_s'])} | {_pct(r.get('gap_sim'))} | {fmt(r.get('speedup'), '.2f')} | "
