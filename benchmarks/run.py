@@ -21,12 +21,13 @@ import sys
 from pathlib import Path
 
 import bench_chunking
+import bench_cooperative
 import bench_plans
 import bench_simulation
 import bench_slicing
 from harness import BenchContext, plural, resolve_meshes
 
-STAGES = [bench_chunking, bench_slicing, bench_simulation, bench_plans]
+STAGES = [bench_chunking, bench_slicing, bench_simulation, bench_plans, bench_cooperative]
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 WORK = REPO / "benchmarks" / "_work"

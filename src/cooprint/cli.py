@@ -537,7 +537,8 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     else:
         raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
-    result = run_sim(load_inputs(list(inputs), manifest), checks=False)
+    inp = load_inputs(list(inputs), manifest)
+    result = run_sim(inp, checks=False)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
@@ -550,7 +551,7 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
         if fmt in ("mp4", "gif"):  # the temporary file keeps the suffix the encoder names its format from
             render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup)
         elif fmt == "gantt":
-            render_gantt(result, tmp)
+            render_gantt(result, tmp, critical=inp.critical_path, lower_bound=inp.lower_bound)
         else:
             render_snapshot(result, t, tmp)
     click.echo(f"wrote {target}")

@@ -550,7 +550,7 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
         if picture:
             from cooprint.render.chunks import render_chunks
 
-            render_chunks(job.chunked.chunks, tmp / "chunks.png")
+            render_chunks(job.chunked.chunks, tmp / "chunks.png", schedule=job.chunked.assignment)  # by robot
             record["picture"] = "chunks.png"
         write_json(tmp / "job.json", record)
     return record
@@ -579,11 +579,12 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
 
     out = Path(out)
     check_sim_folder(out / "sim")  # before the work, not after
-    result = simulate(load_inputs([str(out)]))
+    inp = load_inputs([str(out)])
+    result = simulate(inp)
     record = summary(result)
     with atomic_dir(out / "sim", force=True, sim=True) as tmp:
         write_json(tmp / "summary.json", record)
-        render_gantt(result, tmp / "gantt.png")
+        render_gantt(result, tmp / "gantt.png", critical=inp.critical_path, lower_bound=inp.lower_bound)
         render_snapshot(result, result.makespan / 2 if snapshot_at is None else snapshot_at, tmp / "snapshot.png")
         if animation:
             render_animation(result, tmp / "animation.mp4", fps=24, duration=20)

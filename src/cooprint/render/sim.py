@@ -10,23 +10,28 @@ import os
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 from PIL import Image, ImageDraw
 
 from cooprint.errors import UserError
 from cooprint.render.chunks import BACKGROUND, _font, _view_basis
+from cooprint.render.palette import FIXED, robot_colour
 from cooprint.render.paths import _fit
 from cooprint.simulation import SimResult
 from cooprint.simulation.checks import body_corners, outline_corners
 
-ROBOT_COLOURS = [(214, 96, 77), (67, 147, 195), (90, 170, 90), (200, 150, 40), (150, 100, 190), (120, 120, 120)]
+ROBOT_COLOURS = FIXED  # the first robots' colours (render/palette.py)
 WAIT_COLOUR = (235, 200, 60)
 TRAVEL_COLOUR = (185, 185, 185)
+#: The frame of a chunk on the schedule's critical path, and the lower bound's line, in the Gantt chart.
+CRITICAL_COLOUR = (204, 0, 0)
+BOUND_COLOUR = (40, 40, 40)
 
 
 def _colour(i: int) -> tuple[int, int, int]:
-    return ROBOT_COLOURS[i % len(ROBOT_COLOURS)]
+    return robot_colour(i)
 
 
 def _hms(t: float) -> str:
@@ -349,25 +354,69 @@ def _overlay(draw: ImageDraw.ImageDraw, scene: _Scene, t: float, size: tuple[int
             break
 
 
-def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1200, 0)) -> Path:
-    """Per robot, when it prints (its colour), travels (grey) and waits (yellow), on one time axis."""
+#: Gantt rows: the pitch (pixels from one robot's row to the next) for few robots, the least for
+#: many; the picture grows with the count rather than squeezing rows below the least.
+ROW_PITCH, MIN_ROW_PITCH = 60, 18
+#: Height of the Gantt chart's header (title and legend) and of its time axis, pixels.
+GANTT_TOP, GANTT_AXIS = 80, 60
+
+
+def gantt_height(robots: int) -> int:
+    """Height of the Gantt chart of ``robots`` rows, pixels: the header, one row per robot, the axis."""
+    return GANTT_TOP + _row_pitch(robots) * robots + GANTT_AXIS
+
+
+def _row_pitch(robots: int) -> int:
+    """Row pitch for ``robots`` rows: 60 px up to 8 robots, then shrinking so that the chart stays
+    under about 1000 px, never below ``MIN_ROW_PITCH`` (64 robots: 18 px rows, 1.3k px tall)."""
+    return max(MIN_ROW_PITCH, min(ROW_PITCH, 960 // max(robots, 1)))
+
+
+def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1200, 0),
+                 critical: Sequence[str] | None = None, lower_bound: float | None = None) -> Path:
+    """Per robot, when it prints (its colour), travels (grey) and waits (yellow), on one time axis.
+
+    One row per robot (any count; rows get thinner from 9 robots on, down to ``MIN_ROW_PITCH``,
+    and the picture taller, see :func:`gantt_height`). Each chunk's printing is labelled with
+    its id where the bar is wide enough.
+
+    Parameters
+    ----------
+    size
+        Width and height, pixels; height 0: :func:`gantt_height`.
+    critical
+        Chunk ids of the schedule's critical path (job.json ``schedule.critical_path``): the
+        printing of each is framed in red, so the chain that bounds the makespan can be seen.
+    lower_bound
+        The schedule's lower bound LB, s (job.json ``schedule.lower_bound_s``): a dashed vertical
+        line, so the distance from the simulated makespan to the best possible can be seen.
+    """
     rows = len(result.robots)
-    h = size[1] or 120 + 60 * rows
+    pitch = _row_pitch(rows)
+    bar = max(10, int(pitch * 2 / 3))
+    h = size[1] or gantt_height(rows)
     w = size[0]
     img = Image.new("RGB", (w, h), BACKGROUND)
     draw = ImageDraw.Draw(img)
-    left, right, top = 110, w - 30, 60
-    span = max(result.makespan, 1e-9)
+    left, right, top = 110, w - 30, GANTT_TOP
+    span = max(result.makespan, lower_bound or 0.0, 1e-9)
+    marked = set(critical or ())
 
     def x(t: np.ndarray | float) -> np.ndarray:
         return left + (np.asarray(t) / span) * (right - left)
 
     font = _font(16)
-    draw.text((left, 15), f"makespan {_hms(span)} ({span:.0f} s)", fill=(20, 20, 20), font=_font(20))
+    row_font = _font(min(16, max(10, bar - 2)))
+    label_font = _font(min(13, max(9, bar - 4)))
+    title = f"makespan {_hms(result.makespan)} ({result.makespan:.0f} s)"
+    if lower_bound:
+        title += f"   lower bound {_hms(lower_bound)} ({lower_bound:.0f} s; makespan {result.makespan / lower_bound - 1:+.1%})"
+    draw.text((left, 12), title, fill=(20, 20, 20), font=_font(20))
     for i, r in enumerate(result.robots):
         tl = result.timelines[r.name]
-        y0, y1 = top + 60 * i, top + 60 * i + 40
-        draw.text((15, y0 + 10), f"robot {r.name}", fill=_colour(i), font=font)
+        y0 = top + pitch * i
+        y1 = y0 + bar
+        draw.text((15, y0 + (bar - 16) / 2 if bar >= 16 else y0), f"robot {r.name}", fill=_colour(i), font=row_font)
         for on, colour in ((False, TRAVEL_COLOUR), (True, _colour(i))):
             sel = tl.on == on
             a, b = x(tl.t0[sel]), x(tl.t1[sel])
@@ -377,22 +426,62 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
         for a, b, _ in tl.waits:
             if b > a:
                 draw.rectangle([float(x(a)), y0, float(x(b)), y1], fill=WAIT_COLOUR)
+        for cid, t_a, t_b in _chunk_spans(r, tl):
+            xa, xb = float(x(t_a)), float(x(t_b))
+            if cid in marked:
+                frame = [xa - 1, y0 - 2, max(xb, xa + 2) + 1, y1 + 2]
+                draw.rectangle(frame, outline=CRITICAL_COLOUR, width=3)  # white inside: apart from a red robot's bar
+                draw.rectangle([frame[0] + 3, frame[1] + 3, frame[2] - 3, frame[3] - 3], outline=(255, 255, 255))
+            box = draw.textbbox((0, 0), cid, font=label_font)
+            if xb - xa > box[2] - box[0] + 6 and bar >= 12:
+                draw.text(((xa + xb) / 2, (y0 + y1) / 2), cid, fill=(255, 255, 255), font=label_font, anchor="mm")
     # time axis
-    y = top + 60 * rows
+    y = top + pitch * rows
     draw.line([(left, y), (right, y)], fill=(60, 60, 60))
     step = _nice_step(span / 8)
     for k in range(int(span // step) + 1):
         t = k * step
         draw.line([(float(x(t)), y), (float(x(t)), y + 6)], fill=(60, 60, 60))
         draw.text((float(x(t)) - 20, y + 8), _hms(t), fill=(60, 60, 60), font=_font(13))
+    if lower_bound:
+        xb = float(x(lower_bound))
+        for ya in range(top - 6, y, 12):  # dashed
+            draw.line([(xb, ya), (xb, min(ya + 6, y))], fill=BOUND_COLOUR, width=2)
+    legend = [("printing", _colour(0)), ("travelling", TRAVEL_COLOUR), ("waiting", WAIT_COLOUR)]
     lx = left
-    for label, colour in (("printing", _colour(0)), ("travelling", TRAVEL_COLOUR), ("waiting", WAIT_COLOUR)):
-        draw.rectangle([lx + 250, 20, lx + 268, 34], fill=colour)
-        draw.text((lx + 274, 17), label, fill=(40, 40, 40), font=font)
+    for label, colour in legend:
+        draw.rectangle([lx, 47, lx + 18, 61], fill=colour)
+        draw.text((lx + 24, 44), label, fill=(40, 40, 40), font=font)
         lx += 130
+    if marked:
+        draw.rectangle([lx, 46, lx + 18, 62], outline=CRITICAL_COLOUR, width=3)
+        draw.text((lx + 24, 44), "critical path", fill=(40, 40, 40), font=font)
+        lx += 150
+    if lower_bound:
+        for ya in (46, 56):
+            draw.line([(lx + 9, ya), (lx + 9, ya + 5)], fill=BOUND_COLOUR, width=2)
+        draw.text((lx + 24, 44), "lower bound", fill=(40, 40, 40), font=font)
     path = Path(path)
     img.save(path, format="PNG")
     return path
+
+
+def _chunk_spans(robot, tl) -> list[tuple[str, float, float]]:
+    """``(chunk id, first print start, last print end)`` of each chunk the robot prints, from its
+    program's chunk column (the moves between chunks, chunk -1, belong to none)."""
+    prog = robot.program
+    if not len(tl.index) or not prog.chunks:
+        return []
+    chunk = np.asarray(prog.chunk)[tl.index]
+    sel = tl.on & (chunk >= 0)
+    if not sel.any():
+        return []
+    k, t0, t1 = chunk[sel], tl.t0[sel], tl.t1[sel]
+    out = []
+    for c in np.unique(k).tolist():
+        m = k == c
+        out.append((prog.chunks[c], float(t0[m].min()), float(t1[m].max())))
+    return out
 
 
 def _runs(a: np.ndarray, b: np.ndarray) -> list[tuple[float, float]]:
@@ -413,4 +502,4 @@ def _nice_step(raw: float) -> float:
     return 86400.0 * np.ceil(raw / 86400.0)
 
 
-__all__ = ["frame_times", "render_animation", "render_gantt", "render_snapshot"]
+__all__ = ["frame_times", "gantt_height", "render_animation", "render_gantt", "render_snapshot"]

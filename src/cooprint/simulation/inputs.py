@@ -49,6 +49,10 @@ class SimInput:
     # chunk ids (robots[].chunks, or the chunks its program names): the outside-part check
     chunk_files: dict[str, Path] | None = None
     robot_chunks: dict[str, tuple[str, ...]] | None = None
+    #: The schedule's critical path (job.json ``schedule.critical_path``, chunk ids) and lower
+    #: bound (``schedule.lower_bound_s``, s), for the Gantt chart; ``None``: not in the bundle.
+    critical_path: tuple[str, ...] | None = None
+    lower_bound: float | None = None
 
     def fleet(self) -> list[SimRobot]:
         """The robots, each with its own profile (the input's ``profile`` for those without)."""
@@ -205,8 +209,32 @@ def load_bundle(folder: str | Path) -> SimInput:
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing),
                                profile=profile))
         robot_chunks[name] = tuple(e["chunks"]) if "chunks" in e else tuple(program.chunks)
+    critical, bound = _schedule_marks(record, chunk_ids, where)
     return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
-                    chunk_files=chunk_files, robot_chunks=robot_chunks if chunk_files is not None else None)
+                    chunk_files=chunk_files, robot_chunks=robot_chunks if chunk_files is not None else None,
+                    critical_path=critical, lower_bound=bound)
+
+
+def _schedule_marks(record: dict[str, Any], chunk_ids: set[str] | None,
+                    where: str) -> tuple[tuple[str, ...] | None, float | None]:
+    """The schedule's critical path (``schedule.critical_path``: ids of the bundle's chunks) and
+    lower bound (``schedule.lower_bound_s``: seconds, >= 0), each ``None`` when absent (bundles
+    of the seed's two-robot schedule have neither); the Gantt chart marks them."""
+    sched = record.get("schedule")
+    if not isinstance(sched, dict):
+        return None, None
+    critical = None
+    if sched.get("critical_path") is not None:
+        items = check_list(sched["critical_path"], where, "schedule.critical_path", what="chunk ids")
+        for k, cid in enumerate(items):
+            if not isinstance(cid, str) or (chunk_ids is not None and cid not in chunk_ids):
+                raise fail(where, key_path("schedule.critical_path", k), "expected the id of one of the bundle's "
+                           "chunks", cid)
+        critical = tuple(items)
+    bound = None
+    if sched.get("lower_bound_s") is not None:
+        bound = check_number(sched["lower_bound_s"], where, "schedule.lower_bound_s", lo=0.0, unit="s")
+    return critical, bound
 
 
 def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> RobotProfile | None:
