@@ -45,6 +45,9 @@ class SimInput:
     #: Each chunk's dependencies (job.json ``chunks[].deps``): the chunks whose material must be
     #: finished before its own is laid (the ``chunk-order`` check); ``None``: not known.
     deps: dict[str, tuple[str, ...]] | None = None
+    #: What the scheduler promised (job.json ``schedule.lower_bound_s``, ``makespan_s``, ``gap``):
+    #: the simulator repeats the bound and checks the plan's makespan against it; ``None``: none given.
+    estimate: "ScheduleEstimate | None" = None
     # a bundle's chunk meshes (job.json chunks[].file), in job.json's order, and each robot's
     # chunk ids (robots[].chunks, or the chunks its program names): the outside-part check
     chunk_files: dict[str, Path] | None = None
@@ -53,6 +56,22 @@ class SimInput:
     def fleet(self) -> list[SimRobot]:
         """The robots, each with its own profile (the input's ``profile`` for those without)."""
         return [r if r.profile is not None else replace(r, profile=self.profile) for r in self.robots]
+
+
+@dataclass(frozen=True)
+class ScheduleEstimate:
+    """The scheduler's record of a bundle (job.json ``schedule``), each field ``None`` when absent:
+    ``lower_bound_s`` (no schedule of the fleet can be shorter: the critical path or the work per
+    robot), ``makespan_s`` (the scheduler's own estimate of the plan's makespan) and ``gap``
+    (its estimate over the bound, minus 1)."""
+
+    lower_bound_s: float | None = None
+    makespan_s: float | None = None
+    gap: float | None = None
+
+
+#: job.json ``schedule`` fields the simulator reads (optional numbers >= 0; ``null`` as absent).
+SCHEDULE_NUMBERS = {"lower_bound_s": "s", "makespan_s": "s", "gap": "a fraction: makespan / lower bound - 1"}
 
 
 _facing = unit_deg  # a robot's facing in degrees (job.json facing_deg) as its unit vector
@@ -206,7 +225,7 @@ def load_bundle(folder: str | Path) -> SimInput:
                                profile=profile))
         robot_chunks[name] = tuple(e["chunks"]) if "chunks" in e else tuple(program.chunks)
     return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
-                    chunk_files=chunk_files, robot_chunks=robot_chunks if chunk_files is not None else None)
+                    estimate=_schedule_estimate(record, where), chunk_files=chunk_files, robot_chunks=robot_chunks if chunk_files is not None else None)
 
 
 def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> RobotProfile | None:
@@ -224,24 +243,46 @@ def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> Rob
     return robot_profile(value, f"{where}: {at}.", "profile", fleet)
 
 
+#: The keys of a job.json chunk that list chunks to finish first: ``deps`` (the chunks it leans
+#: on) and ``body_deps`` (the chunks its robot's body would sweep over: printed first, while the
+#: way is free). The chunk-order check holds a chunk to both.
+DEP_KEYS = ("deps", "body_deps")
+
+
 def _chunk_deps(record: dict[str, Any], chunk_ids: set[str] | None, where: str) -> dict[str, tuple[str, ...]] | None:
-    """Each chunk's dependencies from job.json's ``chunks[].deps`` (ids of other chunks of the
-    bundle); ``None`` when no chunk lists any (nothing to check the chunk order against). A chunk
-    without ``deps`` depends on none; a chunk that depends on itself could never be printed."""
-    if chunk_ids is None or not any(isinstance(c, dict) and "deps" in c for c in record["chunks"]):
+    """Each chunk's dependencies from job.json's ``chunks[].deps`` and ``chunks[].body_deps`` (ids
+    of other chunks of the bundle), merged: every chunk named in either must be finished before
+    the chunk starts. ``None`` when no chunk lists any (nothing to check the chunk order
+    against). A chunk without them depends on none; a chunk that depends on itself could never
+    be printed."""
+    if chunk_ids is None or not any(isinstance(c, dict) and any(k in c for k in DEP_KEYS) for c in record["chunks"]):
         return None
     deps = {}
     for n, c in enumerate(record["chunks"]):
         at = key_path("chunks", n)
         own = c["id"]
-        items = check_list(c.get("deps", []), where, at + ".deps", what="chunk ids")
-        for k, dep in enumerate(items):
-            if not isinstance(dep, str) or dep not in chunk_ids:
-                raise fail(where, key_path(at + ".deps", k), "expected the id of one of the bundle's chunks", dep)
-            if dep == own:
-                raise fail(where, key_path(at + ".deps", k), "a chunk cannot depend on itself", dep)
-        deps[own] = tuple(dict.fromkeys(items))  # in order, once each
+        merged: list[str] = []
+        for key in DEP_KEYS:
+            items = check_list(c.get(key, []), where, f"{at}.{key}", what="chunk ids")
+            for k, dep in enumerate(items):
+                if not isinstance(dep, str) or dep not in chunk_ids:
+                    raise fail(where, key_path(f"{at}.{key}", k), "expected the id of one of the bundle's chunks", dep)
+                if dep == own:
+                    raise fail(where, key_path(f"{at}.{key}", k), "a chunk cannot depend on itself", dep)
+            merged += items
+        deps[own] = tuple(dict.fromkeys(merged))  # in order, once each
     return deps
+
+
+def _schedule_estimate(record: dict[str, Any], where: str) -> ScheduleEstimate | None:
+    """The scheduler's numbers of job.json's ``schedule`` (:data:`SCHEDULE_NUMBERS`), each a
+    finite number >= 0 when present (``null``: absent); ``None`` when it states none of them."""
+    sched = record.get("schedule")
+    if not isinstance(sched, dict):  # absent (checked as an object when present)
+        return None
+    got = {key: check_number(sched[key], where, f"schedule.{key}", lo=0.0, unit=unit)
+           for key, unit in SCHEDULE_NUMBERS.items() if sched.get(key) is not None}
+    return ScheduleEstimate(**got) if got else None
 
 
 def _chunk_files(record: dict[str, Any], folder: Path, where: str) -> dict[str, Path] | None:
@@ -636,7 +677,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     return load_coop_files(list(paths), settings)
 
 
-__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "SimInput", "SimInputError", "check_settings",
+__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "DEP_KEYS", "ScheduleEstimate", "SimInput", "SimInputError", "check_settings",
            "coop_facing",
            "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_chunk_meshes",
            "read_gcode"]
