@@ -282,3 +282,37 @@ def test_the_lower_bound_is_repeated_and_a_makespan_below_it_is_an_error(tmp_pat
     # no bound stated: neither checked nor in the summary
     none = simulate(load_inputs([str(write_bundle(tmp_path / "none", chunks, {"makespan_s": None}, guard=True))]))
     assert "below-lower-bound" not in none.checked and "schedule" not in summary(none)
+
+
+def test_a_plan_of_cooprint_run_is_clean_in_every_perturbed_run(tmp_path):
+    """cooprint's own two-robot plan (a car cut in five chunks, B waiting for the centre chunk)
+    keeps its order and its robots apart at speeds 30% off in every stretch: its WAITs, not its
+    timing, make it safe."""
+    from cooprint.jobs import run
+    from cooprint.models import car
+
+    out = tmp_path / "job"
+    run(car(420.0), out, overrides={"slicing.layer_height": 1.0, "slicing.first_layer_height": 1.0,
+                                    "slicing.extrusion_width": 1.6, "slicing.nozzle_diameter": 1.2}, picture=False)
+    inp = load_inputs([str(out)])
+    res = perturb_runs(inp, 0.3, 5, seed=0)
+    errors = [(r.run, f.kind, f.robot, f.chunk) for r in res.runs for f in r.findings if f.severity == "error"]
+    assert errors == []
+    assert {"chunk-order", "robots-collide", "body-on-material"} <= set(res.checked)
+    assert res.makespans.std() > 0 and len(res.runs) == 5
+
+
+def test_a_gcode_robot_is_perturbed_at_its_own_feed_rates(tmp_path):
+    from cooprint.simulation.inputs import read_gcode
+
+    g = tmp_path / "P.gcode"
+    g.write_text("G1 X10 F600\nG1 X20 F1200 E1\nG1 X30 F3000\n")
+    r = read_gcode(g)
+    base = command_speeds(r, 40.0, 120.0)
+    np.testing.assert_allclose(base[r.program.kind == 0], [10.0, 20.0, 50.0])  # F / 60, not the profile's
+    assert span_ids(r.program.chunk).max() == 0  # no chunks: one stretch, one factor per run
+    res = perturb_runs(load_inputs([str(g)]), 0.25, 4, seed=5)
+    plain = simulate(load_inputs([str(g)])).makespan
+    # one factor for the whole program: each makespan is the constant-speed one over that factor
+    factors = [run_factors([1], 0.25, r.seed)[0][0] for r in res.runs]
+    np.testing.assert_allclose(res.makespans, [plain / f for f in factors], rtol=1e-12)
