@@ -264,7 +264,7 @@ def test_the_lower_bound_is_repeated_and_a_makespan_below_it_is_an_error(tmp_pat
     ok = write_bundle(tmp_path / "ok", chunks, {"lower_bound_s": 4.0, "makespan_s": 5.0, "gap": 0.25}, guard=True)
     assert main(["simulate", str(ok)]) == 0
     out = capsys.readouterr().out
-    assert f"makespan 0.00 h, lower bound 0.00 h (+25.0%); the scheduler planned 0.00 h" in out
+    assert "makespan 0.00 h, lower bound 0.00 h (+25.0%); the scheduler planned 0.00 h" in out
     s = json.loads((ok / "sim" / "summary.json").read_text())
     assert s["schedule"] == {"lower_bound_s": 4.0, "planned_makespan_s": 5.0, "planned_gap": 0.25,
                              "gap_to_lower_bound": pytest.approx(0.25)}

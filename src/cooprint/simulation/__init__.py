@@ -310,5 +310,6 @@ if TYPE_CHECKING:
     from cooprint.simulation.perturb import PerturbResult
 
 
-__all__ = ["KINDS", "TIME_INVARIANT", "bound_findings", "bound_line", "play", "schedule_record", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "failures", "findings_line",
+__all__ = ["KINDS", "TIME_INVARIANT", "Frames", "SimInput", "SimInputError", "SimResult", "bound_findings", "bound_line",
+           "deposited_volume", "failures", "findings_line", "play", "schedule_record",
            "frames", "load_inputs", "simulate", "summary", "verdict"]

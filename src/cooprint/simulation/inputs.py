@@ -225,7 +225,8 @@ def load_bundle(folder: str | Path) -> SimInput:
                                profile=profile))
         robot_chunks[name] = tuple(e["chunks"]) if "chunks" in e else tuple(program.chunks)
     return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
-                    estimate=_schedule_estimate(record, where), chunk_files=chunk_files, robot_chunks=robot_chunks if chunk_files is not None else None)
+                    estimate=_schedule_estimate(record, where), chunk_files=chunk_files,
+                    robot_chunks=robot_chunks if chunk_files is not None else None)
 
 
 def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> RobotProfile | None:
@@ -677,7 +678,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     return load_coop_files(list(paths), settings)
 
 
-__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "DEP_KEYS", "ScheduleEstimate", "SimInput", "SimInputError", "check_settings",
-           "coop_facing",
+__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "DEP_KEYS", "ScheduleEstimate", "SimInput",
+           "SimInputError", "check_settings", "coop_facing",
            "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_chunk_meshes",
            "read_gcode"]
