@@ -251,6 +251,7 @@ def test_body_deps_are_held_by_the_chunk_order_check(tmp_path):
     ([{"id": "A1"}, {"id": "B1"}], {"lower_bound_s": -1}, "schedule.lower_bound_s: expected a finite number >= 0"),
     ([{"id": "A1"}, {"id": "B1"}], {"makespan_s": "long"}, "schedule.makespan_s"),
     ([{"id": "A1"}, {"id": "B1"}], {"gap": True}, "schedule.gap"),
+    ([{"id": "A1"}, {"id": "B1"}], {"gap": -0.01}, "schedule.gap: expected a finite number >= 0"),
 ])
 def test_bad_body_deps_and_schedule_numbers_are_refused(tmp_path, capsys, chunks, schedule, says):
     b = write_bundle(tmp_path / "b", chunks, schedule)
@@ -279,6 +280,10 @@ def test_the_lower_bound_is_repeated_and_a_makespan_below_it_is_an_error(tmp_pat
     # within the tolerance of the scheduler's rounding: not a finding
     near = write_bundle(tmp_path / "near", chunks, {"lower_bound_s": 5.004}, guard=True)
     assert simulate(load_inputs([str(near)])).findings == []
+    # a makespan equal to its bound: a gap of -2e-16 is 0, not an error
+    tight = write_bundle(tmp_path / "tight", chunks, {"lower_bound_s": 5.0, "makespan_s": 5.0, "gap": -2.2e-16},
+                         guard=True)
+    assert load_inputs([str(tight)]).estimate.gap == 0.0
     # no bound stated: neither checked nor in the summary
     none = simulate(load_inputs([str(write_bundle(tmp_path / "none", chunks, {"makespan_s": None}, guard=True))]))
     assert "below-lower-bound" not in none.checked and "schedule" not in summary(none)

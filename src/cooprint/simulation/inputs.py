@@ -72,6 +72,8 @@ class ScheduleEstimate:
 
 #: job.json ``schedule`` fields the simulator reads (optional numbers >= 0; ``null`` as absent).
 SCHEDULE_NUMBERS = {"lower_bound_s": "s", "makespan_s": "s", "gap": "a fraction: makespan / lower bound - 1"}
+#: A ``gap`` this little below 0 is a makespan equal to its bound in floating point (read as 0).
+GAP_ROUNDING = 1e-9
 
 
 _facing = unit_deg  # a robot's facing in degrees (job.json facing_deg) as its unit vector
@@ -281,8 +283,14 @@ def _schedule_estimate(record: dict[str, Any], where: str) -> ScheduleEstimate |
     sched = record.get("schedule")
     if not isinstance(sched, dict):  # absent (checked as an object when present)
         return None
-    got = {key: check_number(sched[key], where, f"schedule.{key}", lo=0.0, unit=unit)
-           for key, unit in SCHEDULE_NUMBERS.items() if sched.get(key) is not None}
+    got = {}
+    for key, unit in SCHEDULE_NUMBERS.items():
+        value = sched.get(key)
+        if value is None:
+            continue
+        if key == "gap" and isinstance(value, float) and -GAP_ROUNDING <= value < 0:
+            value = 0.0  # a makespan equal to its bound, over it minus 1 in floating point
+        got[key] = check_number(value, where, f"schedule.{key}", lo=0.0, unit=unit)
     return ScheduleEstimate(**got) if got else None
 
 
