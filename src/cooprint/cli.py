@@ -462,7 +462,11 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     _heap_malloc()
     inp = load_inputs(list(inputs), manifest, _settings(config, {}) if config else None)
     result = run_sim(inp, accel=accel)
-    perturbed = perturb_runs(inp, *monte_carlo, accel=accel) if monte_carlo else None
+    perturbed = None
+    if monte_carlo:
+        with stage_progress(not quiet) as progress:  # a bar on a terminal; Ctrl-C between runs
+            perturbed = perturb_runs(inp, *monte_carlo, accel=accel,
+                                     progress=lambda done, total: progress("perturbed runs", done, total))
     record = summary(result, perturbed)
     if frame_step is not None:
         if result.makespan / frame_step > 10_000_000:
