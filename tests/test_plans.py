@@ -45,8 +45,9 @@ SOLIDS = {
     "plate turned 30 deg": (solids.plate, {**BIG, "chunking.centre_angle_deg": 30.0}),  # 7 chunks, oblique axis
 }
 
-#: Kinds registered in KINDS whose checks other branches of issue 13 add (not run here yet).
-NOT_YET: set[str] = set()
+#: Kinds registered in KINDS whose checks other branches add (not run here yet): the lower bound
+#: is checked when job.json states one (issue 14's schedulers write it).
+NOT_YET: set[str] = {"below-lower-bound"}
 
 
 def as_solid(man, name: str):

@@ -398,10 +398,12 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
 
         sim = simulate_bundle(out)
         if not quiet:
-            from cooprint.simulation import findings_line
+            from cooprint.simulation import bound_line, findings_line
 
             click.echo(f"simulated: makespan {sim['makespan_s'] / 3600:.2f} h, findings: "
                        f"{findings_line(sim['finding_counts'])}; wrote {out}/sim/summary.json, gantt.png, snapshot.png")
+            if bound_line(sim):  # the scheduler's lower bound, when job.json states one
+                click.echo(f"simulated {bound_line(sim)}")
     if record is not None:
         _report_run(record, out, no_picture)
     if sim is not None:
@@ -453,11 +455,17 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
               "G-code: PrusaSlicer's machine limits) instead of keeping their speed.")
 @click.option("--frames", "frame_step", type=float, default=None, metavar="SECONDS",
               help="Also write sim/frames.npz: every robot's position and material every SECONDS (seed Fig. 15).")
+@click.option("--perturb", "perturb", type=float, default=None, metavar="F",
+              help="Also play the plan --runs times, each robot's speed scaled per chunk (and per travel between "
+                   "chunks) by a random factor in [1-F, 1+F], 0 < F < 1; report the makespans and every finding.")
+@click.option("--runs", type=int, default=None, help="How many perturbed runs (1 to 10000) [default: 20].")
+@click.option("--seed", type=int, default=None, help="Seed of the perturbed runs' factors [default: 0].")
 @click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json (and frames.npz).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary on stdout.")
 @config_option
 def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, accel: bool,
-             frame_step: float | None, force: bool, quiet: bool, config: tuple[str, ...]) -> None:
+             frame_step: float | None, perturb: float | None, runs: int | None, seed: int | None, force: bool,
+             quiet: bool, config: tuple[str, ...]) -> None:
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
     robot each, M118 NOTIFY / M0 WAIT host lines honoured), or .coop files (one robot each, named by
     the file, the default or --robot profile; or named, placed and profiled by --manifest). Writes
@@ -467,9 +475,11 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     import numpy as np
 
     from cooprint.io.bundle import atomic_file, check_file_destination, write_json
-    from cooprint.simulation import findings_line, frames, load_inputs, simulate as run_sim, summary
+    from cooprint.simulation import bound_line, findings_line, frames, load_inputs, simulate as run_sim, summary
+    from cooprint.simulation.perturb import check_perturb_options, perturb_runs
 
     _need_inputs(inputs, manifest)
+    monte_carlo = check_perturb_options(perturb, runs, seed)
     if frame_step is not None and not (math.isfinite(frame_step) and frame_step > 0):
         raise UserError(f"--frames {frame_step:g}: expected a positive number of seconds")
     folder = _sim_folder(inputs, out)
@@ -479,8 +489,14 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=2)
     target = targets[0]
     _heap_malloc()
-    result = run_sim(load_inputs(list(inputs), manifest, _settings(config, {}) if config else None), accel=accel)
-    record = summary(result)
+    inp = load_inputs(list(inputs), manifest, _settings(config, {}) if config else None)
+    result = run_sim(inp, accel=accel)
+    perturbed = None
+    if monte_carlo:
+        with stage_progress(not quiet) as progress:  # a bar on a terminal; Ctrl-C between runs
+            perturbed = perturb_runs(inp, *monte_carlo, accel=accel,
+                                     progress=lambda done, total: progress("perturbed runs", done, total))
+    record = summary(result, perturbed)
     if frame_step is not None:
         if result.makespan / frame_step > 10_000_000:
             raise UserError(f"--frames {frame_step:g}: more than 10 million frames over {result.makespan:.0f} s; "
@@ -496,15 +512,42 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         for r in record["robots"]:
             click.echo(f"  robot {r['name']}: printing {r['printing_s']:.0f} s, travelling {r['travelling_s']:.0f} s, "
                        f"waiting {r['waiting_s']:.0f} s, idle {r['idle_s']:.0f} s, {r['material_mm3'] / 1000:.1f} cm3")
+        if bound_line(record):
+            click.echo(bound_line(record))
         click.echo("findings: " + findings_line(record["finding_counts"]))
         for note in result.notes:
             click.echo(f"note: {note}")
         for f in result.findings[:10]:
-            click.echo(f"  {f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
-                       f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
-                       f"{f.detail}" + (f" ({f.count:,} {f.count_of})" if f.count > 1 else ""))
+            click.echo(f"  {_finding_text(f)}")
+        if perturbed is not None:
+            click.echo(perturbed_line(record["perturb"]))
+            click.echo("perturbed findings: " + findings_line(record["perturb"]["finding_counts"]))
+            listed = [(r, f) for r in perturbed.runs for f in r.findings][:10]
+            for r, f in listed:  # the first ten (summary.json has them all)
+                click.echo(f"  run {r.run} (seed {r.seed}): {_finding_text(f)}")
         click.echo("wrote " + ", ".join(map(str, targets)))
-    _judge(record, strict, quiet, "the simulation", target)
+    if perturbed is not None:  # the constant-speed findings and every run's, judged together
+        both = {k: v + record["perturb"]["finding_counts"].get(k, 0) for k, v in record["finding_counts"].items()}
+        _judge({"finding_counts": both}, strict, quiet, f"the simulation and its {len(perturbed.runs)} perturbed runs",
+               target)
+    else:
+        _judge(record, strict, quiet, "the simulation", target)
+
+
+def _finding_text(f: Any) -> str:
+    """A finding in one line: kind, severity, robot, time, place, chunk, detail, count."""
+    return (f"{f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
+            f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
+            f"{f.detail}" + (f" ({f.count:,} {f.count_of})" if f.count > 1 else ""))
+
+
+def perturbed_line(rec: dict[str, Any]) -> str:
+    """summary.json's ``perturb`` object in one line: the variation, runs, seed and the makespans'
+    distribution (h)."""
+    m = rec["makespan_s"]
+    return (f"perturbed +-{rec['fraction']:.0%} x {rec['runs']} runs (seed {rec['seed']}): makespan min "
+            f"{m['min'] / 3600:.2f} h, median {m['median'] / 3600:.2f} h, p95 {m['p95'] / 3600:.2f} h, "
+            f"max {m['max'] / 3600:.2f} h")
 
 
 @cli.command()

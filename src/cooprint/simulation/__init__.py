@@ -10,24 +10,26 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation.checks import (STEP, Material, below_floor, chunk_order, footprint_checks, material_checks,
                                         outside_part, overhangs, robots_collide)
-from cooprint.simulation.inputs import SimInput, SimInputError, load_inputs, read_chunk_meshes
+from cooprint.simulation.inputs import ScheduleEstimate, SimInput, SimInputError, load_inputs, read_chunk_meshes
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
 from cooprint.slicing.paths import extrusion_area
 
 #: Finding kinds, in the order summaries list them: the robot's outline against material and
 #: other robots, the nozzle and the material it lays (in material, twice, in the chunks' order,
-#: inside the part), the timing, the floor, then the one warning. A kind is in a summary's
+#: inside the part), the timing (deadlocks, a makespan below the scheduler's bound), the floor,
+#: then the one warning. A kind is in a summary's
 #: ``checked`` only when its check ran.
 KINDS = ("body-on-material", "robots-collide", "printhead-hits-material", "nozzle-in-material", "double-deposit",
-         "chunk-order", "outside-part", "deadlock", "below-floor", "overhang")
+         "chunk-order", "outside-part", "deadlock", "below-lower-bound", "below-floor", "overhang")
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,7 @@ class SimResult:
     checked: tuple[str, ...] = ()  # the finding kinds that were looked for
     notes: tuple[str, ...] = ()  # what the input held and the simulation did not act on
     placed: bool = True  # where the robots' bodies stand is known (not for G-code printers)
+    estimate: ScheduleEstimate | None = None  # the scheduler's lower bound and makespan (job.json)
 
     @property
     def makespan(self) -> float:
@@ -56,11 +59,32 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
 
     ``accel``: moves accelerate and decelerate (trapezoids joined at jerk-limited corner speeds,
     :mod:`.kinematics`) with the input's machine limits (G-code: PrusaSlicer's) or the robot
-    profile's ``acceleration`` and ``jerk``; otherwise each move takes length / speed.
+    profile's ``acceleration`` and ``jerk``; otherwise each move takes length / speed. A bundle
+    whose job.json states the scheduler's lower bound is held to it (:func:`bound_findings`).
     """
-    p = inp.profile
     chunks = read_chunk_meshes(inp) if checks else None  # a bundle's part, read (and refused) before the work
-    robots = inp.fleet()  # each robot with its own profile
+    result = play(inp, inp.fleet(), accel, checks=checks, chunks=chunks)
+    if checks and inp.estimate is not None and inp.estimate.lower_bound_s is not None and not accel:
+        found = bound_findings(result, inp.estimate.lower_bound_s)
+        findings = sorted(result.findings + found, key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
+        checked = tuple(k for k in KINDS if k in result.checked or k == "below-lower-bound")
+        result = replace(result, findings=findings, checked=checked)
+    return result
+
+
+#: Kinds whose findings do not depend on when the moves happen, only on where they go: a plan
+#: played at other speeds finds the same (:func:`play` with ``invariant=False`` leaves them out).
+TIME_INVARIANT = ("below-floor", "outside-part")
+
+
+def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: bool = True,
+         chunks: dict | None = None, invariant: bool = True) -> SimResult:
+    """:func:`simulate`'s work for ``robots`` (``inp``'s fleet, or the same robots at other
+    speeds: :mod:`.perturb`): their timelines and, with ``checks``, every check that applies
+    (``chunks``: the bundle's chunk meshes, read once by the caller; ``None``: no outside-part
+    check). ``invariant=False`` leaves out the checks of :data:`TIME_INVARIANT`, whose findings
+    are the same at any speed (a perturbed run repeats only what timing can change)."""
+    p = inp.profile
     limits = ({r.name: inp.limits or MachineLimits.planar(r.profile.acceleration, r.profile.jerk) for r in robots}
               if accel else None)
     timelines, findings = schedule(robots, p.print_speed, p.travel_speed, limits)
@@ -69,8 +93,9 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
         if inp.deps is not None:  # a bundle: the order its chunks depend on is known
             findings += chunk_order(robots, timelines, inp.deps)
             checked.append("chunk-order")
-        findings += below_floor(robots, timelines)
-        checked.append("below-floor")
+        if invariant:
+            findings += below_floor(robots, timelines)
+            checked.append("below-floor")
         material = Material.sample(robots, timelines, STEP, inp.slicing.layer_height)
         # two independent groups of about equal work: the robot's outline and its nozzle
         # against material and other robots; what was laid down (supported, inside the part)
@@ -81,14 +106,39 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResu
             outline.append(lambda: robots_collide(robots, timelines, p))
             checked += ["body-on-material", "robots-collide"]
         checked += ["printhead-hits-material", "nozzle-in-material", "double-deposit", "overhang"]
-        if chunks is not None:  # the part is known: material must lie inside it, in its robot's chunks
+        if chunks is not None and invariant:  # the part is known: material must lie inside it, in its robot's chunks
             laid.append(lambda: outside_part(robots, timelines, material, chunks, inp.robot_chunks or {},
                                              inp.slicing.extrusion_width))
             checked.append("outside-part")
         findings += _concurrently([outline, laid])
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(robots, timelines, findings, p, inp.slicing, inp.source, accel,
-                     tuple(k for k in KINDS if k in checked), inp.notes, inp.placed)
+                     tuple(k for k in KINDS if k in checked), inp.notes, inp.placed, inp.estimate)
+
+
+#: How far below the scheduler's lower bound a simulated makespan may come before the bound or
+#: the plan is called wrong: the scheduler's chunk times are estimates of the same moves at the
+#: same speeds, rounded (job.json keeps milliseconds), not the simulator's sums.
+BOUND_TOLERANCE = 1e-3
+
+
+def bound_findings(result: SimResult, lower_bound: float) -> list[Finding]:
+    """``below-lower-bound`` (an error): the plan, played at constant speed, ends more than
+    :data:`BOUND_TOLERANCE` (relative) before the scheduler's lower bound, which no plan of
+    that work can do (the bound is the longest chain of chunk work, or the work per robot):
+    either the bound is wrong (the chunks' work over-estimated, or a bound of another plan) or
+    the plan leaves work out. One finding at the makespan, on the robot that ends last. Checked
+    at constant speed only: with ``--accel`` moves take longer, never shorter, and a perturbed
+    run's robots may go faster than the bound assumes."""
+    span = result.makespan
+    if not span < lower_bound * (1.0 - BOUND_TOLERANCE):
+        return []
+    last = max(result.robots, key=lambda r: result.timelines[r.name].end)
+    tl = result.timelines[last.name]
+    where = tuple(float(x) for x in tl.p1[-1]) if len(tl.p1) else (0.0, 0.0, 0.0)
+    return [Finding("below-lower-bound", last.name, span, where, None,
+                    f"the simulated makespan {span:.1f} s is {1 - span / lower_bound:.2%} below the scheduler's lower "
+                    f"bound {lower_bound:.1f} s (job.json schedule.lower_bound_s): the bound or the plan is wrong")]
 
 
 def _concurrently(groups: list[list]) -> list[Finding]:
@@ -200,9 +250,37 @@ def verdict(record: dict, strict: bool = False) -> str | None:
     return f"warnings ({findings_line(warnings)})" if warnings else None
 
 
-def summary(result: SimResult) -> dict[str, object]:
+def schedule_record(result: SimResult) -> dict[str, float | None] | None:
+    """The scheduler's numbers a bundle states (job.json ``schedule``: ``lower_bound_s``,
+    ``makespan_s`` as ``planned_makespan_s``, ``gap`` as ``planned_gap``) beside the simulated
+    makespan's gap to the bound (``gap_to_lower_bound``: makespan / bound - 1); ``None`` when
+    the bundle states none."""
+    est = result.estimate
+    if est is None:
+        return None
+    lb = est.lower_bound_s
+    return {"lower_bound_s": lb, "planned_makespan_s": est.makespan_s, "planned_gap": est.gap,
+            "gap_to_lower_bound": result.makespan / lb - 1.0 if lb else None}
+
+
+def bound_line(record: dict) -> str | None:
+    """A summary's makespan against the scheduler's lower bound in a few words
+    (``makespan 12.30 h, lower bound 11.80 h (+4.2%)``); ``None`` without a bound."""
+    sched = record.get("schedule")
+    if not sched or sched.get("lower_bound_s") is None:
+        return None
+    span, lb = record["makespan_s"], sched["lower_bound_s"]
+    gap = f" ({sched['gap_to_lower_bound']:+.1%})" if sched.get("gap_to_lower_bound") is not None else ""
+    planned = (f"; the scheduler planned {sched['planned_makespan_s'] / 3600:.2f} h"
+               if sched.get("planned_makespan_s") is not None else "")
+    return f"makespan {span / 3600:.2f} h, lower bound {lb / 3600:.2f} h{gap}{planned}"
+
+
+def summary(result: SimResult, perturbed: "PerturbResult | None" = None) -> dict[str, object]:
     """What ``sim/summary.json`` holds: makespan, per robot times and material, the NOTIFY / WAIT
-    timeline, every finding."""
+    timeline, every finding; the scheduler's bound when the bundle states one (``schedule``:
+    :func:`schedule_record`), and with ``perturbed`` the Monte-Carlo runs (``perturb``:
+    :meth:`PerturbResult.to_dict`)."""
     span = result.makespan
     robots = []
     events = []
@@ -223,8 +301,15 @@ def summary(result: SimResult) -> dict[str, object]:
             "time_model": ("trapezoidal acceleration, jerk-limited corners" if result.accel else
                            "length / speed (print_speed with the tool on, travel_speed off, or the G-code's F)"),
             "checked": list(result.checked), "robots": robots, "events": events, "finding_counts": counts,
-            "findings": [f.to_dict() for f in result.findings], "notes": list(result.notes)}
+            "findings": [f.to_dict() for f in result.findings], "notes": list(result.notes),
+            **({"schedule": schedule_record(result)} if result.estimate is not None else {}),
+            **({"perturb": perturbed.to_dict()} if perturbed is not None else {})}
 
 
-__all__ = ["KINDS", "Frames", "SimInput", "SimInputError", "SimResult", "deposited_volume", "failures", "findings_line",
+if TYPE_CHECKING:
+    from cooprint.simulation.perturb import PerturbResult
+
+
+__all__ = ["KINDS", "TIME_INVARIANT", "Frames", "SimInput", "SimInputError", "SimResult", "bound_findings", "bound_line",
+           "deposited_volume", "failures", "findings_line", "play", "schedule_record",
            "frames", "load_inputs", "simulate", "summary", "verdict"]

@@ -45,18 +45,43 @@ class SimInput:
     #: Each chunk's dependencies (job.json ``chunks[].deps``): the chunks whose material must be
     #: finished before its own is laid (the ``chunk-order`` check); ``None``: not known.
     deps: dict[str, tuple[str, ...]] | None = None
+    #: What the scheduler promised (job.json ``schedule.lower_bound_s``, ``makespan_s``, ``gap``):
+    #: the simulator repeats the bound and checks the plan's makespan against it; ``None``: none given.
+    estimate: "ScheduleEstimate | None" = None
     # a bundle's chunk meshes (job.json chunks[].file), in job.json's order, and each robot's
     # chunk ids (robots[].chunks, or the chunks its program names): the outside-part check
     chunk_files: dict[str, Path] | None = None
     robot_chunks: dict[str, tuple[str, ...]] | None = None
-    #: The schedule's critical path (job.json ``schedule.critical_path``, chunk ids) and lower
-    #: bound (``schedule.lower_bound_s``, s), for the Gantt chart; ``None``: not in the bundle.
+    #: The schedule's critical path (job.json ``schedule.critical_path``, chunk ids), for the
+    #: Gantt chart; ``None``: not in the bundle.
     critical_path: tuple[str, ...] | None = None
-    lower_bound: float | None = None
+
+    @property
+    def lower_bound(self) -> float | None:
+        """The schedule's lower bound, s (``estimate.lower_bound_s``), or ``None``."""
+        return None if self.estimate is None else self.estimate.lower_bound_s
 
     def fleet(self) -> list[SimRobot]:
         """The robots, each with its own profile (the input's ``profile`` for those without)."""
         return [r if r.profile is not None else replace(r, profile=self.profile) for r in self.robots]
+
+
+@dataclass(frozen=True)
+class ScheduleEstimate:
+    """The scheduler's record of a bundle (job.json ``schedule``), each field ``None`` when absent:
+    ``lower_bound_s`` (no schedule of the fleet can be shorter: the critical path or the work per
+    robot), ``makespan_s`` (the scheduler's own estimate of the plan's makespan) and ``gap``
+    (its estimate over the bound, minus 1)."""
+
+    lower_bound_s: float | None = None
+    makespan_s: float | None = None
+    gap: float | None = None
+
+
+#: job.json ``schedule`` fields the simulator reads (optional numbers >= 0; ``null`` as absent).
+SCHEDULE_NUMBERS = {"lower_bound_s": "s", "makespan_s": "s", "gap": "a fraction: makespan / lower bound - 1"}
+#: A ``gap`` this little below 0 is a makespan equal to its bound in floating point (read as 0).
+GAP_ROUNDING = 1e-9
 
 
 _facing = unit_deg  # a robot's facing in degrees (job.json facing_deg) as its unit vector
@@ -209,32 +234,25 @@ def load_bundle(folder: str | Path) -> SimInput:
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing),
                                profile=profile))
         robot_chunks[name] = tuple(e["chunks"]) if "chunks" in e else tuple(program.chunks)
-    critical, bound = _schedule_marks(record, chunk_ids, where)
+    critical = _critical_path(record, chunk_ids, where)
     return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
-                    chunk_files=chunk_files, robot_chunks=robot_chunks if chunk_files is not None else None,
-                    critical_path=critical, lower_bound=bound)
+                    estimate=_schedule_estimate(record, where), chunk_files=chunk_files,
+                    robot_chunks=robot_chunks if chunk_files is not None else None, critical_path=critical)
 
 
-def _schedule_marks(record: dict[str, Any], chunk_ids: set[str] | None,
-                    where: str) -> tuple[tuple[str, ...] | None, float | None]:
-    """The schedule's critical path (``schedule.critical_path``: ids of the bundle's chunks) and
-    lower bound (``schedule.lower_bound_s``: seconds, >= 0), each ``None`` when absent (bundles
-    of the seed's two-robot schedule have neither); the Gantt chart marks them."""
+def _critical_path(record: dict[str, Any], chunk_ids: set[str] | None, where: str) -> tuple[str, ...] | None:
+    """The schedule's critical path (``schedule.critical_path``: ids of the bundle's chunks),
+    ``None`` when absent (bundles of the seed's two-robot schedule have none); the Gantt chart
+    marks it."""
     sched = record.get("schedule")
-    if not isinstance(sched, dict):
-        return None, None
-    critical = None
-    if sched.get("critical_path") is not None:
-        items = check_list(sched["critical_path"], where, "schedule.critical_path", what="chunk ids")
-        for k, cid in enumerate(items):
-            if not isinstance(cid, str) or (chunk_ids is not None and cid not in chunk_ids):
-                raise fail(where, key_path("schedule.critical_path", k), "expected the id of one of the bundle's "
-                           "chunks", cid)
-        critical = tuple(items)
-    bound = None
-    if sched.get("lower_bound_s") is not None:
-        bound = check_number(sched["lower_bound_s"], where, "schedule.lower_bound_s", lo=0.0, unit="s")
-    return critical, bound
+    if not isinstance(sched, dict) or sched.get("critical_path") is None:
+        return None
+    items = check_list(sched["critical_path"], where, "schedule.critical_path", what="chunk ids")
+    for k, cid in enumerate(items):
+        if not isinstance(cid, str) or (chunk_ids is not None and cid not in chunk_ids):
+            raise fail(where, key_path("schedule.critical_path", k), "expected the id of one of the bundle's "
+                       "chunks", cid)
+    return tuple(items)
 
 
 def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> RobotProfile | None:
@@ -252,24 +270,52 @@ def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> Rob
     return robot_profile(value, f"{where}: {at}.", "profile", fleet)
 
 
+#: The keys of a job.json chunk that list chunks to finish first: ``deps`` (the chunks it leans
+#: on) and ``body_deps`` (the chunks its robot's body would sweep over: printed first, while the
+#: way is free). The chunk-order check holds a chunk to both.
+DEP_KEYS = ("deps", "body_deps")
+
+
 def _chunk_deps(record: dict[str, Any], chunk_ids: set[str] | None, where: str) -> dict[str, tuple[str, ...]] | None:
-    """Each chunk's dependencies from job.json's ``chunks[].deps`` (ids of other chunks of the
-    bundle); ``None`` when no chunk lists any (nothing to check the chunk order against). A chunk
-    without ``deps`` depends on none; a chunk that depends on itself could never be printed."""
-    if chunk_ids is None or not any(isinstance(c, dict) and "deps" in c for c in record["chunks"]):
+    """Each chunk's dependencies from job.json's ``chunks[].deps`` and ``chunks[].body_deps`` (ids
+    of other chunks of the bundle), merged: every chunk named in either must be finished before
+    the chunk starts. ``None`` when no chunk lists any (nothing to check the chunk order
+    against). A chunk without them depends on none; a chunk that depends on itself could never
+    be printed."""
+    if chunk_ids is None or not any(isinstance(c, dict) and any(k in c for k in DEP_KEYS) for c in record["chunks"]):
         return None
     deps = {}
     for n, c in enumerate(record["chunks"]):
         at = key_path("chunks", n)
         own = c["id"]
-        items = check_list(c.get("deps", []), where, at + ".deps", what="chunk ids")
-        for k, dep in enumerate(items):
-            if not isinstance(dep, str) or dep not in chunk_ids:
-                raise fail(where, key_path(at + ".deps", k), "expected the id of one of the bundle's chunks", dep)
-            if dep == own:
-                raise fail(where, key_path(at + ".deps", k), "a chunk cannot depend on itself", dep)
-        deps[own] = tuple(dict.fromkeys(items))  # in order, once each
+        merged: list[str] = []
+        for key in DEP_KEYS:
+            items = check_list(c.get(key, []), where, f"{at}.{key}", what="chunk ids")
+            for k, dep in enumerate(items):
+                if not isinstance(dep, str) or dep not in chunk_ids:
+                    raise fail(where, key_path(f"{at}.{key}", k), "expected the id of one of the bundle's chunks", dep)
+                if dep == own:
+                    raise fail(where, key_path(f"{at}.{key}", k), "a chunk cannot depend on itself", dep)
+            merged += items
+        deps[own] = tuple(dict.fromkeys(merged))  # in order, once each
     return deps
+
+
+def _schedule_estimate(record: dict[str, Any], where: str) -> ScheduleEstimate | None:
+    """The scheduler's numbers of job.json's ``schedule`` (:data:`SCHEDULE_NUMBERS`), each a
+    finite number >= 0 when present (``null``: absent); ``None`` when it states none of them."""
+    sched = record.get("schedule")
+    if not isinstance(sched, dict):  # absent (checked as an object when present)
+        return None
+    got = {}
+    for key, unit in SCHEDULE_NUMBERS.items():
+        value = sched.get(key)
+        if value is None:
+            continue
+        if key == "gap" and isinstance(value, float) and -GAP_ROUNDING <= value < 0:
+            value = 0.0  # a makespan equal to its bound, over it minus 1 in floating point
+        got[key] = check_number(value, where, f"schedule.{key}", lo=0.0, unit=unit)
+    return ScheduleEstimate(**got) if got else None
 
 
 def _chunk_files(record: dict[str, Any], folder: Path, where: str) -> dict[str, Path] | None:
@@ -664,7 +710,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     return load_coop_files(list(paths), settings)
 
 
-__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "SimInput", "SimInputError", "check_settings",
-           "coop_facing",
+__all__ = ["BUNDLE_ROBOT_OPTIONAL", "BUNDLE_ROBOT_REQUIRED", "ChunkMesh", "DEP_KEYS", "ScheduleEstimate", "SimInput",
+           "SimInputError", "check_settings", "coop_facing",
            "load_bundle", "load_coop_files", "load_gcode_files", "load_inputs", "load_manifest", "read_chunk_meshes",
            "read_gcode"]

@@ -191,7 +191,7 @@ WARNING_KINDS = frozenset({"overhang"})
 COUNT_UNITS = {"body-on-material": "nozzle samples", "printhead-hits-material": "nozzle samples",
                "robots-collide": "instants", "nozzle-in-material": "cells", "double-deposit": "cells",
                "chunk-order": "unfinished dependencies", "outside-part": "material points",
-               "deadlock": "WAITs", "below-floor": "moves", "overhang": "material points"}
+               "deadlock": "WAITs", "below-lower-bound": "makespans", "below-floor": "moves", "overhang": "material points"}
 
 
 def severity(kind: str) -> str:
