@@ -210,7 +210,7 @@ class Piece:
     facing: tuple[float, float] | None = None
 
 
-def _pieces(kernel: Any, plan: ChunkPlan) -> list[Piece]:
+def row_pieces(kernel: Any, plan: ChunkPlan) -> list[Piece]:
     """The seed's chunks (the grid's rows): ``C`` first, then ``L1, L2, ...``, then ``R1, ...``."""
     right_planes = [plan.plane("R", k) for k in range(plan.n_right)]
     left_planes = [plan.plane("L", k) for k in range(plan.n_left)]
@@ -304,5 +304,5 @@ def cut_chunks(solid: Solid, plan: ChunkPlan,
     ChunkSet
         Non-empty chunks only; ids keep their plane index even if a chunk between is empty.
     """
-    chunks = cut_pieces(solid, lambda kernel: _pieces(kernel, plan), progress)
+    chunks = cut_pieces(solid, lambda kernel: row_pieces(kernel, plan), progress)
     return ChunkSet(plan, chunks, dependencies(chunks), solid.volume, "seed2")
