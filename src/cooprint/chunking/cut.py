@@ -149,7 +149,10 @@ class _NumpyKernel:
 
     def points(self, piece: np.ndarray) -> np.ndarray:
         """(k, 3) float64 vertices of a piece (a linear function is extreme at one of them)."""
-        return self.pool.vertices[np.unique(piece)] if len(piece) else np.zeros((0, 3))
+        verts = self.pool.vertices
+        used = np.zeros(len(verts), dtype=bool)
+        used[piece.ravel()] = True  # a mask, not np.unique: no sort over the piece's corners
+        return verts[used]
 
     def extract(self, piece: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         if len(piece) == 0:

@@ -227,13 +227,16 @@ def _grid_plan(vertices: np.ndarray, settings: JobSettings, robots: int) -> tupl
     plan = GridPlan(**{f.name: getattr(rows, f.name) for f in fields(ChunkPlan)}, columns=columns)
     n = plan.rows * columns.count
     if n > MAX_CHUNKS:
-        need = columns.extent * plan.rows / MAX_CHUNKS
+        # face j meets the floor, at its furthest -u, (j + 1) column widths from the -u end: m
+        # columns cover the part when m widths do
+        need = max(columns.extent / (MAX_CHUNKS // plan.rows), columns.lane + columns.run)
         return replace(record, feasible=False, chunks=0,
                        reason=f"{plan.rows} rows x {columns.count} columns give {n:,} chunks, more than {MAX_CHUNKS:,}",
-                       hints=(f"chunking.column_width >= {_bound(max(need, columns.lane + columns.run), up=True)}",)), None
+                       hints=(f"chunking.column_width >= {_bound(need, up=True)}",)), None
     bd = settings.robot.build_depth
     if rows.mode == "whole":
-        text = f"the part is {record.extent:.1f} mm deep along the chunking axis, within the build depth {bd:g} mm: one row"
+        text = (f"the part is {record.extent:.1f} mm deep along the chunking axis, within the build depth {bd:g} mm: "
+                "one row")
     else:
         text = (f"{plan.rows} rows at theta {rows.theta_deg:.2f} deg (centre base {2 * rows.half_base:.1f} mm, side "
                 f"reach {rows.shift + rows.run:.1f} mm within the build depth {bd:g} mm)")
@@ -342,11 +345,19 @@ def grid_dependencies(chunks: tuple[Chunk, ...], direction: np.ndarray,
         for p in ch.planes:
             owners.setdefault(p, []).append(ch)
     span = {ch.id: (float((ch.vertices @ u).min()), float((ch.vertices @ u).max())) for ch in chunks}
+    lowest: dict[tuple[Plane, str], float] = {}
+
+    def beyond(q: Plane, ch: Chunk) -> bool:
+        """Whether all of ``ch`` lies on the outer side of ``q`` (memoised: one pass per pair)."""
+        key = (q, ch.id)
+        if key not in lowest:
+            lowest[key] = float(q.signed_distance(ch.vertices).min())
+        return lowest[key] >= -tol
 
     def separated(a: Chunk, b: Chunk, across: Plane) -> bool:
         """Whether one of them lies wholly beyond another face of the other (then they meet on
         ``across`` at most along a line)."""
-        return any(q != across and q != across.flipped() and q.signed_distance(y.vertices).min() >= -tol
+        return any(q != across and q != across.flipped() and beyond(q, y)
                    for x, y in ((a, b), (b, a)) for q in x.planes)
 
     deps: dict[str, tuple[str, ...]] = {}
