@@ -316,3 +316,60 @@ def test_too_many_chunks_is_refused_with_a_column_width():
     assert not f.feasible and "more than 1,000" in f.reason and f.hints[0].startswith("chunking.column_width >= ")
     need = float(f.hints[0].split(">= ")[1])
     assert layout_feasibility("grid", v, job(column_width=need), 64).feasible
+
+
+def closure(cs, cid):
+    out, todo = set(), list(cs.deps[cid])
+    while todo:
+        d = todo.pop()
+        if d not in out:
+            out.add(d)
+            todo.extend(cs.deps[d])
+    return out
+
+
+def sample(ch, n=1200, seed=0):
+    tm = trimesh.Trimesh(ch.vertices, ch.faces, process=False)
+    return np.vstack([ch.vertices, trimesh.sample.sample_surface(tm, n, seed=seed)[0]])
+
+
+def worst_rise(cs, robot):
+    """Seed Fig. 3b on the grid: the most that material of a chunk printed before (a dependency,
+    transitively) rises above the printhead (``nozzle_height`` over the tip) within its square
+    (half-side ``nozzle_depth`` around the nozzle), over sampled nozzle positions; <= 0 is clear."""
+    c, u = np.asarray(cs.plan.axis), np.asarray(cs.plan.columns.direction)
+    worst = -np.inf
+    for ch in cs.chunks:
+        before = closure(cs, ch.id)
+        if not before:
+            continue
+        prior = np.vstack([sample(cs[d], 500) for d in before])
+        noz = sample(ch, 500, seed=1)
+        pc, pu = prior @ c, prior @ u
+        for i in range(0, len(noz), 256):
+            q = noz[i:i + 256]
+            near = ((np.abs((q @ c)[:, None] - pc[None, :]) <= robot.nozzle_depth)
+                    & (np.abs((q @ u)[:, None] - pu[None, :]) <= robot.nozzle_depth))
+            if near.any():
+                rise = prior[None, :, 2] - q[:, None, 2] - robot.nozzle_height
+                worst = max(worst, float(rise[near].max()))
+    return worst
+
+
+@pytest.mark.parametrize("shape,robots", [(lambda: box(2000, 600, 150), 4), (lambda: box(4000, 300, 200), 4),
+                                          (lambda: m3d.Manifold.cylinder(60, 900, 900, 96)
+                                           - m3d.Manifold.cylinder(62, 600, 600, 96).translate((0, 0, -1)), 6)])
+def test_printhead_clears_every_face_and_reach_holds(shape, robots):
+    """Wherever the nozzle goes in a chunk, the printhead clears every chunk printed before it
+    (:func:`worst_rise`), and each chunk lies within the build depth along the chunking axis."""
+    robot = RobotProfile()
+    solid, cs = grid(shape(), robots=robots)
+    for ch in cs.chunks:
+        assert np.ptp(ch.vertices @ np.asarray(cs.plan.axis)) <= robot.build_depth + 1e-6, ch.id
+    assert worst_rise(cs, robot) <= 1e-6
+
+
+def test_printhead_check_catches_a_face_steeper_than_theta_max():
+    # the wall's column faces at 76 deg, checked with a robot whose theta_max is 45 deg
+    _, cs = grid(box(4000, 300, 200), robots=4)
+    assert worst_rise(cs, RobotProfile(nozzle_height=25, nozzle_depth=25)) > 1.0

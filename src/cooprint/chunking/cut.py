@@ -41,9 +41,10 @@ class Chunk:
     Attributes
     ----------
     id : str
-        ``C``, ``L1``, ``L2``, ..., ``R1``, ``R2``, ... (index = plane index on that side).
+        ``C``, ``L1``, ``L2``, ..., ``R1``, ``R2``, ... (index = plane index on that side); in the
+        grid layout the row's name, ``-`` and the column (``C-0``, ``L1-3``).
     role : str
-        ``centre``, ``left`` or ``right``.
+        ``centre``, ``left`` or ``right`` (the row's side).
     index : int
         0 for the centre chunk, k for Lk / Rk.
     vertices : (n, 3) float64
@@ -103,12 +104,15 @@ class ChunkSet:
     ----------
     plan : ChunkPlan
     chunks : tuple of Chunk
-        ``C`` first (when not empty), then ``L1, L2, ...``, then ``R1, R2, ...``.
+        ``C`` first (when not empty), then ``L1, L2, ...``, then ``R1, R2, ...``; the grid layout
+        the same rows, each with its even columns then its odd ones. Every chunk comes after the
+        chunks in its ``deps``.
     deps : dict
-        ``{chunk id: tuple of chunk ids that must be finished first}`` — every side chunk
-        depends on its inner neighbour (the nearest non-empty chunk towards the centre): it leans
-        on that chunk's sloped face, and its robot stands where the next chunk out will be
-        (precedence (a) of issue 14: the chunks whose faces it leans on).
+        ``{chunk id: tuple of chunk ids that must be finished first}`` (precedence (a) of issue
+        14: the chunks whose faces it leans on). seed2: every side chunk depends on its inner
+        neighbour (the nearest non-empty chunk towards the centre): it leans on that chunk's
+        sloped face, and its robot stands where the next chunk out will be. grid:
+        :func:`cooprint.chunking.grid.grid_dependencies`.
     solid_volume : float
         Volume of the uncut solid, mm^3.
     layout : str
