@@ -299,15 +299,27 @@ def test_grid_feasibility_states_rows_columns_and_chunks():
     assert cs.plan.to_dict()["columns"]["columns"] == 4 and cs.plan.to_dict()["layout"] == "grid"
 
 
-@hsettings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@hsettings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(x=st.floats(300, 4000), y=st.floats(100, 1400), z=st.floats(10, 200), robots=st.integers(1, 16),
-       body=st.floats(150, 700), angle=st.sampled_from([0.0, 30.0, 90.0]))
-def test_grid_properties(x, y, z, robots, body, angle):
-    settings = job(RobotProfile(body_width=body), centre_angle_deg=angle)
-    solid = solid_of(box(x, y, z))
+       body=st.floats(150, 700), frame=st.none() | st.floats(100, 900), clearance=st.floats(1, 50),
+       angle=st.sampled_from([0.0, 30.0, 90.0]), hole=st.booleans(), width=st.none() | st.floats(200, 1500))
+def test_grid_properties(x, y, z, robots, body, frame, clearance, angle, hole, width):
+    robot = RobotProfile(body_width=body, frame_width=frame)
+    settings = job(robot, centre_angle_deg=angle, column_width=width)
+    settings = replace(settings, program=replace(settings.program, clearance=clearance))
+    man = box(x, y, z)
+    if hole:  # a hole through the middle: rows and columns with two islands, or none
+        man = man - box(x / 2, y / 2, z + 2).translate((0, 0, -1))
+    solid = solid_of(man)
+    run = z * robot.nozzle_depth / robot.nozzle_height  # h / tan(theta_max)
+    if width is not None and width - run < lane_width(robot, clearance):
+        with pytest.raises(InfeasibleError, match=r"^chunking.column_width = .* is too narrow: smallest"):
+            LAYOUTS["grid"](solid, settings, robots)
+        return
     cs = LAYOUTS["grid"](solid, settings, robots)
     assert_valid_grid(solid, cs, settings, robots)
-    assert len(cs.chunks) == layout_feasibility("grid", solid.vertices, settings, robots).chunks or angle == 30.0
+    bound = layout_feasibility("grid", solid.vertices, settings, robots).chunks
+    assert len(cs.chunks) == bound or (angle == 30.0 or hole or width) and len(cs.chunks) < bound
 
 
 def test_too_many_chunks_is_refused_with_a_column_width():

@@ -240,9 +240,13 @@ def _grid_plan(vertices: np.ndarray, settings: JobSettings, robots: int) -> tupl
     else:
         text = (f"{plan.rows} rows at theta {rows.theta_deg:.2f} deg (centre base {2 * rows.half_base:.1f} mm, side "
                 f"reach {rows.shift + rows.run:.1f} mm within the build depth {bd:g} mm)")
-    if columns.count == 1:
+    if columns.count == 1 and columns.given:
         text += (f"; {columns.extent:.1f} mm along the centre line, less than two columns of "
-                 f"{columns.lane + columns.run:.1f} mm: one column per row")
+                 f"chunking.column_width = {columns.width:g} mm: one column per row")
+    elif columns.count == 1:
+        text += (f"; {columns.extent:.1f} mm along the centre line, less than two columns of "
+                 f"{columns.lane + columns.run:.1f} mm (lane {columns.lane:.1f} + faces' run {columns.run:.1f}): "
+                 "one column per row")
     else:
         text += (f"; {columns.count} columns {columns.width:.1f} mm wide (bases {columns.even_base:.1f} even, "
                  f"{columns.odd_base:.1f} odd; lane {columns.lane:.1f}): at most {n} chunks")
