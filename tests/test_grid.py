@@ -385,3 +385,10 @@ def test_printhead_check_catches_a_face_steeper_than_theta_max():
     # the wall's column faces at 76 deg, checked with a robot whose theta_max is 45 deg
     _, cs = grid(box(4000, 300, 200), robots=4)
     assert worst_rise(cs, RobotProfile(nozzle_height=25, nozzle_depth=25)) > 1.0
+
+
+def test_progress_counts_every_piece():
+    calls = []
+    solid = solid_of(box(2000, 600, 150))
+    cs = LAYOUTS["grid"](solid, job(), 4, lambda done, total: calls.append((done, total)))
+    assert calls[-1] == (len(cs.chunks), len(cs.chunks)) and [d for d, _ in calls] == list(range(1, len(calls) + 1))
