@@ -101,7 +101,7 @@ def test_numpy_and_manifold_kernels_agree_on_a_tube():
     plan = plan_chunks(solid.vertices, RobotProfile(), ChunkingSettings(theta_deg=70, shift=12), robots=1)
     ours = {c.id: c.volume for c in cut_chunks(solid, plan).chunks}
     kernel = cut_module._ManifoldKernel(solid)
-    ref = {cid: kernel.extract(p)[2] for cid, _, _, p, _ in cut_module._pieces(kernel, plan)}
+    ref = {sp.id: kernel.extract(sp.piece)[2] for sp in cut_module.row_pieces(kernel, plan)}
     assert set(ours) <= set(ref) and len(ours) >= 5
     for cid, vol in ours.items():
         assert vol == pytest.approx(ref[cid], rel=1e-9), cid

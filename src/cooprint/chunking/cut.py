@@ -3,9 +3,15 @@
 The seed bisected with Blender and capped the cuts by hand; here every cut is an exact
 half-space split that leaves both halves closed (:mod:`cooprint.chunking.split`, in numpy, with
 manifold3d's kernel as the fallback for self-intersecting input), so each chunk is a closed
-2-manifold and the chunk volumes add up to the solid's volume. Parallel planes on one side are
-applied by recursive halving (middle plane first), which measured about 2x faster than peeling
-one chunk at a time (see DESIGN.md).
+2-manifold and the chunk volumes add up to the solid's volume. Ordered planes (parallel ones on
+one side, or a row's column faces) are applied by recursive halving (middle plane first), which
+measured about 2x faster than peeling one chunk at a time (see DESIGN.md).
+
+The machinery every layout shares: a layout turns a kernel into :class:`Piece` records (its cuts,
+made with :func:`split_ordered` and the kernel's ``split``), and :func:`cut_pieces` runs it with the
+numpy kernel, falls back to manifold3d's when a section is not a valid polygon set, and extracts
+the non-empty pieces as :class:`Chunk` records. ``seed2`` (:func:`cut_chunks`) and ``grid``
+(:mod:`cooprint.chunking.grid`) are two such layouts.
 """
 
 from __future__ import annotations
@@ -35,9 +41,10 @@ class Chunk:
     Attributes
     ----------
     id : str
-        ``C``, ``L1``, ``L2``, ..., ``R1``, ``R2``, ... (index = plane index on that side).
+        ``C``, ``L1``, ``L2``, ..., ``R1``, ``R2``, ... (index = plane index on that side); in the
+        grid layout the row's name, ``-`` and the column (``C-0``, ``L1-3``).
     role : str
-        ``centre``, ``left`` or ``right``.
+        ``centre``, ``left`` or ``right`` (the row's side).
     index : int
         0 for the centre chunk, k for Lk / Rk.
     vertices : (n, 3) float64
@@ -97,12 +104,15 @@ class ChunkSet:
     ----------
     plan : ChunkPlan
     chunks : tuple of Chunk
-        ``C`` first (when not empty), then ``L1, L2, ...``, then ``R1, R2, ...``.
+        ``C`` first (when not empty), then ``L1, L2, ...``, then ``R1, R2, ...``; the grid layout
+        the same rows, each with its even columns then its odd ones. Every chunk comes after the
+        chunks in its ``deps``.
     deps : dict
-        ``{chunk id: tuple of chunk ids that must be finished first}`` — every side chunk
-        depends on its inner neighbour (the nearest non-empty chunk towards the centre): it leans
-        on that chunk's sloped face, and its robot stands where the next chunk out will be
-        (precedence (a) of issue 14: the chunks whose faces it leans on).
+        ``{chunk id: tuple of chunk ids that must be finished first}`` (precedence (a) of issue
+        14: the chunks whose faces it leans on). seed2: every side chunk depends on its inner
+        neighbour (the nearest non-empty chunk towards the centre): it leans on that chunk's
+        sloped face, and its robot stands where the next chunk out will be. grid:
+        :func:`cooprint.chunking.grid.grid_dependencies`.
     solid_volume : float
         Volume of the uncut solid, mm^3.
     layout : str
@@ -141,6 +151,13 @@ class _NumpyKernel:
     def split(self, piece: np.ndarray, plane: Plane) -> tuple[np.ndarray, np.ndarray]:
         return split_mesh(self.pool, piece, plane.normal, plane.offset, self.snap)
 
+    def points(self, piece: np.ndarray) -> np.ndarray:
+        """(k, 3) float64 vertices of a piece (a linear function is extreme at one of them)."""
+        verts = self.pool.vertices
+        used = np.zeros(len(verts), dtype=bool)
+        used[piece.ravel()] = True  # a mask, not np.unique: no sort over the piece's corners
+        return verts[used]
+
     def extract(self, piece: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         if len(piece) == 0:
             return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64), 0.0
@@ -157,24 +174,51 @@ class _ManifoldKernel:
     def split(self, piece: manifold3d.Manifold, plane: Plane) -> tuple[manifold3d.Manifold, manifold3d.Manifold]:
         return piece.split_by_plane(plane.normal, plane.offset)
 
+    def points(self, piece: manifold3d.Manifold) -> np.ndarray:
+        """(k, 3) float64 vertices of a piece."""
+        return np.asarray(piece.to_mesh64().vert_properties, dtype=np.float64)[:, :3]
+
     def extract(self, piece: manifold3d.Manifold) -> tuple[np.ndarray, np.ndarray, float]:
         mesh = piece.to_mesh64()
         return (np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3],
                 np.asarray(mesh.tri_verts, dtype=np.int64), float(piece.volume()))
 
 
-def _split_parallel(kernel: Any, piece: Any, planes: list[Plane]) -> list[Any]:
-    """Pieces between consecutive parallel planes (same normal, increasing offset):
-    ``len(planes) + 1`` pieces, innermost first. Middle plane first (recursive halving)."""
+def split_ordered(kernel: Any, piece: Any, planes: list[Plane]) -> list[Any]:
+    """Pieces between consecutive ordered planes: ``len(planes) + 1`` pieces, the one behind
+    ``planes[0]`` (opposite its normal) first, the one beyond the last plane last. Middle plane
+    first (recursive halving).
+
+    The planes must be ordered within the piece: each plane's normal points to the side where
+    the later planes lie, and no two planes cross inside the piece. Parallel planes with
+    increasing offset are the seed's case; a row's column faces (slopes alternating, never
+    crossing within the part's height) the grid's."""
     if not planes:
         return [piece]
     mid = len(planes) // 2
     outer, inner = kernel.split(piece, planes[mid])
-    return _split_parallel(kernel, inner, planes[:mid]) + _split_parallel(kernel, outer, planes[mid + 1:])
+    return split_ordered(kernel, inner, planes[:mid]) + split_ordered(kernel, outer, planes[mid + 1:])
 
 
-def _pieces(kernel: Any, plan: ChunkPlan) -> list[tuple[str, str, int, Any, tuple[Plane, ...]]]:
-    """(id, role, index, piece, bounding planes) for every chunk of the plan, centre first."""
+@dataclass(frozen=True)
+class Piece:
+    """A chunk before extraction: what the layout knows of it, and the kernel's piece.
+
+    ``planes`` are the cuts that bound it, each normal pointing away from it; ``row``, ``col``,
+    ``facing`` as in :class:`Chunk`."""
+
+    id: str
+    role: str
+    index: int
+    piece: Any
+    planes: tuple[Plane, ...]
+    row: int = 0
+    col: int = 0
+    facing: tuple[float, float] | None = None
+
+
+def row_pieces(kernel: Any, plan: ChunkPlan) -> list[Piece]:
+    """The seed's chunks (the grid's rows): ``C`` first, then ``L1, L2, ...``, then ``R1, ...``."""
     right_planes = [plan.plane("R", k) for k in range(plan.n_right)]
     left_planes = [plan.plane("L", k) for k in range(plan.n_left)]
     r0, l0 = plan.plane("R", 0), plan.plane("L", 0)
@@ -183,17 +227,18 @@ def _pieces(kernel: Any, plan: ChunkPlan) -> list[tuple[str, str, int, Any, tupl
     left_pieces: list[Any] = []
     if plan.n_right:  # else nothing (beyond numerical slack) lies past R_0: keep it all in C
         right_side, centre = kernel.split(centre, r0)
-        right_pieces = _split_parallel(kernel, right_side, right_planes[1:])
+        right_pieces = split_ordered(kernel, right_side, right_planes[1:])
     if plan.n_left:
         left_side, centre = kernel.split(centre, l0)
-        left_pieces = _split_parallel(kernel, left_side, left_planes[1:])
+        left_pieces = split_ordered(kernel, left_side, left_planes[1:])
     centre_bounds = ((r0,) if plan.n_right else ()) + ((l0,) if plan.n_left else ())  # the cuts made
-    specs: list[tuple[str, str, int, Any, tuple[Plane, ...]]] = [("C", "centre", 0, centre, centre_bounds)]
+    specs = [Piece("C", "centre", 0, centre, centre_bounds, 0, 0, _seed_facing("centre", plan))]
     for role, side, pieces, planes in (("left", "L", left_pieces, left_planes),
                                        ("right", "R", right_pieces, right_planes)):
         for k, piece in enumerate(pieces, start=1):
             bounds = (planes[k - 1].flipped(),) + ((planes[k],) if k < len(planes) else ())
-            specs.append((f"{side}{k}", role, k, piece, bounds))
+            row = -k if role == "left" else k
+            specs.append(Piece(f"{side}{k}", role, k, piece, bounds, row, 0, _seed_facing(role, plan)))
     return specs
 
 
@@ -222,9 +267,35 @@ def _seed_facing(role: str, plan: ChunkPlan) -> tuple[float, float] | None:
     return (sign * float(plan.axis[0]), sign * float(plan.axis[1]))
 
 
+def cut_pieces(solid: Solid, make_pieces: Callable[[Any], list[Piece]],
+               progress: Callable[[int, int], None] | None = None) -> tuple[Chunk, ...]:
+    """Run a layout's cuts (``make_pieces(kernel)``) on ``solid`` and extract its chunks.
+
+    The numpy kernel first; when one of its sections is not a valid polygon set (a
+    self-intersecting mesh, :class:`CapError`) the whole layout is cut again with manifold3d's.
+    Chunks whose volume is dust (below ``DUST`` of the solid's) are dropped; the others keep the
+    layout's ids, so an id never changes because a neighbour turned out empty. ``progress(done,
+    total)`` is called after each piece is extracted."""
+    kernel: Any = _NumpyKernel(solid)
+    try:
+        specs = make_pieces(kernel)
+    except CapError:  # a section that is not a valid polygon set (self-intersecting mesh)
+        kernel = _ManifoldKernel(solid)
+        specs = make_pieces(kernel)
+    chunks: list[Chunk] = []
+    dust = DUST * solid.volume
+    for i, sp in enumerate(specs):
+        verts, faces, vol = kernel.extract(sp.piece)
+        if vol > dust:
+            chunks.append(Chunk(sp.id, sp.role, sp.index, verts, faces, vol, sp.planes, sp.row, sp.col, sp.facing))
+        if progress:
+            progress(i + 1, len(specs))
+    return tuple(chunks)
+
+
 def cut_chunks(solid: Solid, plan: ChunkPlan,
                progress: Callable[[int, int], None] | None = None) -> ChunkSet:
-    """Cut ``solid`` along ``plan`` into watertight chunks.
+    """Cut ``solid`` along ``plan`` into watertight chunks (the ``seed2`` layout).
 
     Parameters
     ----------
@@ -240,21 +311,5 @@ def cut_chunks(solid: Solid, plan: ChunkPlan,
     ChunkSet
         Non-empty chunks only; ids keep their plane index even if a chunk between is empty.
     """
-    kernel: Any = _NumpyKernel(solid)
-    try:
-        specs = _pieces(kernel, plan)
-    except CapError:  # a section that is not a valid polygon set (self-intersecting mesh)
-        kernel = _ManifoldKernel(solid)
-        specs = _pieces(kernel, plan)
-
-    total = len(specs)
-    chunks: list[Chunk] = []
-    dust = DUST * solid.volume
-    for i, (cid, role, k, piece, planes_k) in enumerate(specs):
-        verts, faces, vol = kernel.extract(piece)
-        if vol > dust:
-            row = {"centre": 0, "left": -k, "right": k}[role]
-            chunks.append(Chunk(cid, role, k, verts, faces, vol, planes_k, row, 0, _seed_facing(role, plan)))
-        if progress:
-            progress(i + 1, total)
-    return ChunkSet(plan, tuple(chunks), dependencies(tuple(chunks)), solid.volume)
+    chunks = cut_pieces(solid, lambda kernel: row_pieces(kernel, plan), progress)
+    return ChunkSet(plan, chunks, dependencies(chunks), solid.volume, "seed2")

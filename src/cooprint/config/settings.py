@@ -139,8 +139,9 @@ class ChunkingSettings:
                         "seed's centre and side chunks, 1 or 2 robots), grid (rows cut into columns, any number of "
                         "robots) or auto (the one with the shorter estimated makespan)"))
     column_width: float | None = field(default=None, metadata=_num(MIN_SHIFT, 1e6, unit="mm", optional=True,
-                                       doc="grid layout: base width of a column along the centre line; absent: "
-                                           "from the robots' outline and their number"))
+                                       doc="grid layout: width of a column along the centre line at mid height "
+                                           "(half the period of an even and an odd column); absent: from the robots' "
+                                           "outline and their number"))
 
 
 @dataclass(frozen=True)
