@@ -180,10 +180,12 @@ def choose_layout(solid: Solid, settings: JobSettings, robots: int,
 
 
 def _wider_columns(chunks: ChunkSet) -> list[float]:
-    """Wider column widths for ``auto`` to weigh against the grid's default (fewer, larger
-    columns: less waiting between neighbours, less parallel work)."""
-    width = getattr(chunks.plan, "column_width", None)
-    return [1.5 * width, 2.0 * width] if width else []
+    """Wider column widths (1.5x and 2x the grid's default, half its period) for ``auto`` to weigh
+    against the default: fewer, larger columns wait less on their neighbours but share less work."""
+    columns = getattr(chunks.plan, "columns", None)
+    if columns is None or not np.isfinite(columns.period) or columns.count < 3:
+        return []
+    return [0.75 * columns.period, 1.0 * columns.period]
 
 
 def job_record(job: ChunkJob) -> dict[str, Any]:
