@@ -189,7 +189,7 @@ def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: 
     """Report a mesh (triangles, size, volume, repairs, placement) and whether the robot can print it:
     the feasibility rule of `chunk` and `run`, the largest printable height, the number of chunks.
     Exits 1 when the part is not feasible (0 when it is)."""
-    from cooprint.chunking import feasibility
+    from cooprint.chunking import layout_feasibility
     from cooprint.chunking.planes import mm
     from cooprint.io.mesh import fmt_report
     from cooprint.jobs import load_placed
@@ -198,12 +198,16 @@ def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: 
     solid, placement = load_placed(mesh, settings)
     click.echo(fmt_report(solid.report))
     click.echo(f"  {placement.describe()}")
-    f = feasibility(solid.vertices, settings.robot, settings.chunking, robots)
+    layout = settings.chunking.layout
+    if layout == "auto":  # as `run` resolves it (the grid's rows are seed2's: one rule for both)
+        layout = "seed2" if robots <= 2 else "grid"
+    f = layout_feasibility(layout, solid.vertices, settings, robots)
     click.echo(f"  robot '{settings.robot.name}': theta_min {f.theta_min_deg:.2f} deg, theta_max {f.theta_max_deg:.2f} "
                f"deg, largest printable height {mm(f.max_height)} mm ({'one chunk' if f.mode == 'whole' else 'cut'})")
     if f.feasible:
         idle = f" ({robots - 1} robot idle)" if f.chunks == 1 and robots > 1 else ""
-        click.echo(f"  feasible: {f.chunks} chunk{'s' if f.chunks != 1 else ''} for {robots} robot{'s' if robots > 1 else ''}{idle}; {f.reason}")
+        click.echo(f"  feasible: {f.chunks} chunk{'s' if f.chunks != 1 else ''} for {robots} "
+                   f"robot{'s' if robots > 1 else ''}{idle} ({layout} layout); {f.reason}")
     else:
         click.echo(f"  not feasible: {f.message()}")
         raise click.exceptions.Exit(1)  # as `chunk` refuses it; scripts test the exit code
