@@ -130,6 +130,29 @@ def test_swept_body_is_the_hull_moved_by_the_turned_rectangle():
     assert hi.tolist() == pytest.approx([250.0, 50.0 - 300.0])
 
 
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), deg=st.floats(0.0, 360.0), part=st.sampled_from(["body", "frame", "printhead"]))
+def test_swept_is_the_hull_of_every_vertex_plus_every_corner(seed, deg, part):
+    rng = np.random.default_rng(seed)
+    hull = convex_hull(rng.uniform(-300, 300, (int(rng.integers(3, 40)), 2)))
+    f = np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+    rect = ROBOT.outline()[part]
+    u0, u1, v0, v1 = rect
+    corners = np.array([[u, v] for u in (u0, u1) for v in (v0, v1)]) @ np.array([f, [-f[1], f[0]]])
+    expect = convex_hull((hull[:, None] + corners[None]).reshape(-1, 2))
+    got = swept(hull, rect, f)
+    assert _area(got) == pytest.approx(_area(expect), rel=1e-9)
+    for a, b in ((got, expect), (expect, got)):  # each polygon's vertices on or inside the other
+        e = np.roll(b, -1, axis=0) - b
+        rel = a[:, None, :] - b[None]
+        assert (e[None, :, 0] * rel[..., 1] - e[None, :, 1] * rel[..., 0] >= -1e-6).all()
+
+
+def _area(poly):
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
 # --- (b) the body rule -----------------------------------------------------------------------
 
 def test_body_deps_point_from_the_front_row_to_the_row_its_robots_stand_on():

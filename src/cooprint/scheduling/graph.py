@@ -98,34 +98,47 @@ def _rect_corners(rect: Sequence[float], facing: np.ndarray) -> np.ndarray:
     return u[:, None] * facing + v[:, None] * left
 
 
+def _from_lowest(poly: np.ndarray) -> np.ndarray:
+    """A counter-clockwise convex polygon started at its lowest vertex (the leftmost of the
+    lowest): from there its edges turn through angles that rise from [0, pi) to below 2 pi."""
+    k = int(np.lexsort((poly[:, 0], poly[:, 1]))[0])
+    return np.roll(poly, -k, axis=0)
+
+
 def swept(hull: np.ndarray, rect: Sequence[float], facing: np.ndarray) -> np.ndarray:
-    """The convex polygon a robot part ``rect`` covers while the nozzle goes over ``hull``:
-    their Minkowski sum (the hull of every hull vertex plus every corner)."""
-    return convex_hull((hull[:, None, :] + _rect_corners(rect, facing)[None]).reshape(-1, 2))
+    """The convex polygon a robot part ``rect`` covers while the nozzle goes over ``hull`` (a
+    counter-clockwise convex polygon): their Minkowski sum, walked from the sum of their lowest
+    vertices along the edges of both in the order of their angles (no hull needed)."""
+    p = _from_lowest(hull)
+    r = _from_lowest(_rect_corners(rect, facing))
+    edges = np.vstack([np.roll(p, -1, axis=0) - p, np.roll(r, -1, axis=0) - r])
+    edges = edges[(edges != 0).any(axis=1)]
+    angle = np.arctan2(edges[:, 1], edges[:, 0])
+    angle = np.where(angle < 0, angle + 2 * math.pi, angle)
+    steps = np.cumsum(edges[np.argsort(angle, kind="stable")][:-1], axis=0)
+    return p[0] + r[0] + np.vstack([np.zeros((1, 2)), steps])
 
 
 class _Polygons:
     """Convex polygons padded to one array: vertices (N, K, 2) (the last one repeated),
-    unit edge normals (N, K, 2) (the first repeated over the padding), vertex counts and boxes."""
+    unit edge normals (N, K, 2) (the last one repeated over the padding), vertex counts and
+    boxes."""
 
     def __init__(self, polys: Sequence[np.ndarray]):
         counts = np.array([len(q) for q in polys], dtype=np.int64)
         k = int(counts.max(initial=1))
+        flat = np.concatenate(polys) if polys else np.zeros((0, 2))
+        first = np.r_[0, np.cumsum(counts)[:-1]]
+        j = np.arange(k)[None, :]
+        idx = first[:, None] + np.minimum(j, counts[:, None] - 1)
+        nxt = first[:, None] + (np.minimum(j, counts[:, None] - 1) + 1) % counts[:, None]
         self.count = counts
-        self.verts = np.empty((len(polys), k, 2))
-        self.normals = np.empty((len(polys), k, 2))
-        for i, q in enumerate(polys):
-            m = len(q)
-            e = np.roll(q, -1, axis=0) - q
-            nrm = np.column_stack([e[:, 1], -e[:, 0]])
-            length = np.linalg.norm(nrm, axis=1)
-            nrm = nrm[length > 0] / length[length > 0, None]
-            if not len(nrm):  # a single point: any axes do
-                nrm = np.eye(2)
-            self.verts[i, :m], self.verts[i, m:] = q, q[-1]
-            self.normals[i, :len(nrm)], self.normals[i, len(nrm):] = nrm, nrm[0]
-        self.box = (np.column_stack([self.verts.min(axis=1), self.verts.max(axis=1)]) if len(polys)
-                    else np.zeros((0, 4)))
+        self.verts = flat[idx]
+        e = flat[nxt] - self.verts
+        nrm = np.stack([e[..., 1], -e[..., 0]], axis=-1)
+        length = np.linalg.norm(nrm, axis=-1, keepdims=True)
+        self.normals = np.where(length > 0, nrm / np.where(length > 0, length, 1.0), [1.0, 0.0])
+        self.box = np.column_stack([self.verts.min(axis=1), self.verts.max(axis=1)]).reshape(len(polys), 4)
 
 
 def _separation(pa: _Polygons, ia: np.ndarray, pb: _Polygons, ib: np.ndarray) -> np.ndarray:
