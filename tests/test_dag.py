@@ -339,14 +339,22 @@ def _sliced(man, settings: SlicingSettings):
     return cs, layers
 
 
-def test_work_from_layers_is_the_simulators_time_of_the_chunks_layer_moves():
+BIG = SlicingSettings(layer_height=0.6, first_layer_height=0.6, nozzle_diameter=1.0, extrusion_width=1.2)
+FAST = RobotProfile(print_speed=35.0, travel_speed=150.0)
+
+
+@pytest.fixture(scope="module")
+def sliced_box():
+    return _sliced(box(500, 900, 8), BIG)
+
+
+def test_work_from_layers_is_the_simulators_time_of_the_chunks_layer_moves(sliced_box):
     from cooprint.program.build import layer_program
     from cooprint.program.commands import Program, quantize
     from cooprint.simulation.timeline import SimRobot, move_durations
 
-    s = SlicingSettings(layer_height=0.6, first_layer_height=0.6, nozzle_diameter=1.0, extrusion_width=1.2)
-    robot = RobotProfile(print_speed=35.0, travel_speed=150.0)
-    cs, layers = _sliced(box(500, 900, 8), s)
+    s, robot = BIG, FAST
+    cs, layers = sliced_box
     work = work_from_layers(layers, robot, s)
     ends = ends_from_layers(layers)
     assert set(work) == set(cs.ids)
@@ -370,11 +378,24 @@ def test_work_from_layers_is_the_simulators_time_of_the_chunks_layer_moves():
     assert work_from_layers(empty, robot, s) == {"E": 0.0} and ends_from_layers(empty) == {}
 
 
-def test_work_from_volume_is_volume_over_the_deposition_rate_times_the_factor():
-    from cooprint.scheduling.graph import VOLUME_FACTOR
+def test_work_from_volume_is_the_printed_volume_over_the_deposition_rate_times_the_factor():
+    from cooprint.scheduling.graph import VOLUME_FACTOR, printed_volume
 
-    s = SlicingSettings()
+    s = SlicingSettings()  # 2 perimeters of 0.45 mm, 4 + 4 layers of 0.2 mm, 20% infill
     cs = chunk_set(rows(behind=False))
+    side = 2 * (400 + 250) * 50
+    shell = side * 2 * 0.45 + 2 * 400 * 250 * 4 * 0.2
+    expect = shell + 0.2 * (400 * 250 * 50 - shell)
+    assert printed_volume(cs["F0"], s) == pytest.approx(expect)
     w = work_from_volume(cs, ROBOT, s)
-    rate = s.extrusion_width * s.layer_height * ROBOT.print_speed
-    assert w["F0"] == pytest.approx(VOLUME_FACTOR * 400 * 250 * 50 / rate)
+    assert w["F0"] == pytest.approx(VOLUME_FACTOR * expect / (0.45 * 0.2 * ROBOT.print_speed))
+    solid = chunk_set([box_chunk("S", 0, 10, 0, 10, 1.0)])  # all shell: the volume, solid
+    assert printed_volume(solid["S"], s) == pytest.approx(100.0)
+
+
+def test_work_from_volume_is_within_a_quarter_of_the_sliced_time(sliced_box):
+    cs, layers = sliced_box
+    sliced = work_from_layers(layers, FAST, BIG)
+    estimate = work_from_volume(cs, FAST, BIG)
+    for cid in cs.ids:
+        assert estimate[cid] == pytest.approx(sliced[cid], rel=0.25), cid
