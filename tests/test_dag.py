@@ -98,7 +98,7 @@ def oracle(cs: ChunkSet, clearance: float):
                     body_pred[y.id].add(x.id)
     return body_pred, {(a.id, b.id) for i, a in enumerate(cs.chunks) for b in cs.chunks[i + 1:]
                        if min(_box_distance(_swept_box(a, out[p], a.facing), _swept_box(b, out[q], b.facing))
-                              for p in out for q in out) < clearance}
+                              for p in out for q in out) < clearance - 1e-6}
 
 
 def _ancestors(dag: ChunkDAG) -> dict[str, set[str]]:
@@ -319,6 +319,12 @@ def test_seed2_chunks_body_rule_agrees_with_the_leaning_order():
     assert dag.facing[dag.index["L1"]].tolist() == pytest.approx(list(plan.axis[:2]))
     assert dag.facing[dag.index["R1"]].tolist() == pytest.approx([-x for x in plan.axis[:2]])
     assert len(dag.topological_order()) == len(dag.ids)
+    # the default top width (2 x nozzle_depth) makes L1's and R1's printhead sweeps just touch at
+    # the top: exclusive with any clearance, not when outlines may touch (clearance 0)
+    assert ("L1", "R1") in dag.exclusive
+    touching = build_dag(cs, ROBOT, 0.0, {c: 1.0 for c in cs.ids}, ROBOT.travel_speed)
+    assert touching.exclusive == ()
+    assert touching.body_deps == dag.body_deps
 
 
 # --- work estimates ------------------------------------------------------------------------------

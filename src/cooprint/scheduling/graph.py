@@ -43,6 +43,8 @@ MIN_WORK = 1e-3
 #: How far (mm) a chunk must reach into a robot's body sweep before the body rule orders it:
 #: chunks that merely touch (a shared cut face, a rounding error) do not count.
 TOUCH = 0.5
+#: Rounding slack of the exclusion test, mm: outlines that touch are not closer than 0.
+EXACT = 1e-6
 #: Pairs of polygons tested per numpy batch (keeps the (pairs, k, k) temporaries a few MB).
 BATCH = 4096
 
@@ -354,10 +356,11 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
     near = (gap_a > -clearance).all(axis=1)
     pa, pb, pair = pa[near], pb[near], pair[near]
     gap = _separation(pieces, pa, pieces, pb)
-    close = gap < clearance
+    limit = clearance - EXACT  # touching outlines are not closer than a clearance of 0
+    close = gap < limit
     between = close & (gap > 0)
     if between.any():
-        close[between] = _distance(pieces, pa[between], pieces, pb[between]) < clearance
+        close[between] = _distance(pieces, pa[between], pieces, pb[between]) < limit
     excl = np.zeros(len(ca), dtype=bool)
     excl[pair[close]] = True
     exclusive = tuple((ids[a], ids[b]) for a, b in sorted(zip(ca[excl].tolist(), cb[excl].tolist())))
