@@ -43,51 +43,55 @@ MIN_WORK = 1e-3
 #: How far (mm) a chunk must reach into a robot's body sweep before the body rule orders it:
 #: chunks that merely touch (a shared cut face, a rounding error) do not count.
 TOUCH = 0.5
+#: A vertex whose edges turn by less than this (sine of the angle) is on a straight edge and
+#: dropped, so that rounding never makes a polygon's edge angles run backwards.
+STRAIGHT = 1e-9
 #: Rounding slack of the exclusion test, mm: outlines that touch are not closer than 0.
 EXACT = 1e-6
-#: Pairs of polygons tested per numpy batch (keeps the (pairs, k, k) temporaries a few MB).
-BATCH = 4096
 
 # -- convex polygons --------------------------------------------------------------------------
 
-#: Eight directions for the Akl-Toussaint prefilter of :func:`convex_hull`, counter-clockwise.
-_DIRS = np.array([[math.cos(a), math.sin(a)] for a in np.arange(8) * math.pi / 4])
+#: Sixteen directions for the prefilter of :func:`convex_hull`, counter-clockwise.
+_DIRS = np.array([[math.cos(a), math.sin(a)] for a in np.arange(16) * math.pi / 8])
 
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
-    """(k, 2) the convex hull of (n, 2) points, counter-clockwise, no repeated or collinear
-    vertex (Andrew's monotone chain). The points strictly inside the octagon of the extreme
-    points in eight directions are dropped first (vectorised), so the chain walks only the few
-    near the boundary."""
+    """(k, 2) the convex hull of (n, 2) points, counter-clockwise from its lowest vertex (the
+    leftmost of the lowest), without repeated vertices or vertices on straight edges.
+
+    Whole-array: the points strictly inside the polygon of the extreme points in sixteen
+    directions are dropped (Akl-Toussaint); the rest, in angular order around a point inside
+    that polygon, form a star-shaped polygon whose every vertex that does not turn left is
+    dropped at once, pass after pass, until all turn left (a Graham scan done in parallel: an
+    extreme point always turns left, so only inner points go)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(p) > 16:
+        ext = p[np.argmax(p @ _DIRS.T, axis=0)]
+        ext = ext[(ext != np.roll(ext, 1, axis=0)).any(axis=1)]
+        if len(ext) >= 3:
+            e = np.roll(ext, -1, axis=0) - ext
+            normal = np.column_stack([e[:, 1], -e[:, 0]])  # outward
+            tol = STRAIGHT * float(np.abs(ext).max() + 1.0) * np.hypot(e[:, 0], e[:, 1])
+            p = np.vstack([ext, p[((p @ normal.T) - (normal * ext).sum(axis=1) >= -tol).any(axis=1)]])
     p = p[np.lexsort((p[:, 1], p[:, 0]))]
     if len(p) > 1:
         p = p[np.r_[True, (np.diff(p, axis=0) != 0).any(axis=1)]]
     if len(p) <= 2:
         return p
-    ext = p[np.argmax(p @ _DIRS.T, axis=0)]
-    ext = ext[(ext != np.roll(ext, 1, axis=0)).any(axis=1)]
-    if len(ext) >= 3:
-        e = np.roll(ext, -1, axis=0) - ext
-        cross = e[:, 0] * (p[:, None, 1] - ext[:, 1]) - e[:, 1] * (p[:, None, 0] - ext[:, 0])
-        scale = float(np.abs(p).max()) + 1.0
-        p = p[~(cross > 1e-9 * scale * scale).all(axis=1)]
-    xs, ys = p[:, 0].tolist(), p[:, 1].tolist()
-
-    def chain(order: range) -> list[int]:
-        out: list[int] = []
-        for i in order:
-            while len(out) >= 2:
-                a, b = out[-2], out[-1]
-                if (xs[b] - xs[a]) * (ys[i] - ys[a]) - (ys[b] - ys[a]) * (xs[i] - xs[a]) > 0:
-                    break
-                out.pop()
-            out.append(i)
-        return out
-
-    lower = chain(range(len(p)))
-    upper = chain(range(len(p) - 1, -1, -1))
-    return p[lower[:-1] + upper[:-1]]
+    centre = p.mean(axis=0)
+    d = p - centre
+    q = p[np.lexsort((np.hypot(d[:, 0], d[:, 1]), np.arctan2(d[:, 1], d[:, 0])))]
+    while len(q) >= 3:
+        e_in = q - q[np.r_[len(q) - 1, 0:len(q) - 1]]
+        e_out = q[np.r_[1:len(q), 0]] - q
+        turn = e_in[:, 0] * e_out[:, 1] - e_in[:, 1] * e_out[:, 0]
+        left = turn > STRAIGHT * np.hypot(e_in[:, 0], e_in[:, 1]) * np.hypot(e_out[:, 0], e_out[:, 1])
+        if left.all():
+            break
+        q = q[left]
+    if len(q) < 3:  # all on one line: its two ends
+        return p[[0, -1]]
+    return np.roll(q, -int(np.lexsort((q[:, 0], q[:, 1]))[0]), axis=0)
 
 
 def _rect_corners(rect: Sequence[float], facing: np.ndarray) -> np.ndarray:
@@ -122,71 +126,104 @@ def swept(hull: np.ndarray, rect: Sequence[float], facing: np.ndarray) -> np.nda
 
 
 class _Polygons:
-    """Convex polygons padded to one array: vertices (N, K, 2) (the last one repeated),
-    unit edge normals (N, K, 2) (the last one repeated over the padding), vertex counts and
-    boxes."""
+    """Convex counter-clockwise polygons normalised for whole-array work: vertices on straight
+    edges and repeated ones dropped, each started at its lowest vertex (the leftmost of the
+    lowest), so that its edges' angles rise from [0, pi) to below 2 pi; padded to one array.
 
-    def __init__(self, polys: Sequence[np.ndarray]):
-        counts = np.array([len(q) for q in polys], dtype=np.int64)
-        k = int(counts.max(initial=1))
-        flat = np.concatenate(polys) if polys else np.zeros((0, 2))
-        first = np.r_[0, np.cumsum(counts)[:-1]]
-        j = np.arange(k)[None, :]
-        idx = first[:, None] + np.minimum(j, counts[:, None] - 1)
-        nxt = first[:, None] + (np.minimum(j, counts[:, None] - 1) + 1) % counts[:, None]
-        self.count = counts
-        self.verts = flat[idx]
-        e = flat[nxt] - self.verts
-        nrm = np.stack([e[..., 1], -e[..., 0]], axis=-1)
-        length = np.linalg.norm(nrm, axis=-1, keepdims=True)
-        self.normals = np.where(length > 0, nrm / np.where(length > 0, length, 1.0), [1.0, 0.0])
+    ``verts``, ``edges`` (N, K, 2) (padding: the last vertex, zero edges), ``angle`` (N, K)
+    (padding: inf), ``count`` (N,), ``box`` (N, 4); ``neg`` the same for the polygons turned
+    through 180 degrees (``-P``, for Minkowski differences)."""
+
+    def __init__(self, polys: Sequence[np.ndarray], negate: bool = True):
+        flat = np.concatenate(polys) if len(polys) else np.zeros((0, 2))
+        gid = np.repeat(np.arange(len(polys)), [len(q) for q in polys])
+        nxt, _ = _cyclic(gid)
+        flat, gid = self._keep(flat, gid, (flat[nxt] != flat).any(axis=1), len(polys))  # repeated points
+        nxt, prv = _cyclic(gid)
+        e_out, e_in = flat[nxt] - flat, flat - flat[prv]
+        cross = e_in[:, 0] * e_out[:, 1] - e_in[:, 1] * e_out[:, 0]
+        turns = cross > STRAIGHT * np.linalg.norm(e_in, axis=1) * np.linalg.norm(e_out, axis=1)
+        flat, gid = self._keep(flat, gid, turns, len(polys))  # points on straight edges
+        self._pad(flat, gid, len(polys))
         self.box = np.column_stack([self.verts.min(axis=1), self.verts.max(axis=1)]).reshape(len(polys), 4)
+        self.neg = _Polygons.__new__(_Polygons)
+        if negate:
+            self.neg._pad(-flat, gid, len(polys))
+
+    @staticmethod
+    def _keep(flat: np.ndarray, gid: np.ndarray, keep: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """The points ``keep`` selects, all points of a polygon it would leave below three."""
+        keep = keep | (np.bincount(gid, keep, n)[gid] < 3)
+        return flat[keep], gid[keep]
+
+    def _pad(self, flat: np.ndarray, gid: np.ndarray, n: int) -> None:
+        count = np.bincount(gid, minlength=n)
+        first = np.r_[0, np.cumsum(count)[:-1]]
+        order = np.lexsort((flat[:, 0], flat[:, 1], gid))  # per polygon, lowest then leftmost first
+        lowest = np.where(count > 0, order[np.minimum(first, max(len(order) - 1, 0))] - first, 0) if len(order) \
+            else np.zeros(n, dtype=np.int64)
+        k = int(count.max(initial=1))
+        j = np.arange(k)[None, :]
+        real = j < count[:, None]
+        m = np.maximum(count, 1)[:, None]
+        idx = first[:, None] + (lowest[:, None] + np.minimum(j, m - 1)) % m
+        nxt = first[:, None] + (lowest[:, None] + np.minimum(j, m - 1) + 1) % m
+        self.count = count
+        self.verts = flat[idx]
+        self.edges = np.where(real[..., None], flat[nxt] - self.verts, 0.0)
+        angle = np.arctan2(self.edges[..., 1], self.edges[..., 0])
+        angle = np.where(angle < 0, angle + 2 * math.pi, angle)
+        self.angle = np.where(real, np.maximum.accumulate(np.where(real, angle, 0.0), axis=1), np.inf)
 
 
-def _separation(pa: _Polygons, ia: np.ndarray, pb: _Polygons, ib: np.ndarray) -> np.ndarray:
-    """(p,) for each pair of convex polygons ``pa[ia[j]]``, ``pb[ib[j]]``: the largest gap
-    between their projections over the edge normals of both (separating-axis test). Above 0
-    they are apart (by at least that much); at or below 0 they overlap, by ``-gap`` (the
-    smallest overlap of all axes: how far one reaches into the other)."""
+def _cyclic(gid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Next and previous index of each point of polygons stored one after another (``gid``:
+    each point's polygon, ascending), cyclic within its polygon."""
+    if not len(gid):
+        return gid, gid
+    start = np.flatnonzero(np.r_[True, gid[1:] != gid[:-1]])
+    end = np.r_[start[1:], len(gid)] - 1
+    i = np.arange(len(gid))
+    nxt, prv = i + 1, i - 1
+    nxt[end] = start
+    prv[start] = end
+    return nxt, prv
+
+
+def signed_distance(pa: _Polygons, ia: np.ndarray, pb: _Polygons, ib: np.ndarray) -> np.ndarray:
+    """(p,) for each pair of convex polygons ``A = pa[ia[j]]``, ``B = pb[ib[j]]``: their
+    distance (mm) when apart, minus how far they overlap when not (the least shift that parts
+    them, along one of their edge normals: the separating-axis test's depth).
+
+    Both come from their Minkowski difference ``D = A + (-B)``, walked from the sum of the
+    lowest vertices along the edges of both in angle order (O(k log k) a pair, not O(k^2)):
+    A and B meet where D holds the origin; the largest distance of the origin outside D's edge
+    lines is the separating-axis gap, and when it is positive the distance to D's boundary is
+    the distance between A and B."""
     out = np.empty(len(ia))
-    order = np.argsort(np.maximum(pa.count[ia], pb.count[ib]), kind="stable")
-    for lo in range(0, len(order), BATCH):
-        sel = order[lo:lo + BATCH]
+    size = pa.count[ia] + pb.count[ib]
+    order = np.argsort(-size, kind="stable")
+    lo = 0
+    while lo < len(order):
+        step = max(1, (1 << 19) // int(size[order[lo]]))
+        sel = order[lo:lo + step]
+        lo += step
         a, b = ia[sel], ib[sel]
-        ka, kb = int(pa.count[a].max()), int(pb.count[b].max())
-        va, na = pa.verts[a, :ka], pa.normals[a, :ka]
-        vb, nb = pb.verts[b, :kb], pb.normals[b, :kb]
-        gap = np.full(len(sel), -np.inf)
-        for axes in (na, nb):
-            sa = np.einsum("pkd,pjd->pkj", va, axes)
-            sb = np.einsum("pkd,pjd->pkj", vb, axes)
-            g = np.maximum(sa.min(axis=1) - sb.max(axis=1), sb.min(axis=1) - sa.max(axis=1))
-            gap = np.maximum(gap, g.max(axis=1))
-        out[sel] = gap
-    return out
-
-
-def _distance(pa: _Polygons, ia: np.ndarray, pb: _Polygons, ib: np.ndarray) -> np.ndarray:
-    """(p,) the distance between disjoint convex polygons: the shortest from a vertex of one to
-    an edge of the other (exact for disjoint convex polygons)."""
-    out = np.empty(len(ia))
-    for lo in range(0, len(ia), BATCH // 8):
-        a, b = ia[lo:lo + BATCH // 8], ib[lo:lo + BATCH // 8]
-        ka, kb = int(pa.count[a].max()), int(pb.count[b].max())
-        va, vb = pa.verts[a, :ka], pb.verts[b, :kb]
-        best = np.full(len(a), np.inf)
-        for v, w, kw, cw in ((va, vb, kb, pb.count[b]), (vb, va, ka, pa.count[a])):
-            # edges of w: vertex j to vertex j + 1, the last real vertex back to the first
-            nxt = np.minimum(np.arange(kw) + 1, kw - 1)[None, :].repeat(len(a), 0)
-            nxt[np.arange(kw)[None, :] >= (cw - 1)[:, None]] = 0
-            e0 = w
-            d = np.take_along_axis(w, nxt[:, :, None], axis=1) - e0
-            rel = v[:, :, None, :] - e0[:, None, :, :]
-            dd = (d * d).sum(axis=-1)[:, None, :]
-            t = np.clip((rel * d[:, None]).sum(axis=-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-            dist = np.linalg.norm(rel - t[..., None] * d[:, None], axis=-1)
-            best = np.minimum(best, dist.reshape(len(a), -1).min(axis=1))
-        out[lo:lo + len(a)] = best
+        ka, kb = int(pa.count[a].max()), int(pb.neg.count[b].max())
+        edges = np.concatenate([pa.edges[a, :ka], pb.neg.edges[b, :kb]], axis=1)
+        angle = np.concatenate([pa.angle[a, :ka], pb.neg.angle[b, :kb]], axis=1)
+        edges = np.take_along_axis(edges, np.argsort(angle, axis=1, kind="stable")[..., None], axis=1)
+        start = pa.verts[a, 0] + pb.neg.verts[b, 0]
+        verts = start[:, None, :] + np.cumsum(edges, axis=1) - edges  # D's vertex where each edge starts
+        length2 = (edges * edges).sum(axis=-1)
+        real = length2 > 0
+        length = np.sqrt(np.where(real, length2, 1.0))
+        # origin's distance outside each edge line: -(n . v), n = (e_y, -e_x) / |e| outward
+        outside = -(edges[..., 1] * verts[..., 0] - edges[..., 0] * verts[..., 1]) / length
+        gap = np.where(real, outside, -np.inf).max(axis=1)
+        t = np.clip(-(verts * edges).sum(axis=-1) / np.where(real, length2, 1.0), 0.0, 1.0)
+        near = np.linalg.norm(verts + t[..., None] * edges, axis=-1).min(axis=1)
+        out[sel] = np.where(gap > 0, near, gap)
     return out
 
 
@@ -325,11 +362,11 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
     parts = [[swept(hulls[i], outline[p], facing[i]) for p in ("body", "frame", "printhead")] for i in range(n)]
 
     # (b) the body rule: chunks reaching into X's body sweep come after X
-    bodies, footprints = _Polygons([pp[0] for pp in parts]), _Polygons(hulls)
+    bodies, footprints = _Polygons([pp[0] for pp in parts], negate=False), _Polygons(hulls)
     bx, by = _box_pairs(bodies.box, footprints.box, -TOUCH)
     keep = bx != by
     bx, by = bx[keep], by[keep]
-    depth = -_separation(bodies, bx, footprints, by)
+    depth = -signed_distance(bodies, bx, footprints, by)
     hit = depth > TOUCH
     body_pred: list[list[int]] = [[] for _ in range(n)]
     for x, y in sorted(zip(bx[hit].tolist(), by[hit].tolist())):
@@ -355,12 +392,7 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
     gap_a = np.minimum(pieces.box[pb, 2:], pieces.box[pa, 2:]) - np.maximum(pieces.box[pb, :2], pieces.box[pa, :2])
     near = (gap_a > -clearance).all(axis=1)
     pa, pb, pair = pa[near], pb[near], pair[near]
-    gap = _separation(pieces, pa, pieces, pb)
-    limit = clearance - EXACT  # touching outlines are not closer than a clearance of 0
-    close = gap < limit
-    between = close & (gap > 0)
-    if between.any():
-        close[between] = _distance(pieces, pa[between], pieces, pb[between]) < limit
+    close = signed_distance(pieces, pa, pieces, pb) < clearance - EXACT  # touching is not closer than 0
     excl = np.zeros(len(ca), dtype=bool)
     excl[pair[close]] = True
     exclusive = tuple((ids[a], ids[b]) for a, b in sorted(zip(ca[excl].tolist(), cb[excl].tolist())))
