@@ -16,8 +16,8 @@ from cooprint.config import ChunkingSettings, RobotProfile, SlicingSettings
 from cooprint.errors import UserError
 from cooprint.io.mesh import solid_from_trimesh
 from cooprint.scheduling import ChunkDAG
-from cooprint.scheduling.graph import (MIN_WORK, TOUCH, build_dag, convex_hull, ends_from_layers, swept,
-                                       work_from_layers, work_from_volume)
+from cooprint.scheduling.graph import (MIN_WORK, TOUCH, _Polygons, build_dag, convex_hull, ends_from_layers,
+                                       signed_distance, swept, work_from_layers, work_from_volume)
 
 from solids import box, car, to_trimesh
 
@@ -151,6 +151,54 @@ def test_swept_is_the_hull_of_every_vertex_plus_every_corner(seed, deg, part):
 def _area(poly):
     x, y = poly[:, 0], poly[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _brute_signed_distance(a, b):
+    """Separating axes over all edge normals (O(k^2)); apart: the shortest vertex-edge distance."""
+    gap = -np.inf
+    for poly in (a, b):
+        e = np.roll(poly, -1, axis=0) - poly
+        n = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]
+        pa, pb = a @ n.T, b @ n.T
+        gap = max(gap, float(np.maximum(pa.min(0) - pb.max(0), pb.min(0) - pa.max(0)).max()))
+    if gap <= 0:
+        return gap
+    best = np.inf
+    for v, w in ((a, b), (b, a)):
+        d = np.roll(w, -1, axis=0) - w
+        rel = v[:, None] - w[None]
+        t = np.clip((rel * d[None]).sum(-1) / (d * d).sum(-1)[None], 0, 1)
+        best = min(best, float(np.linalg.norm(rel - t[..., None] * d[None], axis=-1).min()))
+    return best
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), shift=st.floats(-200.0, 200.0), spin=st.floats(0.0, 360.0))
+def test_signed_distance_of_convex_polygons_matches_the_brute_force(seed, shift, spin):
+    rng = np.random.default_rng(seed)
+    polys = [convex_hull(rng.normal(0, 60, (int(rng.integers(3, 30)), 2)) * rng.uniform(0.2, 2, 2))
+             for _ in range(6)]
+    c, s_ = math.cos(math.radians(spin)), math.sin(math.radians(spin))
+    polys = [q @ np.array([[c, s_], [-s_, c]]) + [shift * (k % 3), 0.5 * shift * (k // 3)] for k, q in enumerate(polys)]
+    pg = _Polygons(polys)
+    ia, ib = np.repeat(np.arange(6), 6), np.tile(np.arange(6), 6)
+    got = signed_distance(pg, ia, pg, ib)
+    for k, (i, j) in enumerate(zip(ia, ib)):
+        assert got[k] == pytest.approx(_brute_signed_distance(polys[i], polys[j]), abs=1e-6)
+
+
+def test_a_turned_layout_gives_the_same_dag():
+    """Rotation invariance: the rows of the other tests, facings and all, turned 30 degrees."""
+    c, s_ = math.cos(math.radians(30)), math.sin(math.radians(30))
+    turn = np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
+    for gap in (0.0, 100.0, 250.0):
+        cs = chunk_set(rows(gap=gap, gap_rows=100.0))
+        turned = chunk_set([Chunk(ch.id, ch.role, ch.index, ch.vertices @ turn.T, ch.faces, ch.volume, (), ch.row,
+                                  ch.col, tuple((turn[:2, :2] @ np.array(ch.facing)).tolist()))
+                            for ch in cs.chunks], axis=tuple((turn @ [0.0, 1.0, 0.0]).tolist()))
+        a, b = dag_of(cs), dag_of(turned)
+        assert a.body_deps == b.body_deps and a.exclusive == b.exclusive and a.exclusive
+        assert b.facing[0].tolist() == pytest.approx([-s_, c])
 
 
 # --- (b) the body rule -----------------------------------------------------------------------
