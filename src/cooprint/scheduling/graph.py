@@ -14,9 +14,11 @@ item 2): the work of each chunk, where its robot stands, and the three kinds of 
   closer than ``clearance`` may never be printed at the same time. Pairs the constraints (a) and
   (b) already order (one is an ancestor of the other) are left out: they never overlap in time.
 
-Every shape is a convex polygon (a hull, or a hull swept by a rectangle: again a hull), points
-in numpy arrays; pairs are found by vectorised box tests and decided by the separating-axis
-test, a batch of pairs at a time, so a thousand chunks take a fraction of a second.
+Every shape is a convex polygon (a hull, or a hull swept by a rectangle: their Minkowski sum),
+points in numpy arrays; pairs are found by vectorised box tests and decided, a batch of pairs
+at a time, by the signed distance of two convex polygons from their Minkowski difference (the
+separating-axis gap when they overlap, the exact distance when apart): a thousand chunks take a
+fraction of a second (:func:`signed_distance`).
 
 Work estimates: :func:`work_from_layers` times a chunk's sliced layers exactly as the simulator
 times them (:func:`cooprint.simulation.timeline.move_durations` on a ``.coop`` plan: the
@@ -374,7 +376,7 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
     both = [list(dict.fromkeys(preds[i] + body_pred[i])) for i in range(n)]
     order = _topological(n, both)
     if order is None:
-        _unprintable(ids, preds, body_pred, both, depth[hit], bx[hit], by[hit], robot, facing)
+        _unprintable(ids, preds, both, depth[hit], bx[hit], by[hit], robot, facing)
     assert order is not None
     anc = _ancestors(n, both, order)
 
@@ -389,8 +391,8 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
     pa = (3 * ca[:, None, None] + part[None, :, None] + 0 * part[None, None, :]).ravel()  # 3 x 3 parts a pair
     pb = (3 * cb[:, None, None] + 0 * part[None, :, None] + part[None, None, :]).ravel()
     pair = np.arange(len(ca)).repeat(9)
-    gap_a = np.minimum(pieces.box[pb, 2:], pieces.box[pa, 2:]) - np.maximum(pieces.box[pb, :2], pieces.box[pa, :2])
-    near = (gap_a > -clearance).all(axis=1)
+    overlap = np.minimum(pieces.box[pb, 2:], pieces.box[pa, 2:]) - np.maximum(pieces.box[pb, :2], pieces.box[pa, :2])
+    near = (overlap > -clearance).all(axis=1)
     pa, pb, pair = pa[near], pb[near], pair[near]
     close = signed_distance(pieces, pa, pieces, pb) < clearance - EXACT  # touching is not closer than 0
     excl = np.zeros(len(ca), dtype=bool)
@@ -401,8 +403,8 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
                     exclusive=exclusive, travel_speed=float(travel_speed))
 
 
-def _unprintable(ids: tuple[str, ...], preds: list[list[int]], body_pred: list[list[int]], both: list[list[int]],
-                 depth: np.ndarray, bx: np.ndarray, by: np.ndarray, robot: RobotProfile, facing: np.ndarray) -> None:
+def _unprintable(ids: tuple[str, ...], preds: list[list[int]], both: list[list[int]], depth: np.ndarray,
+                 bx: np.ndarray, by: np.ndarray, robot: RobotProfile, facing: np.ndarray) -> None:
     """Raise the one-line error for a body rule that contradicts the order: X's body sweeps
     over Y, and Y must be printed before X."""
     if _topological(len(ids), preds) is None:
@@ -475,7 +477,8 @@ def work_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]], rob
     return out
 
 
-def ends_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def ends_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]]
+                     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{chunk id: (first xyz, last xyz)}``: where the nozzle starts printing each chunk (its
     first layer's first point) and where it ends (its last layer's last point), on the 1 µm
     grid of the programs; chunks with nothing to print are left out."""
