@@ -68,13 +68,15 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     extreme point always turns left, so only inner points go)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if len(p) > 16:
-        ext = p[np.argmax(p @ _DIRS.T, axis=0)]
+        pt = np.ascontiguousarray(p.T)
+        ext = p[np.argmax(_DIRS @ pt, axis=1)]
         ext = ext[(ext != np.roll(ext, 1, axis=0)).any(axis=1)]
         if len(ext) >= 3:
             e = np.roll(ext, -1, axis=0) - ext
             normal = np.column_stack([e[:, 1], -e[:, 0]])  # outward
             tol = STRAIGHT * float(np.abs(ext).max() + 1.0) * np.hypot(e[:, 0], e[:, 1])
-            p = np.vstack([ext, p[((p @ normal.T) - (normal * ext).sum(axis=1) >= -tol).any(axis=1)]])
+            inside = ((normal @ pt) < ((normal * ext).sum(axis=1) - tol)[:, None]).all(axis=0)
+            p = np.vstack([ext, p[~inside]])
     p = p[np.lexsort((p[:, 1], p[:, 0]))]
     if len(p) > 1:
         p = p[np.r_[True, (np.diff(p, axis=0) != 0).any(axis=1)]]
