@@ -241,7 +241,7 @@ def test_a_body_over_a_chunk_it_depends_on_is_a_one_line_user_error():
     msg = str(err.value)
     assert "\n" not in msg
     assert msg.startswith("chunk F1: its robot's body would stand on chunk B1, which must be printed before it (")
-    assert "B1 -> F1" in msg
+    assert "B1 -> F1" in msg and msg.endswith("choose another layout)")
     # and through a chain: F1 after B0 after B1... (B0 leans on B1, F1 on B0)
     cs = chunk_set(rows(gap=200.0), deps={"F1": ("B0",), "B0": ("B1",)})
     with pytest.raises(UserError, match=r"chunk F1: .* chunk B1, .*\(B1 -> B0 -> F1;"):
@@ -343,9 +343,9 @@ def test_a_thousand_chunks_in_well_under_two_seconds():
     chunks = [box_chunk(f"G{r}_{c}", c * 420.0, c * 420.0 + 400.0, r * 700.0, r * 700.0 + 250.0, row=r, col=c,
                         facing=UP) for r in range(25) for c in range(40)]
     cs = chunk_set(chunks)
-    t = time.perf_counter()
+    t = time.process_time()  # CPU time: the suite shares two cores
     dag = dag_of(cs)
-    assert time.perf_counter() - t < 2.0
+    assert time.process_time() - t < 2.0
     assert len(dag.ids) == 1000 and dag.exclusive
 
 

@@ -418,9 +418,9 @@ def _unprintable(ids: tuple[str, ...], preds: list[list[int]], both: list[list[i
         deg = math.degrees(math.atan2(facing[x][1], facing[x][0]))
         raise UserError(
             f"chunk {ids[x]}: its robot's body would stand on chunk {ids[y]}, which must be printed before it "
-            f"({' -> '.join(ids[k] for k in chain)}; facing {deg:.0f} deg the body, {robot.build_depth:g} to "
+            f"({' -> '.join(ids[k] for k in chain)}; facing {deg:.0f} deg its body, {robot.build_depth:g} to "
             f"{robot.build_depth + robot.body_length:g} mm behind the nozzle, reaches {d:.0f} mm into "
-            f"{ids[y]}'s footprint): face the robot the other way or choose another layout")
+            f"{ids[y]}'s footprint; face the robot the other way or choose another layout)")
     raise ValueError("the chunk constraints form a cycle")  # pragma: no cover (a body edge closes every cycle)
 
 
