@@ -299,6 +299,14 @@ def test_work_from_the_mapping_with_a_floor_for_empty_chunks():
         build_dag(cs, ROBOT, CLEAR, {"F0": 1.0, "F1": 1.0, "F2": 1.0}, 100.0)
 
 
+def test_no_chunks_and_one_chunk():
+    empty = dag_of(chunk_set([]))
+    assert empty.ids == () and empty.exclusive == () and empty.lower_bound(3) == 0.0
+    one = dag_of(chunk_set([box_chunk("A", 0, 10, 0, 10)]))
+    assert one.ids == ("A",) and one.body_deps == {"A": ()} and one.exclusive == ()
+    assert one.start[0].tolist() == [5.0, 0.0, 0.0]  # facing +Y: the -Y edge's middle
+
+
 @settings(max_examples=25, deadline=None)
 @given(widths=st.lists(st.floats(150.0, 600.0), min_size=2, max_size=5),
        gaps=st.lists(st.floats(0.0, 400.0), min_size=4, max_size=4),
