@@ -122,6 +122,46 @@ def test_convex_hull_drops_inner_and_collinear_points_and_runs_counter_clockwise
     assert 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) == pytest.approx(16.0)  # CCW: area > 0
 
 
+def _monotone_chain(points):
+    """Reference hull (Andrew), counter-clockwise, strict turns only."""
+    pts = sorted(set(map(tuple, np.asarray(points).tolist())))
+    if len(pts) <= 2:
+        return pts
+
+    def half(seq):
+        out = []
+        for p in seq:
+            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
+                                     - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0])) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    return half(pts)[:-1] + half(pts[::-1])[:-1]
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 400), kind=st.sampled_from(["normal", "grid", "line", "ring"]))
+def test_convex_hull_matches_the_monotone_chain(seed, n, kind):
+    rng = np.random.default_rng(seed)
+    if kind == "normal":
+        pts = rng.normal(0, 100, (n, 2)) * rng.uniform(0.01, 1, 2)
+    elif kind == "grid":  # many collinear and repeated points
+        pts = rng.integers(-5, 6, (n, 2)).astype(float) * 10
+    elif kind == "line":
+        pts = np.outer(rng.integers(-50, 51, n), [3.0, -1.0]) + [7.0, 2.0]  # exactly on one line
+    else:  # points on a circle and inside it, as a curved chunk's
+        a = rng.uniform(0, 2 * np.pi, n)
+        r = np.where(rng.random(n) < 0.5, 200.0, rng.uniform(0, 200, n))
+        pts = np.column_stack([r * np.cos(a), r * np.sin(a)])
+    got = convex_hull(pts)
+    ref = np.array(_monotone_chain(pts))
+    assert sorted(map(tuple, got.tolist())) == sorted(map(tuple, ref.tolist()))
+    if len(got) >= 3:
+        k = int(np.lexsort((got[:, 0], got[:, 1]))[0])
+        assert k == 0 and _area(got) > 0  # from the lowest vertex, counter-clockwise
+
+
 def test_swept_body_is_the_hull_moved_by_the_turned_rectangle():
     hull = convex_hull(np.array([[0, 0], [100, 0], [100, 50], [0, 50]], dtype=float))
     body = swept(hull, ROBOT.outline()["body"], np.array(UP))
