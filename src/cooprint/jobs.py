@@ -126,10 +126,15 @@ def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, rob
 def chunk_dag(chunks: ChunkSet, settings: JobSettings, work: dict[str, float],
               ends: dict[str, tuple[np.ndarray, np.ndarray]] | None = None) -> "ChunkDAG":
     """The scheduling record of ``chunks`` (:func:`cooprint.scheduling.graph.build_dag`): the
-    precedences, the body rule and the exclusions for this robot, with ``work`` (s per chunk)."""
+    precedences, the body rule and the exclusions for this robot, with ``work`` (s per chunk).
+
+    Two chunks are exclusive when their robots' outlines would *overlap* (the issue's rule, a
+    clearance of 0): the margin between working robots is in the layout (the grid's lane has
+    ``clearance`` in it), and seed2's two printheads at the centre chunk's top, which touch exactly
+    at its default top width, stay parallel as the seed prints them."""
     from cooprint.scheduling.graph import build_dag
 
-    return build_dag(chunks, settings.robot, settings.program.clearance, work, settings.robot.travel_speed, ends)
+    return build_dag(chunks, settings.robot, 0.0, work, settings.robot.travel_speed, ends)
 
 
 def make_schedule_for(dag: "ChunkDAG", chunks: ChunkSet, settings: JobSettings, robots: int) -> Schedule:
