@@ -3,18 +3,24 @@
 The model, in integer time units (``unit`` seconds; the list schedule's makespan is about
 :data:`UNITS` units, fine enough that rounding costs a few 1e-5 of the makespan):
 
-* one interval per chunk (start, work, end) and, per robot, an optional copy of it whose
-  presence literal says "this robot prints it"; exactly one presence per chunk;
-* per robot a circuit (``AddCircuit``) through a depot node and the chunks it prints: the arc
-  i -> j means j is the robot's next chunk after i, and forces ``start_j >= end_i + travel_ij``
-  (travel as a sequence-dependent setup time); a robot's first chunk costs no drive (a robot
-  starts where its first chunk begins, :meth:`ChunkDAG.travel`); a robot's optional intervals
-  are also in one ``NoOverlap`` (redundant, it propagates better);
+* one interval per chunk (start, work, end);
+* the robots' sequences as *routes* through a depot (``AddMultipleCircuit``, as in vehicle
+  routing): the arc depot -> i makes i a robot's first chunk, i -> j makes j the next chunk of
+  the robot that printed i and forces ``start_j >= end_i + travel_ij`` (travel as a
+  sequence-dependent setup time), i -> depot makes i its last; at most one route per robot.
+  A robot starts where its first chunk begins (:meth:`ChunkDAG.travel` from nowhere is 0), so
+  the robots are alike and a route is a robot: this needs no robot x chunk presence literals
+  and has none of the N! relabellings of the robots that a per-robot model (one optional
+  interval and one circuit per robot and chunk) must break. Measured on grid DAGs, the
+  per-robot model with symmetry breaking found no schedule in 10 s for 18 chunks and 16
+  robots, where this one proves the optimum in 0.1 s; for 24 chunks and 4 robots it needed
+  10 s for the schedule this one finds in 2 s;
+* no arc i -> j where j comes before i through the preds (it could never be used);
 * precedence ``start_y >= end_x`` for every x in :meth:`ChunkDAG.preds` of y;
 * every exclusive pair in one ``NoOverlap`` of their two chunk intervals;
-* the robots are alike, so they are ordered by the index of their first chunk (idle robots
-  last): every schedule has a relabelling of the robots that satisfies this;
-* minimise the makespan, starting from the list schedule as a hint.
+* redundant, for propagation: at most N chunks at once (``AddCumulative``) and makespan x N >=
+  total work;
+* minimise the makespan, starting from the list schedule as a (complete, feasible) hint.
 
 Work and travel are rounded *up* to whole units, so every solution of the model is feasible in
 seconds; the solution's robot sequences are then re-timed in seconds in the order of the
@@ -40,9 +46,10 @@ if TYPE_CHECKING:
 
 #: The list schedule's makespan in model time units.
 UNITS = 200_000
-#: Above this many arcs (robots x chunk pairs a robot could print one after the other) CP-SAT
-#: spends its time limit building and propagating the model: the job is scheduled by list.
-MAX_ARCS = 300_000
+#: Arcs (chunk pairs a robot could print one after the other) per second of the time limit:
+#: above that CP-SAT spends its time presolving (measured: a 200-chunk grid, 37855 arcs, found
+#: nothing in 10 s; 60 chunks proved optimal in 5 s), so the job is scheduled by list.
+ARCS_PER_S = 2_000
 #: CP-SAT worker threads (this machine has two cores).
 WORKERS = 2
 
@@ -81,12 +88,10 @@ def exact_schedule(dag: ChunkDAG, robots: Sequence[str], settings: "SchedulingSe
 
     after = _successors_closure(p)
     pairs = [(i, j) for i in range(n) for j in range(n) if i != j and i not in after[j]]
-    # Robots beyond the chunk count can only idle: one idle stands for them all.
-    used = min(nr, n)
-    arcs = used * len(pairs)
-    if arcs > MAX_ARCS:
-        return _fallback(dag, robots, hint, f"exact: {n} chunks x {used} robots make {arcs} sequencing "
-                         f"arcs, more than CP-SAT handles in its time limit (at most {MAX_ARCS}): list schedule")
+    most = int(ARCS_PER_S * settings.time_limit_s)
+    if len(pairs) > most:
+        return _fallback(dag, robots, hint, f"exact: {n} chunks make {len(pairs)} sequencing arcs, more than "
+                         f"CP-SAT handles in {settings.time_limit_s:g} s (about {most}): list schedule")
 
     unit = max(hint.makespan, 1e-9) / UNITS
     work = [max(1, math.ceil(w / unit)) for w in p.work]
@@ -97,39 +102,19 @@ def exact_schedule(dag: ChunkDAG, robots: Sequence[str], settings: "SchedulingSe
     start = [m.NewIntVar(0, horizon, f"s{i}") for i in range(n)]
     end = [m.NewIntVar(0, horizon, f"e{i}") for i in range(n)]
     iv = [m.NewIntervalVar(start[i], work[i], end[i], f"iv{i}") for i in range(n)]
-    on = [[m.NewBoolVar(f"on{r}_{i}") for i in range(n)] for r in range(used)]
-    for i in range(n):
-        m.AddExactlyOne(on[r][i] for r in range(used))
-    first = []
-    arc_lit: dict[tuple[int, int, int], object] = {}
-    for r in range(used):
-        m.AddNoOverlap([m.NewOptionalIntervalVar(start[i], work[i], end[i], on[r][i], f"o{r}_{i}")
-                        for i in range(n)])
-        idle = m.NewBoolVar(f"idle{r}")
-        for i in range(n):
-            m.AddImplication(on[r][i], idle.Not())
-        m.AddBoolOr([idle] + on[r])
-        circuit = [(0, 0, idle)]
-        first_terms = []
-        for i in range(n):
-            circuit.append((i + 1, i + 1, on[r][i].Not()))
-            lit_in = m.NewBoolVar(f"first{r}_{i}")
-            lit_out = m.NewBoolVar(f"last{r}_{i}")
-            circuit += [(0, i + 1, lit_in), (i + 1, 0, lit_out)]
-            arc_lit[(r, -1, i)] = lit_in
-            first_terms.append((i, lit_in))
-        for i, j in pairs:
-            lit = m.NewBoolVar(f"a{r}_{i}_{j}")
-            circuit.append((i + 1, j + 1, lit))
-            arc_lit[(r, i, j)] = lit
-            m.Add(start[j] >= end[i] + int(travel[i, j])).OnlyEnforceIf(lit)
-        m.AddCircuit(circuit)
-        # Index of the robot's first chunk, n when idle: increasing over the robots.
-        fr = m.NewIntVar(0, n, f"first{r}")
-        m.Add(fr == sum(i * lit for i, lit in first_terms) + n * idle)
-        first.append(fr)
-    for r in range(used - 1):
-        m.Add(first[r] <= first[r + 1])
+    arcs: list[tuple[int, int, object]] = []
+    lit: dict[tuple[int, int], object] = {}
+    for i in range(n):  # node 0 the depot, chunk i node i + 1
+        lit[(-1, i)] = m.NewBoolVar(f"first{i}")
+        lit[(i, -1)] = m.NewBoolVar(f"last{i}")
+        arcs += [(0, i + 1, lit[(-1, i)]), (i + 1, 0, lit[(i, -1)])]
+    for i, j in pairs:
+        lit[(i, j)] = m.NewBoolVar(f"a{i}_{j}")
+        arcs.append((i + 1, j + 1, lit[(i, j)]))
+        m.Add(start[j] >= end[i] + int(travel[i, j])).OnlyEnforceIf(lit[(i, j)])
+    m.AddMultipleCircuit(arcs)
+    m.Add(sum(lit[(-1, i)] for i in range(n)) <= nr)  # at most one route per robot
+    m.AddCumulative(iv, [1] * n, nr)  # redundant: at most nr chunks at once
     for y in range(n):
         for x in p.preds[y]:
             m.Add(start[y] >= end[x])
@@ -139,9 +124,10 @@ def exact_schedule(dag: ChunkDAG, robots: Sequence[str], settings: "SchedulingSe
                 m.AddNoOverlap([iv[a], iv[b]])
     makespan = m.NewIntVar(0, horizon, "makespan")
     m.AddMaxEquality(makespan, end)
+    m.Add(makespan * nr >= sum(work))  # redundant: the work bound, so reaching it proves optimality
     m.Minimize(makespan)
 
-    _hint(m, p, hint, work, travel, start, end, on, arc_lit, makespan, horizon)
+    _hint(m, p, hint, work, travel, start, end, lit, makespan, horizon)
 
     solver = cp_model.CpSolver()
     solver.parameters.max_time_in_seconds = float(settings.time_limit_s)
@@ -152,9 +138,12 @@ def exact_schedule(dag: ChunkDAG, robots: Sequence[str], settings: "SchedulingSe
         return _fallback(dag, robots, hint, f"exact found no schedule within {settings.time_limit_s:g} s: list schedule")
 
     seqs: list[list[int]] = []
-    for r in range(used):
-        mine = [i for i in range(n) if solver.BooleanValue(on[r][i])]
-        seqs.append(sorted(mine, key=lambda i: (solver.Value(start[i]), i)))
+    for i in range(n):  # each route from the depot is one robot's sequence
+        if solver.BooleanValue(lit[(-1, i)]):
+            seq = [i]
+            while not solver.BooleanValue(lit[(seq[-1], -1)]):
+                seq.append(next(j for j in range(n) if (seq[-1], j) in lit and solver.BooleanValue(lit[(seq[-1], j)])))
+            seqs.append(seq)
     order = sorted(range(n), key=lambda i: (solver.Value(start[i]), i))
     timing = place_fixed(p, seqs, order)
     if timing.makespan > hint.makespan:  # the rounding cost more than the solver gained
@@ -169,29 +158,21 @@ def exact_schedule(dag: ChunkDAG, robots: Sequence[str], settings: "SchedulingSe
     return to_schedule(dag, robots, timing, "exact", note=note, bound=bound)
 
 
-def _hint(m, p: Problem, hint: Timing, work: list[int], travel: np.ndarray, start, end, on, arc_lit,
-          makespan, horizon: int) -> None:
+def _hint(m, p: Problem, hint: Timing, work: list[int], travel: np.ndarray, start, end, lit, makespan,
+          horizon: int) -> None:
     """The list schedule in model units as CP-SAT's hint: its sequences and placement order
     re-timed with the rounded-up work and travel, so the hint is a whole, feasible solution."""
     n = p.n
     ip = Problem(tuple(float(w) for w in work), p.preds, p.succ, p.excl, travel.astype(float))
-    # Robots in the order of their first chunk, as the symmetry breaking wants.
-    seqs = sorted((s for s in hint.seqs if s), key=lambda s: s[0])
+    seqs = [s for s in hint.seqs if s]
     order = sorted(range(n), key=lambda i: (hint.start[i], i))
     t = place_fixed(ip, seqs, order)
     if t.makespan > horizon:
         return
-    robot_of = {i: r for r, s in enumerate(seqs) for i in s}
+    taken = {(a, b) for s in seqs for a, b in zip([-1] + s, s + [-1])}
+    for key, var in lit.items():
+        m.AddHint(var, key in taken)
     for i in range(n):
         m.AddHint(start[i], int(round(t.start[i])))
         m.AddHint(end[i], int(round(t.end[i])))
-    for r in range(len(on)):
-        for i in range(n):
-            m.AddHint(on[r][i], robot_of.get(i) == r)
-    nxt = {}
-    for r, s in enumerate(seqs):
-        for a, b in zip([-1] + s, s):
-            nxt[(r, a, b)] = True
-    for key, lit in arc_lit.items():
-        m.AddHint(lit, key in nxt)
     m.AddHint(makespan, int(round(t.makespan)))
