@@ -50,6 +50,8 @@ UNITS = 200_000
 #: above that CP-SAT spends its time presolving (measured: a 200-chunk grid, 37855 arcs, found
 #: nothing in 10 s; 60 chunks proved optimal in 5 s), so the job is scheduled by list.
 ARCS_PER_S = 2_000
+#: ... but a model this small is always tried.
+MIN_ARCS = 1_000
 #: CP-SAT worker threads (this machine has two cores).
 WORKERS = 2
 
@@ -88,7 +90,7 @@ def exact_schedule(dag: ChunkDAG, robots: Sequence[str], settings: "SchedulingSe
 
     after = _successors_closure(p)
     pairs = [(i, j) for i in range(n) for j in range(n) if i != j and i not in after[j]]
-    most = int(ARCS_PER_S * settings.time_limit_s)
+    most = max(MIN_ARCS, int(ARCS_PER_S * settings.time_limit_s))
     if len(pairs) > most:
         return _fallback(dag, robots, hint, f"exact: {n} chunks make {len(pairs)} sequencing arcs, more than "
                          f"CP-SAT handles in {settings.time_limit_s:g} s (about {most}): list schedule")
