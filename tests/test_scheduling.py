@@ -308,6 +308,6 @@ def test_grid_gaps(rows, cols, n_robots, capsys):
 
 def test_problem_reversal_mirrors_time():
     p = Problem.of(grid_dag(2, 4))
-    r = p.reversed()
+    r = p.reversed
     assert r.preds == p.succ and r.succ == p.preds
     assert np.array_equal(r.travel, p.travel.T)

@@ -32,6 +32,7 @@ from __future__ import annotations
 import heapq
 import random
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Callable, Mapping, Sequence
 
 import numpy as np
@@ -51,7 +52,7 @@ SAMPLE_WORK = 100_000
 MAX_SAMPLES = 300
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Problem:
     """A :class:`ChunkDAG` as index arrays, the form the schedulers compute on.
 
@@ -66,6 +67,10 @@ class Problem:
     succ: tuple[tuple[int, ...], ...]
     excl: tuple[tuple[int, ...], ...]
     travel: np.ndarray
+
+    def __post_init__(self) -> None:
+        # Python lists for the schedulers' inner loops (numpy scalar indexing is ~10x slower).
+        object.__setattr__(self, "rows", self.travel.tolist())
 
     @property
     def n(self) -> int:
@@ -86,7 +91,9 @@ class Problem:
         travel = np.sqrt((diff ** 2).sum(axis=2)) / dag.travel_speed if n else np.zeros((0, 0))
         return cls(tuple(float(w) for w in dag.work), preds, tuple(tuple(s) for s in succ), excl, travel)
 
+    @cached_property
     def reversed(self) -> "Problem":
+        """The same chunks with time running backwards (computed once)."""
         return Problem(self.work, self.succ, self.preds, self.excl, self.travel.T)
 
     def topological(self) -> list[int]:
@@ -159,7 +166,7 @@ def serial(p: Problem, robots: int, key: Sequence[float]) -> Timing:
     free = [0.0] * robots
     last = [-1] * robots
     seqs: list[list[int]] = [[] for _ in range(robots)]
-    travel = p.travel
+    travel = p.rows  # type: ignore[attr-defined]
     while ready:
         _, i = heapq.heappop(ready)
         w = p.work[i]
@@ -175,7 +182,7 @@ def serial(p: Problem, robots: int, key: Sequence[float]) -> Timing:
                 fresh_seen = True
                 drive, t0 = 0.0, after
             else:
-                drive = float(travel[last[r], i])
+                drive = travel[last[r]][i]
                 t0 = max(after, free[r] + drive)
             t = _fit(t0, w, busy) if busy else t0
             cand = (t + w, drive, r)
@@ -227,7 +234,7 @@ def place_fixed(p: Problem, seqs: Sequence[Sequence[int]], order: Sequence[int] 
         t = max((end[q] for q in p.preds[i]), default=0.0)
         if pos[i] > 0:
             prev = seqs[r][pos[i] - 1]
-            t = max(t, end[prev] + float(p.travel[prev, i]))
+            t = max(t, end[prev] + p.rows[prev][i])  # type: ignore[attr-defined]
         busy = _busy(i, p, placed, start, end)
         return _fit(t, p.work[i], busy) if busy else t
 
@@ -259,7 +266,7 @@ def place_fixed(p: Problem, seqs: Sequence[Sequence[int]], order: Sequence[int] 
 def _backward(p: Problem, robots: int, fwd: Timing) -> Timing:
     """Rebuild ``fwd`` backwards (latest end first on the reversed problem), then time it
     forwards again in the order of the mirrored starts."""
-    rev = serial(p.reversed(), robots, [-e for e in fwd.end])
+    rev = serial(p.reversed, robots, [-e for e in fwd.end])
     m = rev.makespan
     mirrored_start = [m - e for e in rev.end]
     seqs = [list(reversed(s)) for s in rev.seqs]
