@@ -56,17 +56,6 @@ MIN_ARCS = 1_000
 WORKERS = 2
 
 
-def _successors_closure(p: Problem) -> list[set[int]]:
-    """Every chunk after each chunk through preds (transitively): a robot can never print one of
-    them before the chunk, so those arcs are left out of the circuits."""
-    after: list[set[int]] = [set() for _ in range(p.n)]
-    for i in reversed(p.topological()):
-        for s in p.succ[i]:
-            after[i].add(s)
-            after[i] |= after[s]
-    return after
-
-
 def _fallback(dag: ChunkDAG, robots: Sequence[str], timing: Timing, note: str) -> Schedule:
     return to_schedule(dag, robots, timing, "exact", note=note)
 
@@ -88,8 +77,8 @@ def exact_schedule(dag: ChunkDAG, robots: Sequence[str], settings: "SchedulingSe
     except ImportError:
         return _fallback(dag, robots, hint, "OR-Tools is not installed (pip install cooprint[exact]): list schedule")
 
-    after = _successors_closure(p)
-    pairs = [(i, j) for i in range(n) for j in range(n) if i != j and i not in after[j]]
+    after = p.after  # no arc i -> j when i comes after j: a robot could never use it
+    pairs = [(i, j) for i in range(n) for j in range(n) if i != j and not (after[j] >> i) & 1]
     most = max(MIN_ARCS, int(ARCS_PER_S * settings.time_limit_s))
     if len(pairs) > most:
         return _fallback(dag, robots, hint, f"exact: {n} chunks make {len(pairs)} sequencing arcs, more than "

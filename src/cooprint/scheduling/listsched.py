@@ -116,23 +116,29 @@ class Problem:
         return order
 
     def tails(self, with_travel: bool = False) -> list[float]:
-        """Work plus the longest chain of work after each chunk; ``with_travel`` adds to each
-        link the shortest drive from the chunk to any successor (a chain crossing robots or not,
-        it costs at least that)."""
+        """Work plus the longest chain of work after each chunk (:meth:`ChunkDAG.tails`);
+        ``with_travel`` adds to each link the drive to that successor (what the chain costs when
+        one robot prints it: a tie-break, not a bound)."""
         tail = [0.0] * self.n
         for i in reversed(self.topological()):
             tail[i] = self.work[i] + max(
                 (tail[s] + (float(self.travel[i, s]) if with_travel else 0.0) for s in self.succ[i]), default=0.0)
         return tail
 
-    def weights(self) -> list[float]:
-        """Positional weight: work plus the work of every chunk after it (through the preds,
-        transitively): the rule that favours chunks that open the most work."""
-        below = [0] * self.n  # bit j set: chunk j comes after chunk i
+    @cached_property
+    def after(self) -> list[int]:
+        """Bit j of ``after[i]`` is set when chunk j comes after chunk i through the preds
+        (transitively)."""
+        below = [0] * self.n
         for i in reversed(self.topological()):
             for s in self.succ[i]:
                 below[i] |= below[s] | (1 << s)
-        return [self.work[i] + sum(self.work[j] for j in _bits(below[i])) for i in range(self.n)]
+        return below
+
+    def weights(self) -> list[float]:
+        """Positional weight: work plus the work of every chunk after it (:attr:`after`): the
+        rule that favours chunks that open the most work."""
+        return [self.work[i] + sum(self.work[j] for j in _bits(self.after[i])) for i in range(self.n)]
 
 
 def _bits(mask: int) -> list[int]:

@@ -16,12 +16,12 @@ returned: a schedule that breaks a rule is a bug, never a plan.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from cooprint.errors import ConfigError
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.scheduling.exact import exact_schedule
-from cooprint.scheduling.listsched import list_schedule, seed_schedule
+from cooprint.scheduling.listsched import Scheduler, list_schedule, seed_schedule
 from cooprint.scheduling.schedule import Schedule, check_schedule
 
 if TYPE_CHECKING:
@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 #: The most robots a schedule is made for (issue 14).
 MAX_ROBOTS = 64
 
-SCHEDULERS: dict[str, Callable[[ChunkDAG, Sequence[str], "SchedulingSettings | None"], Schedule]] = {
+SCHEDULERS: dict[str, Scheduler] = {
     "list": list_schedule,
     "exact": exact_schedule,
 }
