@@ -175,6 +175,8 @@ def test_timed_refuses_sequences_that_wait_on_each_other():
                    np.zeros((2, 4)), {"b": ("a",)})
     with pytest.raises(ValueError, match="wait on each other"):
         timed(dag, {"A": ("b", "a")}, "bad")
+    with pytest.raises(ValueError, match=r"bad: the sequences hold \['a'\], the DAG's chunks are \['a', 'b'\]"):
+        timed(dag, {"A": ("a",), "B": ()}, "bad")
 
 
 @pytest.fixture(scope="module")

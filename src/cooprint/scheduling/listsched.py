@@ -388,10 +388,10 @@ def timed(dag: ChunkDAG, sequences: Mapping[str, Sequence[str]], strategy: str) 
     p = Problem.of(dag)
     idx = dag.index
     robots = list(sequences)
-    try:
-        seqs = [[idx[c] for c in sequences[r]] for r in robots]
-    except KeyError as exc:
-        raise ValueError(f"{strategy}: chunk {exc.args[0]!r} is not in the DAG") from None
+    given = [c for r in robots for c in sequences[r]]
+    if sorted(given) != sorted(dag.ids):
+        raise ValueError(f"{strategy}: the sequences hold {sorted(given)}, the DAG's chunks are {sorted(dag.ids)}")
+    seqs = [[idx[c] for c in sequences[r]] for r in robots]
     return to_schedule(dag, robots, place_fixed(p, seqs), strategy)
 
 
