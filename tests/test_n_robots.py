@@ -42,7 +42,7 @@ def test_grid_plan_is_clean_and_records_its_bound(slab, tmp_path, robots, capsys
     text = capsys.readouterr().out
     assert code == 0, text
     record = json.loads((out / "job.json").read_text())
-    assert record["layout"] == "grid"
+    assert record["plan"]["layout"] == "grid"
     sched = record["schedule"]
     # the schedule's estimate can never beat its own lower bound; the simulated makespan neither
     assert sched["makespan_s"] >= sched["lower_bound_s"] - 1e-6

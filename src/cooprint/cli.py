@@ -255,7 +255,7 @@ def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], o
     if plan.get("mode") == "whole" and len(record["chunks"]) == 1:
         click.echo(f"1 chunk: the part is within the build depth {plan['build_depth_mm']:g} mm (no cut)")
     else:
-        click.echo(f"{len(record['chunks'])} chunks ({record.get('layout', 'seed2')} layout), theta "
+        click.echo(f"{len(record['chunks'])} chunks ({plan.get('layout', 'seed2')} layout), theta "
                    f"{plan['theta_deg']:.2f} deg (limits {plan['theta_min_deg']:.2f}..{plan['theta_max_deg']:.2f}), "
                    f"shift {plan['shift_mm']:.1f} mm, volume error {st['volume_rel_error']:.1e}")
     line = schedule_line(record["schedule"])

@@ -232,10 +232,9 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
                      "total_work_s": float(dag.work.sum()), "exclusive_pairs": len(dag.exclusive)}
     return {
         "format": "cooprint-job/1",
-        "layout": ch.layout,
         "mesh": job.solid.report.to_dict() | ({"placement": job.placement.to_dict()} if job.placement else {}),
         "settings": job.settings.to_dict(),
-        "plan": ch.plan.to_dict(),
+        "plan": ch.plan.to_dict() | {"layout": ch.layout},
         "robots": [{"name": r, "profile": job.settings.robot.name, "chunks": list(seq)}
                    for r, seq in asg.sequences.items()],
         "chunks": rows,
