@@ -174,7 +174,8 @@ def test_a_config_that_is_not_a_file(tmp_path, capsys, part, name, special, need
     (["--theta", "nan"], "chunking.theta_deg = nan"),
     (["--top-width", "-1"], "chunking.top_width = -1.0"),
     (["--centre-angle", "1000"], "chunking.centre_angle_deg = 1000.0"),
-    (["--robots", "3"], "3 is not in the range"),
+    (["--robots", "65"], "65 is not in the range"),
+    (["--robots", "0"], "0 is not in the range"),
 ])
 def test_bad_chunking_flags(tmp_path, capsys, part, name, flags, needle):
     assert_rejected(command(name, part, tmp_path / "out", flags), capsys, [tmp_path, part.parent], contains=needle)

@@ -156,8 +156,11 @@ def test_cooprint_run_draws_the_chunks_by_robot(bundle):
 def test_render_gantt_reads_the_critical_path_and_bound_of_job_json(bundle, tmp_path, capsys):
     job = tmp_path / "job"
     shutil.copytree(bundle, job)
-    assert load_inputs([str(job)]).critical_path is None  # today's bundles: today's picture
     record = json.loads((job / "job.json").read_text())
+    assert load_inputs([str(job)]).critical_path == tuple(record["schedule"]["critical_path"])
+    del record["schedule"]["critical_path"]  # a bundle without one: today's picture
+    (job / "job.json").write_text(json.dumps(record))
+    assert load_inputs([str(job)]).critical_path is None
     record["schedule"] |= {"critical_path": ["C", "R1"], "lower_bound_s": 1000.0}
     (job / "job.json").write_text(json.dumps(record))
     inp = load_inputs([str(job)])
