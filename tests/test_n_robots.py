@@ -70,10 +70,10 @@ def test_grid_plan_is_clean_under_perturbation(slab, tmp_path, capsys):
     code = main(["simulate", str(out), "--out", str(sim), "--perturb", "0.3", "--runs", "5", "--seed", "1"])
     text = capsys.readouterr()
     assert code == 0, text.out + text.err
-    summary = json.loads((sim / "summary.json").read_text())
-    runs = summary["perturb"]
-    assert len(runs["runs"]) == 5
-    assert all(sum(r["finding_counts"].values()) == 0 for r in runs["runs"])
+    perturb = json.loads((sim / "sim" / "summary.json").read_text())["perturb"]
+    assert len(perturb["per_run"]) == 5
+    assert all(sum(r["finding_counts"].values()) == 0 for r in perturb["per_run"])
+    assert perturb["makespan_s"]["min"] <= perturb["makespan_s"]["median"] <= perturb["makespan_s"]["max"]
 
 
 def test_more_robots_than_work_are_idle_not_an_error():
