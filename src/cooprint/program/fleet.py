@@ -1,0 +1,788 @@
+"""Programs for N robots from a schedule, safe at any real speeds (issue 14, item 4).
+
+The schedule (:class:`~cooprint.scheduling.Schedule`) says who prints which chunk in which order;
+this module turns it into each robot's MOVE/TOOL stream with the NOTIFY/WAIT pairs that keep the
+plan dependency-correct and collision-free **whatever each robot's real speed**.
+
+The plan is cut into *items*, each a stretch of one robot's time with the XY area it may cover:
+
+* ``pose``: the robot standing still (at home, at the end of a print), from when it arrives until it
+  moves on;
+* ``leg``: a straight travel move of the nozzle, in one facing, lifted above printed material;
+* ``turn``: a turn about the nozzle (the disc of the outline's radius around it);
+* ``print``: a chunk's layers (:func:`~cooprint.program.build.layer_program`).
+
+Each item's area is given per part of the robot's outline (body, frame, printhead:
+:func:`cooprint.config.outline_rects`) by its support values in ``NDIR`` fixed directions: the
+exact support of the part swept over the item's nozzle positions (a leg's two ends, a print's
+printed points, a turn's disc). Two items are apart when some direction separates them by the
+clearance: a separating axis of the true swept shapes, so the test never calls apart what is not
+(it may call near what is not, which only adds a wait).
+
+A robot does *jobs*: from where it stands, travel to a chunk and print it (or travel home). A job
+is placed in an event-driven replay at nominal speeds (the simulator's timing), all its waits at
+its start, where the robot stands still:
+
+* an item of the job that comes within the clearance of an item of another robot placed before
+  waits for that item's end (its NOTIFY);
+* a print waits for its chunk's :meth:`ChunkDAG.preds` and for every placed item whose body swept
+  over its footprint;
+* a job whose way crosses the spot where another robot stands (a pose not yet ended) cannot be
+  placed until that robot has moved on; a print whose footprint lies in the way out of a robot
+  standing at the end of its print cannot either (so that robot can always back out);
+* travel never drives a body over a chunk placed before (material that may be there at any speed),
+  choosing the first clear one of: straight; back off, across, in; out to the *highway* (a ring
+  around the part where the robot's whole outline is clear of the part), along it, and in.
+  Turns happen on the highway.
+
+Every wait goes from an item placed earlier to an item placed later, so the WAIT graph is acyclic:
+no deadlock, whatever the speeds; and every pair of items that could meet is ordered by a WAIT,
+so no collision and no body on material, whatever the speeds. When no job can be placed (a robot
+stands in the way of the work another one waits for), a robot goes home to wait there.
+
+Robots start and end on a *parking ring* outside the highway, where no working robot ever comes:
+robots with work on the inner ring, each near its first chunk on the side it faces it from,
+idle robots on the rest of it and on rings further out.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from cooprint.config import RobotProfile, outline_rects
+from cooprint.geometry import unit_xy
+from cooprint.program.build import MaterialIndex, RobotPlacement, facing_deg, layer_program
+from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program, make_program, quantize
+from cooprint.scheduling.dag import ChunkDAG
+from cooprint.scheduling.schedule import Schedule
+from cooprint.slicing.paths import LayerPaths
+
+#: Directions of the support values (every 22.5 degrees: the axes and the diagonals among them).
+NDIR = 16
+_ANG = 2 * np.pi * np.arange(NDIR) / NDIR
+DIRS = np.column_stack([np.cos(_ANG), np.sin(_ANG)])
+OPP = (np.arange(NDIR) + NDIR // 2) % NDIR
+#: The four axis directions (+x, +y, -x, -y) among DIRS: a cheap box prefilter.
+BOX = np.array([0, NDIR // 4, NDIR // 2, 3 * NDIR // 4])
+PARTS = ("body", "frame", "printhead")
+
+
+class FleetError(ValueError):
+    """The fleet's programs cannot be made (a layout or ring rule the planner cannot keep)."""
+
+
+# ------------------------------------------------------------------------------------------------
+# support values
+
+
+def rect_support(rect: np.ndarray, facing: np.ndarray) -> np.ndarray:
+    """(NDIR,) the support of a part's rectangle ``u_lo, u_hi, v_lo, v_hi`` (robot frame, from the
+    nozzle) for a robot facing ``facing``."""
+    f = unit_xy(facing)
+    left = np.array([-f[1], f[0]])
+    a, b = DIRS @ f, DIRS @ left
+    return np.maximum(rect[0] * a, rect[1] * a) + np.maximum(rect[2] * b, rect[3] * b)
+
+
+def point_support(pts: np.ndarray) -> np.ndarray:
+    """(NDIR,) the support of a set of XY points (k, 2)."""
+    return (np.asarray(pts, dtype=np.float64)[:, :2] @ DIRS.T).max(axis=0)
+
+
+def apart(a: np.ndarray, b: np.ndarray, gap: float) -> np.ndarray:
+    """Broadcast: shapes with supports ``a`` (..., NDIR) and ``b`` (..., NDIR) are more than ``gap``
+    apart along some direction."""
+    return ((a + b[..., OPP]) < -gap).any(axis=-1)
+
+
+@dataclass(frozen=True)
+class Body:
+    """One robot's outline: the three rectangles, their radius around the nozzle, its speeds."""
+
+    rects: np.ndarray  # (3, 4)
+    radius: float
+    nozzle_depth: float
+    build_depth: float
+    print_speed: float
+    travel_speed: float
+
+    @staticmethod
+    def of(p: RobotProfile) -> "Body":
+        rects = np.array(list(outline_rects(p.build_depth, p.body_length, p.body_width, p.resolved_frame_width,
+                                            p.nozzle_depth).values()))
+        corners = np.stack(np.meshgrid([0, 1], [2, 3]), -1).reshape(-1, 2)
+        radius = float(max(math.hypot(r[i], r[j]) for r in rects for i, j in corners))
+        return Body(rects, radius, p.nozzle_depth, p.build_depth, p.print_speed, p.travel_speed)
+
+    def parts(self, nozzle: np.ndarray, facing: np.ndarray) -> np.ndarray:
+        """(3, NDIR) the parts' supports over the nozzle positions ``nozzle`` (k, 2) (their hull)."""
+        s = point_support(nozzle)
+        return np.stack([s + rect_support(r, facing) for r in self.rects])
+
+    def disc(self, at: np.ndarray) -> np.ndarray:
+        """(3, NDIR) every part within the outline's radius of ``at``: a robot turning there."""
+        s = DIRS @ np.asarray(at, dtype=np.float64)[:2] + self.radius
+        return np.stack([s, s, s])
+
+
+# ------------------------------------------------------------------------------------------------
+# the rings
+
+
+@dataclass(frozen=True)
+class Rings:
+    """The part's box, the highway around it and the parking spots.
+
+    ``lo, hi``: the XY box of every chunk's material; ``lane``: how far outside it the highway runs
+    (the largest outline radius plus the clearance: a robot on it, in any facing, is clear of the
+    part); ``spots``: ``{robot: (xy (2,), facing (2,))}``."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    lane: float
+    spots: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+
+    @property
+    def hlo(self) -> np.ndarray:
+        return self.lo - self.lane
+
+    @property
+    def hhi(self) -> np.ndarray:
+        return self.hi + self.lane
+
+    def exit(self, p: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Where the ray from ``p`` along ``d`` meets the highway (``p`` inside it: on the way out;
+        outside: on the way in)."""
+        p, d = np.asarray(p, float)[:2], unit_xy(d)
+        lo, hi = self.hlo, self.hhi
+        inside = bool(np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (lo - p) / d, (hi - p) / d
+        tn = np.where(d != 0, np.minimum(t1, t2), -np.inf)
+        tf = np.where(d != 0, np.maximum(t1, t2), np.inf)
+        if inside:
+            t = float(tf.min())
+        else:
+            t = float(tn.max())
+            if t > float(tf.min()) + 1e-9 or t < 0:
+                raise FleetError(f"the way from {p.round(3).tolist()} along {d.round(3).tolist()} misses the highway")
+        return self._snap(p + t * d)
+
+    def _snap(self, q: np.ndarray) -> np.ndarray:
+        """``q`` put exactly on the highway's nearest side."""
+        lo, hi = self.hlo, self.hhi
+        q = np.clip(q, lo, hi)
+        dist = [q[0] - lo[0], q[1] - lo[1], hi[0] - q[0], hi[1] - q[1]]
+        k = int(np.argmin(dist))
+        q = q.copy()
+        q[k % 2] = (lo if k < 2 else hi)[k % 2]
+        return q
+
+    def _param(self, q: np.ndarray) -> float:
+        lo, hi = self.hlo, self.hhi
+        w, h = hi - lo
+        x, y = q - lo
+        if abs(y) < 1e-6:
+            return float(x)
+        if abs(x - w) < 1e-6:
+            return float(w + y)
+        if abs(y - h) < 1e-6:
+            return float(w + h + (w - x))
+        return float(2 * w + h + (h - y))
+
+    def along(self, a: np.ndarray, b: np.ndarray) -> list[np.ndarray]:
+        """The corners passed going round the highway from ``a`` to ``b`` (both on it), the
+        shorter way, ``b`` last."""
+        lo, hi = self.hlo, self.hhi
+        w, h = hi - lo
+        per = 2 * (w + h)
+        corners = [(0.0, lo), (w, np.array([hi[0], lo[1]])), (w + h, hi), (2 * w + h, np.array([lo[0], hi[1]]))]
+        sa, sb = self._param(a), self._param(b)
+        fwd = (sb - sa) % per
+        out = []
+        if fwd <= per - fwd:
+            for s, c in sorted(corners, key=lambda sc: (sc[0] - sa) % per):
+                if 1e-6 < (s - sa) % per < fwd - 1e-6:
+                    out.append(c)
+        else:
+            back = per - fwd
+            for s, c in sorted(corners, key=lambda sc: (sa - sc[0]) % per):
+                if 1e-6 < (sa - s) % per < back - 1e-6:
+                    out.append(c)
+        return out + [np.asarray(b, float)]
+
+
+_SIDES = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # inward normals: left, bottom, right, top
+
+
+def parking(robots: list[str], first: dict[str, tuple[np.ndarray, np.ndarray]], bodies: dict[str, Body],
+            lo: np.ndarray, hi: np.ndarray, clearance: float) -> Rings:
+    """The highway and every robot's spot (see :class:`Rings`).
+
+    ``first``: for each robot with work, the first point and facing of its first chunk. A spot
+    faces the part across one of its four sides; its nozzle stands ``D`` outside the part's box,
+    ``D`` = highway + largest radius + the printhead's reach + clearance, so that a robot on the
+    highway (or inside it) never comes within the clearance of a parked one. Along a side, spots
+    are packed by the outlines' widths (plus the clearance) inside the highway's span, so spots of
+    two sides never meet at a corner. Working robots are all on the inner ring (pushed out until
+    they fit), nobody ever passes between parked robots; idle robots fill rings further out."""
+    rmax = max(b.radius for b in bodies.values())
+    lane = rmax + clearance
+    rings = Rings(np.asarray(lo, float), np.asarray(hi, float), lane)
+    half = {r: max(bodies[r].rects[:, 3].max(), -bodies[r].rects[:, 2].min()) for r in robots}  # half width
+    depth = max(float(b.rects[:, 1].max() - b.rects[:, 0].min()) for b in bodies.values())
+    reach_in = max(float(b.rects[:, 1].max()) for b in bodies.values())
+    base = lane + rmax + reach_in + clearance
+
+    def side_of(f: np.ndarray) -> int:
+        return int(np.argmax(_SIDES @ unit_xy(f)))
+
+    def span(side: int, extra: float) -> tuple[float, float]:
+        t = np.array([-_SIDES[side][1], _SIDES[side][0]])
+        a, b = sorted([float(rings.hlo @ np.abs(t)) - extra, float(rings.hhi @ np.abs(t)) + extra])
+        return a, b
+
+    def pack(members: list[tuple[str, float]], side: int, extra: float) -> dict[str, float] | None:
+        """Positions along the side (coordinate along |t|) of ``members`` (robot, preferred), or None."""
+        a, b = span(side, extra)
+        members = sorted(members, key=lambda m: m[1])
+        need = sum(2 * half[r] + clearance for r, _ in members)
+        if need > b - a + clearance:
+            return None
+        pos, prev = {}, a - clearance
+        for r, pref in members:
+            x = max(pref, prev + clearance + half[r])
+            pos[r] = x
+            prev = x + half[r]
+        nxt = b + clearance
+        for r, _ in reversed(members):
+            x = min(pos[r], nxt - clearance - half[r])
+            pos[r] = x
+            nxt = x - half[r]
+        return pos
+
+    def put(side: int, extra: float, r: str, x: float) -> None:
+        n = _SIDES[side]
+        t = np.abs(np.array([-n[1], n[0]]))
+        edge = float(lo @ np.abs(n)) if side < 2 else float(hi @ np.abs(n))
+        coord = edge - (base + extra) if side < 2 else edge + (base + extra)
+        xy = t * x + np.abs(n) * coord
+        rings.spots[r] = (xy, n.copy())
+
+    working = [r for r in robots if r in first]
+    idle = [r for r in robots if r not in first]
+    extra = 0.0
+    while True:  # the inner ring: each working robot on the side it faces its first chunk from
+        wanted: dict[int, list[tuple[str, float]]] = {s: [] for s in range(4)}
+        for r in working:
+            p, f = first[r]
+            s = side_of(f)
+            t = np.abs(np.array([-_SIDES[s][1], _SIDES[s][0]]))
+            wanted[s].append((r, float(p[:2] @ t)))
+        placed = {}
+        ok = True
+        for s in range(4):  # a side too full passes its outermost robots to the side with most room
+            while pack(wanted[s], s, extra) is None and wanted[s]:
+                room = {o: (span(o, extra)[1] - span(o, extra)[0]) - sum(2 * half[m] + clearance for m, _ in wanted[o])
+                        for o in range(4) if o != s}
+                o = max(room, key=lambda k: room[k])
+                r, _ = max(wanted[s], key=lambda m: abs(m[1] - sum(span(s, extra)) / 2))
+                wanted[s] = [m for m in wanted[s] if m[0] != r]
+                if room[o] < 2 * half[r] + clearance:
+                    ok = False
+                    break
+                a, b = span(o, extra)
+                wanted[o].append((r, (a + b) / 2))
+            if not ok:
+                break
+        if ok:
+            for s in range(4):
+                pos = pack(wanted[s], s, extra)
+                if pos is None:
+                    ok = False
+                    break
+                placed[s] = pos
+        if ok:
+            break
+        extra += depth + clearance
+    for s, pos in placed.items():
+        for r, x in pos.items():
+            put(s, extra, r, x)
+    ring = 0
+    taken = {s: list((r, x) for r, x in placed.get(s, {}).items()) for s in range(4)}
+    while idle:  # idle robots: what room is left on this ring, then rings further out
+        e = extra + ring * (depth + clearance)
+        for s in range(4):
+            while idle:
+                trial = [(r, x) for r, x in taken[s]] + [(idle[0], span(s, e)[1])]
+                pos = pack(trial, s, e)
+                if pos is None:
+                    break
+                r = idle.pop(0)
+                taken[s] = [(m, pos[m]) for m, _ in trial]
+                for m, x in pos.items():
+                    put(s, e, m, x)
+        ring += 1
+        taken = {s: [] for s in range(4)}
+        if ring > 1000:
+            raise FleetError("no room on 1000 parking rings")
+    return rings
+
+
+# ------------------------------------------------------------------------------------------------
+# items and the replay
+
+
+@dataclass
+class Item:
+    """A stretch of one robot's plan (see the module doc)."""
+
+    robot: str
+    kind: str  # pose, leg, turn, print
+    parts: np.ndarray  # (3, NDIR)
+    start: float = 0.0
+    end: float = math.inf
+    ended: bool = True  # a pose is not, until the robot moves on
+    permanent: bool = False  # a robot's last pose
+    chunk: str | None = None
+    program: Program | None = None
+    escape: np.ndarray | None = None  # a pose at a print's end: its body's way out to the highway
+    seq: int = -1  # index among the robot's items
+    index: int = -1  # index among all items
+    notify: str | None = None  # the event its end is announced by, once someone waits for it
+
+
+@dataclass
+class Job:
+    """What a robot does next: the items, and before them the items of others it waits for."""
+
+    robot: str
+    items: list[Item]
+    pose: Item  # where it stands afterwards
+    start: float
+    waits: dict[int, Item]
+    target: str | None  # chunk id, None: home
+    turns: list[tuple[str, float]]
+    facing: np.ndarray  # the way it faces afterwards
+
+
+class _Fleet:
+    def __init__(self, schedule: Schedule, dag: ChunkDAG, layers: dict, material: MaterialIndex,
+                 profiles: Mapping[str, RobotProfile], clearance: float):
+        self.sched, self.dag, self.layers, self.material = schedule, dag, layers, material
+        self.clearance = float(clearance)
+        self.robots = list(schedule.sequences)
+        self.bodies = {r: Body.of(profiles[r]) for r in self.robots}
+        self.idx = dag.index
+        self.owner = {c: r for r, seq in schedule.sequences.items() for c in seq}
+        self.pts, self.first, self.top = {}, {}, {}
+        for cid in dag.ids:
+            pts = [layer.points[:, :2] for _, layer in layers.get(cid, ()) if len(layer)]
+            if pts:
+                self.pts[cid] = np.concatenate(pts)
+                _, l0 = next((i, la) for i, la in layers[cid] if len(la))
+                self.first[cid] = quantize(np.r_[l0.points[0], l0.z])
+        self.foot = {c: point_support(p) for c, p in self.pts.items()}
+        boxes = {c: b for c, b in material.boxes.items() if len(b)}
+        self.box = {c: np.r_[b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max(), b[:, 4].max() + material.margin]
+                    for c, b in boxes.items()}
+        allp = [p for p in self.pts.values()] + [b[[0, 1]][None] for b in self.box.values()] + \
+            [b[[2, 3]][None] for b in self.box.values()]
+        allp = np.concatenate(allp) if allp else np.zeros((1, 2))
+        firsts = {}
+        for r, seq in schedule.sequences.items():
+            c = next((c for c in seq if c in self.pts), None)
+            if c is not None:
+                firsts[r] = (self.first[c], dag.facing[self.idx[c]])
+        self.rings = parking(self.robots, firsts, self.bodies, allp.min(0), allp.max(0), self.clearance)
+        self.items: list[Item] = []
+        self._parts = np.zeros((0, 3, NDIR))
+        self._robot = np.zeros(0, int)
+        self._ended = np.zeros(0, bool)
+        self.per_robot: dict[str, list[Item]] = {r: [] for r in self.robots}
+        self.jobs: dict[str, list[Job]] = {r: [] for r in self.robots}
+        self.pose: dict[str, Item] = {}
+        self.here: dict[str, np.ndarray] = {}
+        self.facing: dict[str, np.ndarray] = {}
+        self.at_home: dict[str, bool] = {}
+        self.todo: dict[str, list[str | None]] = {}
+        self.printed: list[str] = []  # placed prints, in order
+        self.done_chunks: dict[str, Item] = {}
+        for r in self.robots:
+            xy, n = self.rings.spots[r]
+            home = quantize(np.r_[xy, self.clearance])
+            b = self.bodies[r]
+            idle = r not in firsts
+            it = Item(r, "pose", b.parts(home[None, :2], n), 0.0, math.inf, ended=False, permanent=idle)
+            self._add(it)
+            self.pose[r], self.here[r], self.facing[r], self.at_home[r] = it, home, n, True
+            self.todo[r] = [] if idle else list(schedule.sequences[r]) + [None]
+
+    def _add(self, it: Item) -> None:
+        it.seq = len(self.per_robot[it.robot])
+        it.index = len(self.items)
+        self.per_robot[it.robot].append(it)
+        self.items.append(it)
+        n = len(self.items)
+        if n > len(self._parts):  # the placed items' supports, in arrays that grow by doubling
+            grow = max(64, len(self._parts))
+            self._parts = np.concatenate([self._parts, np.zeros((grow, 3, NDIR))])
+            self._robot = np.concatenate([self._robot, np.full(grow, -1)])
+            self._ended = np.concatenate([self._ended, np.zeros(grow, bool)])
+        self._parts[n - 1] = it.parts
+        self._robot[n - 1] = self.robots.index(it.robot)
+        self._ended[n - 1] = it.ended
+
+    # --- geometry of a way ---------------------------------------------------------------------
+
+    def _covers(self, body: np.ndarray, chunks: list[str]) -> list[str]:
+        """The chunks among ``chunks`` whose footprint the body support ``body`` overlaps."""
+        if not chunks:
+            return []
+        f = np.stack([self.foot[c] for c in chunks])
+        hit = ~apart(body[None], f, 0.0)
+        return [c for c, h in zip(chunks, hit) if h]
+
+    def _height(self, pts: np.ndarray, reach: float, base: float) -> float:
+        """The travel height over ``pts`` (k, 2): the clearance above every placed chunk's material
+        box within ``reach`` of their box, and above ``base``."""
+        lo, hi = pts.min(0) - reach, pts.max(0) + reach
+        top = base
+        for c in self.printed:
+            b = self.box.get(c)
+            if b is not None and b[0] <= hi[0] and b[2] >= lo[0] and b[1] <= hi[1] and b[3] >= lo[1]:
+                top = max(top, float(b[4]))
+        return float(quantize(top + self.clearance))
+
+    def _ways(self, r: str, target: str | None) -> list[tuple[str, list]]:
+        """Candidate ways from where ``r`` stands to above the target's first point (``None``:
+        its home), each a list of ``("go", xy)`` and ``("turn", facing)`` steps."""
+        p, f = self.here[r][:2], self.facing[r]
+        if target is None:
+            goal, g = self.rings.spots[r]
+        else:
+            goal, g = self.first[target][:2], unit_xy(self.dag.facing[self.idx[target]])
+        out: list[tuple[str, list]] = []
+        same = bool(np.allclose(f, g, atol=1e-9))
+        if same:
+            out.append(("straight", [("go", goal)]))
+            if not self.at_home[r]:
+                bd = self.bodies[r].build_depth
+                s_lo = min((float(-self.foot[c][OPP][np.argmax(DIRS @ f)]) for c in self.printed), default=math.inf)
+                s1 = min(float(p @ f), s_lo + bd - self.clearance)
+                left = np.array([-f[1], f[0]])
+                q0, q4 = float(p @ left), float(goal @ left)
+                steps = []
+                if s1 < float(p @ f) - 1e-9:
+                    steps.append(("go", s1 * f + q0 * left))
+                steps += [("go", s1 * f + q4 * left), ("go", goal)]
+                out.append(("around", steps))
+        a = self.rings.exit(p, f if self.at_home[r] else -f)
+        b = self.rings.exit(goal, g if target is None else -g)
+        steps = [("go", a)]
+        if not same:
+            steps.append(("turn", g))
+        steps += [("go", x) for x in self.rings.along(a, b)] + [("go", goal)]
+        out.append(("highway", steps))
+        return out
+
+    def _legs(self, r: str, steps: list, target: str | None) -> tuple[list[Item], list[tuple[str, float]], np.ndarray]:
+        """The items of a way (legs lifted to one travel height, turns) and the facings turned to."""
+        b = self.bodies[r]
+        here, f = self.here[r], self.facing[r]
+        path = [here[:2]] + [np.asarray(x, float) for k, x in steps if k == "go"]
+        path = np.array(path)
+        base = float(here[2]) if target is None else max(float(here[2]), float(self.first[target][2]))
+        z = self._height(path, b.nozzle_depth, base)
+        items, turns = [], []
+        pos = here.copy()
+        if pos[2] != z:
+            up = quantize(np.r_[pos[:2], z])
+            items.append(self._leg(r, pos, up, f))
+            pos = up
+        for kind, x in steps:
+            if kind == "turn":
+                g = unit_xy(x)
+                via = _via(f, g)
+                degs = [facing_deg(v) for v in via] + [facing_deg(g)]
+                it = Item(r, "turn", b.disc(pos[:2]), end=0.0)
+                it.program = make_program(r, np.zeros(0), turns=tuple((0, d) for d in degs))
+                items.append(it)
+                turns.append(facing_deg(g))
+                f = g
+            else:
+                nxt = quantize(np.r_[x, z])
+                if np.array_equal(nxt, pos):
+                    continue
+                items.append(self._leg(r, pos, nxt, f))
+                pos = nxt
+        return items, turns, pos
+
+    def _leg(self, r: str, a: np.ndarray, b: np.ndarray, f: np.ndarray) -> Item:
+        body = self.bodies[r]
+        it = Item(r, "leg", body.parts(np.array([a[:2], b[:2]]), f))
+        it.program = make_program(r, np.array([MOVE], np.uint8), np.asarray(b, float)[None])
+        it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.travel_speed  # duration, for now
+        return it
+
+    def _print(self, r: str, cid: str, here: np.ndarray, f: np.ndarray) -> tuple[Item, np.ndarray]:
+        b = self.bodies[r]
+        pieces, pos = [], here
+        for li, layer in self.layers.get(cid, ()):
+            piece, pos = layer_program(layer, pos, robot=r, index=li, chunk=cid)
+            pieces.append(piece)
+        prog = Program.concat(r, pieces) if pieces else Program.empty(r)
+        pts = self.pts.get(cid)
+        it = Item(r, "print", b.parts(pts if pts is not None else here[None, :2], f), chunk=cid)
+        it.program = prog
+        mv = prog.kind == MOVE
+        xyz = np.vstack([np.asarray(here, float)[None], prog.xyz[mv]])
+        length = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
+        on = prog.tool_on()[mv]
+        it.end = float(np.sum(np.where(on, length / b.print_speed, length / b.travel_speed)))
+        return it, np.asarray(pos, float)
+
+    # --- a job ---------------------------------------------------------------------------------
+
+    def _others_poses(self, r: str) -> list[Item]:
+        return [self.pose[o] for o in self.robots if o != r and not self.pose[o].ended]
+
+    def job(self, r: str, target: str | None) -> Job | str:
+        """The job of ``r`` to ``target`` (``None``: home), or why it cannot be placed now."""
+        poses = self._others_poses(r)
+        placed = self.printed
+        reason = "no way"
+        for name, steps in self._ways(r, target):
+            items, turns, pos = self._legs(r, steps, target)
+            bodies = [it.parts[0] for it in items]
+            hit = [c for bd in bodies for c in self._covers(bd, placed)]
+            if hit:
+                reason = f"its way {name} drives its body over chunk {hit[0]}"
+                continue
+            blocked = [p for it in items for p in poses if not apart(it.parts[:, None], p.parts[None], self.clearance).all()]
+            if blocked:
+                reason = f"robot {blocked[0].robot} stands in its way"
+                if name == "highway":
+                    return reason
+                continue
+            break
+        else:
+            return reason
+        f = unit_xy(self.dag.facing[self.idx[target]]) if target is not None else self.rings.spots[r][1]
+        waits: dict[int, Item] = {}
+        pr = None
+        if target is not None:
+            pr, pos = self._print(r, target, pos, f)
+            for d in self.dag.preds(target):
+                if d not in self.done_chunks:
+                    return f"chunk {d} is not placed"
+                if self.owner[d] != r:
+                    w = self.done_chunks[d]
+                    waits[w.index] = w
+            if target in self.foot:
+                for p in poses:
+                    if p.escape is not None and not apart(p.escape[None], self.foot[target][None], 0.0).all():
+                        return f"robot {p.robot} must back out over it"
+                own = self._covers(pr.parts[0], [c for c in placed if c != target])
+                if own:
+                    raise FleetError(f"robot {r} prints {target} with its body over chunk {own[0]}, printed before "
+                                     f"(the chunk rules must put {own[0]} after {target})")
+            if any(not apart(pr.parts[:, None], p.parts[None], self.clearance).all() for p in poses):
+                return "a robot stands in the way of its print"
+            items.append(pr)
+        # the items placed before that it must follow
+        mine = np.stack([it.parts for it in items])  # (k, 3, NDIR)
+        n = len(self.items)
+        sel = np.flatnonzero((self._robot[:n] != self.robots.index(r)) & self._ended[:n])
+        if len(sel):
+            theirs = self._parts[sel]  # (m, 3, NDIR)
+            whole_m, whole_t = mine.max(1)[:, BOX], theirs.max(1)[:, BOX]
+            near = ~((whole_m[:, None] + whole_t[None][..., [2, 3, 0, 1]]) < -self.clearance).any(-1)  # (k, m)
+            ii, jj = np.nonzero(near)
+            if len(ii):
+                close = ~apart(mine[ii][:, :, None], theirs[jj][:, None], self.clearance).all(axis=(1, 2))
+                for j in np.unique(jj[close]):
+                    w = self.items[int(sel[j])]
+                    waits[w.index] = w
+            if pr is not None and target in self.foot:
+                hit = ~apart(theirs[:, 0], self.foot[target][None], 0.0)
+                for j in np.flatnonzero(hit):
+                    w = self.items[int(sel[j])]
+                    waits[w.index] = w
+        start = max([self.pose[r].start] + [w.end for w in waits.values()])
+        end_pose_at = pos
+        b = self.bodies[r]
+        pose = Item(r, "pose", b.parts(end_pose_at[None, :2], f), ended=False, permanent=target is None
+                    and not self.todo[r][1:])
+        if target is not None and not pose.permanent:
+            out = self.rings.exit(end_pose_at[:2], -f)
+            pose.escape = b.parts(np.array([end_pose_at[:2], out]), f)[0]
+        return Job(r, items, pose, start, waits, target, [(target or "-", t) for t in turns], f)
+
+    def place(self, job: Job) -> None:
+        r = job.robot
+        old = self.pose[r]
+        old.end, old.ended = job.start, True
+        self._ended[old.index] = True
+        t = job.start
+        for it in job.items:
+            dur = it.end
+            it.start, it.end = t, t + dur
+            t = it.end
+            self._add(it)
+            if it.kind == "print":
+                self.printed.append(it.chunk)
+                self.done_chunks[it.chunk] = it
+        pose = job.pose
+        pose.start = t
+        pose.end = math.inf
+        self._add(pose)
+        self.pose[r] = pose
+        last = next((it for it in reversed(job.items) if it.program is not None and len(it.program)), None)
+        if last is not None:
+            mv = np.flatnonzero(last.program.kind == MOVE)
+            if len(mv):
+                self.here[r] = quantize(last.program.xyz[mv[-1]])
+        self.facing[r] = job.facing
+        self.jobs[r].append(job)
+        self.at_home[r] = job.target is None
+
+    def run(self) -> None:
+        while any(self.todo[r] for r in self.robots):
+            best, why = None, {}
+            for r in self.robots:
+                if not self.todo[r]:
+                    continue
+                j = self.job(r, self.todo[r][0])
+                if isinstance(j, str):
+                    why[r] = j
+                elif best is None or j.start < best[1].start:
+                    best = (r, j, False)
+            if best is None:  # a standoff: someone standing in the way goes home to wait
+                for r in self.robots:
+                    if self.todo[r] and not self.at_home[r] and self.todo[r][0] is not None:
+                        j = self.job(r, None)
+                        if not isinstance(j, str) and (best is None or j.start < best[1].start):
+                            best = (r, j, True)
+            if best is None:
+                raise FleetError("the robots cannot go on: " + "; ".join(f"{r}: {w}" for r, w in why.items()))
+            r, j, home = best
+            self.place(j)
+            if not home:
+                self.todo[r].pop(0)
+
+    # --- the programs ----------------------------------------------------------------------------
+
+    def programs(self) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
+        # which waits to keep: per robot pair, only one beyond the last kept (transitive reduction)
+        keep: dict[str, list[list[Item]]] = {}
+        needed: set[int] = set()
+        for r in self.robots:
+            last: dict[str, int] = {}
+            keep[r] = []
+            for j in self.jobs[r]:
+                top: dict[str, Item] = {}
+                for it in j.waits.values():
+                    if it.seq > last.get(it.robot, -1) and (it.robot not in top or it.seq > top[it.robot].seq):
+                        top[it.robot] = it
+                for o, it in top.items():
+                    last[o] = it.seq
+                    needed.add(it.index)
+                keep[r].append(sorted(top.values(), key=lambda it: (it.robot, it.seq)))
+        depended = {d for c in self.dag.ids for d in self.dag.preds(c)
+                    if c in self.owner and d in self.owner and self.owner[d] != self.owner[c]}
+        for r in self.robots:  # name the events
+            n = 0
+            for it in self.per_robot[r]:
+                if it.kind == "print" and (it.index in needed or it.chunk in depended):
+                    it.notify = it.chunk
+                    n += 1
+                elif it.index in needed:
+                    n += 1
+                    it.notify = f"{r}:{n}"
+        programs, placements = {}, {}
+        for r in self.robots:
+            pieces: list[Program] = []
+            items = self.per_robot[r]
+            for j, waits in zip(self.jobs[r], keep[r]):
+                if waits:
+                    pieces.append(_sync(r, WAIT, [w.notify for w in waits]))
+                before = items[j.items[0].seq - 1] if j.items else None  # the pose it leaves
+                if before is not None and before.notify:
+                    pieces.append(_sync(r, NOTIFY, [before.notify]))
+                for it in j.items:
+                    if it.program is not None:
+                        pieces.append(it.program)
+                    if it.notify:
+                        pieces.append(_sync(r, NOTIFY, [it.notify]))
+            programs[r] = Program.concat(r, pieces)
+            xy, n = self.rings.spots[r]
+            seq = self.sched.sequences[r]
+            faces = {tuple(np.round(unit_xy(self.dag.facing[self.idx[c]]), 9)) for c in seq}
+            facings = [(seq[0] if seq else "-", facing_deg(n))]
+            facings += [t for j in self.jobs[r] for t in j.turns]
+            side = _side(faces, n)
+            placements[r] = RobotPlacement(r, side, (float(n[0]), float(n[1])),
+                                           (float(xy[0]), float(xy[1]), float(quantize(self.clearance))),
+                                           tuple(facings))
+        return programs, placements
+
+
+def _via(f: np.ndarray, g: np.ndarray) -> list[np.ndarray]:
+    """The facings a turn from ``f`` to ``g`` passes through first: a quarter turn when it is a
+    half turn (the simulator turns the shorter way, which a half turn does not say)."""
+    if float(f @ g) < -1 + 1e-9:
+        return [np.array([-f[1], f[0]])]
+    return []
+
+
+def _side(faces: set, n: np.ndarray) -> str:
+    """``left`` / ``right``: the robot prints facing one way along the main axis of its facings
+    (+: it stands on the -axis side, as the seed's left chunks), ``both``: either way."""
+    if not faces:
+        return "left" if (n @ np.array([1.0, 1.0])) > 0 else "right"
+    arr = np.array(sorted(faces))
+    axis = 1 if np.abs(arr[:, 1]).sum() >= np.abs(arr[:, 0]).sum() else 0
+    signs = {float(np.sign(a[axis])) for a in arr if abs(a[axis]) > 1e-9}
+    if len(signs) > 1:
+        return "both"
+    return "left" if signs == {1.0} or not signs else "right"
+
+
+def _sync(robot: str, kind: int, events: list[str]) -> Program:
+    return make_program(robot, np.array([kind], np.uint8), events=(tuple(events),))
+
+
+def fleet_programs(schedule: Schedule, dag: ChunkDAG, layers: dict[str, list[tuple[int, LayerPaths]]],
+                   material: MaterialIndex, profiles: Mapping[str, RobotProfile], clearance: float
+                   ) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
+    """Every robot's program and placement for ``schedule`` (see the module doc).
+
+    Parameters
+    ----------
+    schedule
+        Who prints which chunk in which order (its times are not used: the replay makes its own).
+    dag
+        The chunks' facings and :meth:`~ChunkDAG.preds`.
+    layers
+        ``{chunk id: [(layer index, LayerPaths), ...]}`` in the object's layer grid.
+    material
+        The chunks' triangle boxes (travel heights).
+    profiles
+        ``{robot: RobotProfile}``: each robot's outline and speeds.
+    clearance
+        How far apart two robots' outlines stay, and the lift above material of a travel, mm.
+
+    Raises :class:`FleetError` when the robots cannot go on (a body would have to stand on printed
+    material, a robot is walled in) or a parked robot is in the way (a bug of the ring rule).
+    """
+    fleet = _Fleet(schedule, dag, layers, material, profiles, clearance)
+    fleet.run()
+    return fleet.programs()
+
+
+__all__ = ["FleetError", "fleet_programs", "parking"]

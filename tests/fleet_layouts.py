@@ -1,0 +1,71 @@
+"""Hand-made chunk layouts for the fleet programs' tests (tests/test_fleet_programs.py): boxes
+side by side, sliced in one layer grid, a ChunkDAG and a Schedule made by hand."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from cooprint.chunking.cut import Chunk
+from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.program.build import MaterialIndex
+from cooprint.scheduling.dag import ChunkDAG
+from cooprint.scheduling.schedule import Schedule
+from cooprint.slicing import iter_layers
+
+import solids
+
+#: A small robot (all lengths a quarter of the default's or so) so that the parts stay small.
+SMALL = RobotProfile(name="small", build_depth=80.0, nozzle_height=40.0, nozzle_depth=10.0, body_width=80.0,
+                     body_length=90.0, print_speed=40.0, travel_speed=120.0)
+#: Thick, few layers.
+SLICING = SlicingSettings(layer_height=1.5, first_layer_height=1.5, extrusion_width=2.0, nozzle_diameter=1.6,
+                          perimeters=1, top_layers=1, bottom_layers=1, infill_density=0.1)
+
+
+def box_chunk(cid: str, lo, hi, facing, row: int = 0, col: int = 0) -> Chunk:
+    tm = solids.to_trimesh(solids.box(hi[0] - lo[0], hi[1] - lo[1], hi[2]))
+    v = np.asarray(tm.vertices, float) + [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, 0.0]
+    return Chunk(cid, "centre", 0, v, np.asarray(tm.faces, np.int64), float(tm.volume), (), row, col,
+                 tuple(float(x) for x in facing))
+
+
+def layout(chunks: list[Chunk], deps: dict[str, tuple[str, ...]], sequences: dict[str, tuple[str, ...]],
+           slicing: SlicingSettings = SLICING, profile: RobotProfile = SMALL):
+    """Slice the chunks, time them at the profile's speeds, and make the DAG and a schedule whose
+    times follow the sequences (each chunk after its robot's previous one and its deps)."""
+    layers = {}
+    for c in chunks:
+        first = int(round(c.bounds[0, 2] / slicing.layer_height))
+        layers[c.id] = list(enumerate(iter_layers(c.as_solid(), slicing, workers=1, base=0.0), start=first))
+    work, start, end, foot = [], [], [], []
+    for c in chunks:
+        pts = np.concatenate([la.points for _, la in layers[c.id] if len(la)])
+        length = sum(float(np.linalg.norm(np.diff(la.points, axis=0), axis=1).sum()) for _, la in layers[c.id])
+        work.append(length / profile.print_speed)
+        start.append(np.r_[pts[0], 0.0])
+        end.append(np.r_[pts[-1], 0.0])
+        foot.append(np.r_[pts.min(0), pts.max(0)])
+    ids = tuple(c.id for c in chunks)
+    dag = ChunkDAG(ids, np.array(work), np.array([c.facing for c in chunks], float), np.array(start), np.array(end),
+                   np.array(foot), {c: tuple(deps.get(c, ())) for c in ids}, travel_speed=profile.travel_speed)
+    w = dict(zip(ids, work))
+    t0, t1 = {}, {}
+    free = {r: 0.0 for r in sequences}
+    pending = {r: list(seq) for r, seq in sequences.items()}
+    while any(pending.values()):
+        for r, seq in pending.items():
+            if seq and all(d in t1 for d in dag.preds(seq[0])):
+                c = seq.pop(0)
+                t0[c] = max([free[r]] + [t1[d] for d in dag.preds(c)])
+                t1[c] = free[r] = t0[c] + w[c]
+    sched = Schedule({r: tuple(s) for r, s in sequences.items()}, "hand", t0, t1, max(t1.values(), default=0.0),
+                     dag.lower_bound(len(sequences)))
+    material = MaterialIndex.of(chunks, margin=slicing.layer_height)
+    return dag, sched, layers, material
+
+
+def scaled(profile: RobotProfile, speed: float) -> RobotProfile:
+    return dataclasses.replace(profile, print_speed=profile.print_speed * speed,
+                               travel_speed=profile.travel_speed * speed)
