@@ -120,8 +120,15 @@ class Body:
 
     def parts(self, nozzle: np.ndarray, facing: np.ndarray) -> np.ndarray:
         """(3, NDIR) the parts' supports over the nozzle positions ``nozzle`` (k, 2) (their hull)."""
-        s = point_support(nozzle)
-        return np.stack([s + rect_support(r, facing) for r in self.rects])
+        return point_support(nozzle)[None] + self.rect_parts(facing)
+
+    def rect_parts(self, facing: np.ndarray) -> np.ndarray:
+        """(3, NDIR) the parts' supports around a nozzle at the origin, facing ``facing``."""
+        key = (round(float(facing[0]), 9), round(float(facing[1]), 9))
+        cache = self.__dict__.setdefault("_cache", {})
+        if key not in cache:
+            cache[key] = np.stack([rect_support(r, np.asarray(key)) for r in self.rects])
+        return cache[key]
 
     def disc(self, at: np.ndarray) -> np.ndarray:
         """(3, NDIR) every part within the outline's radius of ``at``: a robot turning there."""
@@ -231,7 +238,7 @@ def parking(robots: list[str], first: dict[str, tuple[np.ndarray, np.ndarray]], 
     two sides never meet at a corner. Working robots are all on the inner ring (pushed out until
     they fit), nobody ever passes between parked robots; idle robots fill rings further out."""
     rmax = max(b.radius for b in bodies.values())
-    lane = rmax + clearance
+    lane = 2 * rmax + clearance  # a robot on it is clear of every robot whose nozzle is over the part
     rings = Rings(np.asarray(lo, float), np.asarray(hi, float), lane)
     half = {r: max(bodies[r].rects[:, 3].max(), -bodies[r].rects[:, 2].min()) for r in robots}  # half width
     depth = max(float(b.rects[:, 1].max() - b.rects[:, 0].min()) for b in bodies.values())
@@ -350,9 +357,11 @@ class Item:
     permanent: bool = False  # a robot's last pose
     chunk: str | None = None
     program: Program | None = None
-    escape: np.ndarray | None = None  # a pose at a print's end: its body's way out to the highway
+    escape: np.ndarray | None = None  # a pose at a print's end: its way out to the highway (3, NDIR)
     seq: int = -1  # index among the robot's items
     index: int = -1  # index among all items
+    to: np.ndarray | None = None  # a leg: where it goes
+    start_at: np.ndarray | None = None  # a print: where the nozzle is before it
     notify: str | None = None  # the event its end is announced by, once someone waits for it
 
 
@@ -400,9 +409,13 @@ class _Fleet:
                 firsts[r] = (self.first[c], dag.facing[self.idx[c]])
         self.rings = parking(self.robots, firsts, self.bodies, allp.min(0), allp.max(0), self.clearance)
         self.items: list[Item] = []
+        self._times: dict = {}
+        self._feet = np.zeros((0, NDIR))  # the footprints of the placed prints, in self.printed's order
+        self._boxes = np.zeros((0, 5))  # and their material boxes (xmin, ymin, xmax, ymax, top)
         self._parts = np.zeros((0, 3, NDIR))
         self._robot = np.zeros(0, int)
         self._ended = np.zeros(0, bool)
+        self._box = np.zeros((0, 4))  # each item's box: its support along +x, +y, -x, -y
         self.per_robot: dict[str, list[Item]] = {r: [] for r in self.robots}
         self.jobs: dict[str, list[Job]] = {r: [] for r in self.robots}
         self.pose: dict[str, Item] = {}
@@ -433,29 +446,21 @@ class _Fleet:
             self._parts = np.concatenate([self._parts, np.zeros((grow, 3, NDIR))])
             self._robot = np.concatenate([self._robot, np.full(grow, -1)])
             self._ended = np.concatenate([self._ended, np.zeros(grow, bool)])
+            self._box = np.concatenate([self._box, np.zeros((grow, 4))])
         self._parts[n - 1] = it.parts
+        self._box[n - 1] = it.parts.max(axis=0)[BOX]
         self._robot[n - 1] = self.robots.index(it.robot)
         self._ended[n - 1] = it.ended
 
     # --- geometry of a way ---------------------------------------------------------------------
 
-    def _covers(self, body: np.ndarray, chunks: list[str]) -> list[str]:
-        """The chunks among ``chunks`` whose footprint the body support ``body`` overlaps."""
-        if not chunks:
-            return []
-        f = np.stack([self.foot[c] for c in chunks])
-        hit = ~apart(body[None], f, 0.0)
-        return [c for c, h in zip(chunks, hit) if h]
-
     def _height(self, pts: np.ndarray, reach: float, base: float) -> float:
         """The travel height over ``pts`` (k, 2): the clearance above every placed chunk's material
         box within ``reach`` of their box, and above ``base``."""
         lo, hi = pts.min(0) - reach, pts.max(0) + reach
-        top = base
-        for c in self.printed:
-            b = self.box.get(c)
-            if b is not None and b[0] <= hi[0] and b[2] >= lo[0] and b[1] <= hi[1] and b[3] >= lo[1]:
-                top = max(top, float(b[4]))
+        b = self._boxes[:len(self.printed)]
+        near = (b[:, 0] <= hi[0]) & (b[:, 2] >= lo[0]) & (b[:, 1] <= hi[1]) & (b[:, 3] >= lo[1])
+        top = max(base, float(b[near, 4].max())) if near.any() else base
         return float(quantize(top + self.clearance))
 
     def _ways(self, r: str, target: str | None) -> list[tuple[str, list]]:
@@ -472,7 +477,8 @@ class _Fleet:
             out.append(("straight", [("go", goal)]))
             if not self.at_home[r]:
                 bd = self.bodies[r].build_depth
-                s_lo = min((float(-self.foot[c][OPP][np.argmax(DIRS @ f)]) for c in self.printed), default=math.inf)
+                feet = self._feet[:len(self.printed)]
+                s_lo = float(-feet[:, OPP[int(np.argmax(DIRS @ f))]].max(initial=-math.inf))
                 s1 = min(float(p @ f), s_lo + bd - self.clearance)
                 left = np.array([-f[1], f[0]])
                 q0, q4 = float(p @ left), float(goal @ left)
@@ -524,27 +530,46 @@ class _Fleet:
 
     def _leg(self, r: str, a: np.ndarray, b: np.ndarray, f: np.ndarray) -> Item:
         body = self.bodies[r]
-        it = Item(r, "leg", body.parts(np.array([a[:2], b[:2]]), f))
-        it.program = make_program(r, np.array([MOVE], np.uint8), np.asarray(b, float)[None])
+        it = Item(r, "leg", point_support(np.array([a[:2], b[:2]]))[None] + body.rect_parts(f))
+        it.to = np.asarray(b, float)
         it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.travel_speed  # duration, for now
         return it
 
-    def _print(self, r: str, cid: str, here: np.ndarray, f: np.ndarray) -> tuple[Item, np.ndarray]:
-        b = self.bodies[r]
+    def _chunk_time(self, r: str, cid: str) -> tuple[float, np.ndarray]:
+        """Nominal time of a chunk's layers for robot ``r`` from above its first point, and where
+        the nozzle ends (cached)."""
+        key = (r, cid)
+        if key not in self._times:
+            prog, last = self._print_program(r, cid, np.full(3, np.nan))
+            b = self.bodies[r]
+            mv = prog.kind == MOVE
+            xyz = prog.xyz[mv]
+            length = np.r_[0.0, np.linalg.norm(np.diff(xyz, axis=0), axis=1)]
+            on = prog.tool_on()[mv]
+            self._times[key] = (float(np.sum(np.where(on, length / b.print_speed, length / b.travel_speed))),
+                                np.asarray(last, float))
+        return self._times[key]
+
+    def _print_program(self, r: str, cid: str, here: np.ndarray) -> tuple[Program, np.ndarray]:
         pieces, pos = [], here
         for li, layer in self.layers.get(cid, ()):
             piece, pos = layer_program(layer, pos, robot=r, index=li, chunk=cid)
             pieces.append(piece)
-        prog = Program.concat(r, pieces) if pieces else Program.empty(r)
+        return (Program.concat(r, pieces) if pieces else Program.empty(r)), pos
+
+    def _print(self, r: str, cid: str, here: np.ndarray, f: np.ndarray) -> tuple[Item, np.ndarray]:
+        b = self.bodies[r]
         pts = self.pts.get(cid)
-        it = Item(r, "print", b.parts(pts if pts is not None else here[None, :2], f), chunk=cid)
-        it.program = prog
-        mv = prog.kind == MOVE
-        xyz = np.vstack([np.asarray(here, float)[None], prog.xyz[mv]])
-        length = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
-        on = prog.tool_on()[mv]
-        it.end = float(np.sum(np.where(on, length / b.print_speed, length / b.travel_speed)))
-        return it, np.asarray(pos, float)
+        if pts is None:
+            it = Item(r, "print", b.parts(here[None, :2], f), chunk=cid, end=0.0)
+            it.start_at = here
+            return it, here
+        dur, last = self._chunk_time(r, cid)
+        first = self.first[cid]
+        it = Item(r, "print", self.foot[cid][None] + b.rect_parts(f), chunk=cid)
+        it.start_at = here
+        it.end = dur + float(np.linalg.norm(here - first)) / b.travel_speed
+        return it, last
 
     # --- a job ---------------------------------------------------------------------------------
 
@@ -553,22 +578,32 @@ class _Fleet:
 
     def job(self, r: str, target: str | None) -> Job | str:
         """The job of ``r`` to ``target`` (``None``: home), or why it cannot be placed now."""
+        if target is not None:
+            for d in self.dag.preds(target):
+                if d not in self.done_chunks:
+                    return f"chunk {d} is not placed"
         poses = self._others_poses(r)
+        pose_parts = np.stack([p.parts for p in poses]) if poses else np.zeros((0, 3, NDIR))
         placed = self.printed
+        feet = self._feet[:len(placed)]
         reason = "no way"
         for name, steps in self._ways(r, target):
             items, turns, pos = self._legs(r, steps, target)
-            bodies = [it.parts[0] for it in items]
-            hit = [c for bd in bodies for c in self._covers(bd, placed)]
-            if hit:
-                reason = f"its way {name} drives its body over chunk {hit[0]}"
-                continue
-            blocked = [p for it in items for p in poses if not apart(it.parts[:, None], p.parts[None], self.clearance).all()]
-            if blocked:
-                reason = f"robot {blocked[0].robot} stands in its way"
-                if name == "highway":
-                    return reason
-                continue
+            if not items:
+                break
+            mine = np.stack([it.parts for it in items])
+            if len(feet):
+                hit = ~apart(mine[:, None, 0], feet[None], 0.0)  # (k, m)
+                if hit.any():
+                    reason = f"its way {name} drives its body over chunk {placed[int(np.nonzero(hit)[1][0])]}"
+                    continue
+            if len(poses):
+                near = ~apart(mine[:, None, :, None], pose_parts[None, :, None], self.clearance).all(axis=(2, 3))
+                if near.any():
+                    reason = f"robot {poses[int(np.nonzero(near)[1][0])].robot} stands in its way"
+                    if name == "highway":
+                        return reason
+                    continue
             break
         else:
             return reason
@@ -578,34 +613,36 @@ class _Fleet:
         if target is not None:
             pr, pos = self._print(r, target, pos, f)
             for d in self.dag.preds(target):
-                if d not in self.done_chunks:
-                    return f"chunk {d} is not placed"
                 if self.owner[d] != r:
                     w = self.done_chunks[d]
                     waits[w.index] = w
             if target in self.foot:
                 for p in poses:
-                    if p.escape is not None and not apart(p.escape[None], self.foot[target][None], 0.0).all():
+                    if p.escape is not None and not apart(p.escape[0], self.foot[target], 0.0):
                         return f"robot {p.robot} must back out over it"
-                own = self._covers(pr.parts[0], [c for c in placed if c != target])
+                own = [c for c, h in zip(placed, ~apart(pr.parts[0][None], feet, 0.0)) if h and c != target] \
+                    if len(feet) else []
                 if own:
                     raise FleetError(f"robot {r} prints {target} with its body over chunk {own[0]}, printed before "
                                      f"(the chunk rules must put {own[0]} after {target})")
-            if any(not apart(pr.parts[:, None], p.parts[None], self.clearance).all() for p in poses):
+            if len(poses) and (~apart(pr.parts[None, :, None], pose_parts[:, None], self.clearance)).any():
                 return "a robot stands in the way of its print"
             items.append(pr)
-        # the items placed before that it must follow
+        # the items placed before that it must follow: a box prefilter, then the exact test
         mine = np.stack([it.parts for it in items])  # (k, 3, NDIR)
         n = len(self.items)
-        sel = np.flatnonzero((self._robot[:n] != self.robots.index(r)) & self._ended[:n])
+        reach = mine.max(axis=(0, 1))[BOX]  # the job's box
+        box = self._box[:n]
+        near = ~((reach[None] + box[:, [2, 3, 0, 1]]) < -self.clearance).any(-1)
+        sel = np.flatnonzero(near & (self._robot[:n] != self.robots.index(r)) & self._ended[:n])
         if len(sel):
             theirs = self._parts[sel]  # (m, 3, NDIR)
-            whole_m, whole_t = mine.max(1)[:, BOX], theirs.max(1)[:, BOX]
-            near = ~((whole_m[:, None] + whole_t[None][..., [2, 3, 0, 1]]) < -self.clearance).any(-1)  # (k, m)
-            ii, jj = np.nonzero(near)
+            whole_m, whole_t = mine.max(1)[:, BOX], box[sel]
+            close = ~((whole_m[:, None] + whole_t[None][..., [2, 3, 0, 1]]) < -self.clearance).any(-1)  # (k, m)
+            ii, jj = np.nonzero(close)
             if len(ii):
-                close = ~apart(mine[ii][:, :, None], theirs[jj][:, None], self.clearance).all(axis=(1, 2))
-                for j in np.unique(jj[close]):
+                hit = ~apart(mine[ii][:, :, None], theirs[jj][:, None], self.clearance).all(axis=(1, 2))
+                for j in np.unique(jj[hit]):
                     w = self.items[int(sel[j])]
                     waits[w.index] = w
             if pr is not None and target in self.foot:
@@ -618,9 +655,20 @@ class _Fleet:
         b = self.bodies[r]
         pose = Item(r, "pose", b.parts(end_pose_at[None, :2], f), ended=False, permanent=target is None
                     and not self.todo[r][1:])
-        if target is not None and not pose.permanent:
+        if target is not None:
+            # the way out it keeps free: no robot may stop in it, no chunk may be printed under it
             out = self.rings.exit(end_pose_at[:2], -f)
-            pose.escape = b.parts(np.array([end_pose_at[:2], out]), f)[0]
+            pose.escape = b.parts(np.array([end_pose_at[:2], out]), f)
+            if len(poses):
+                near = ~apart(pose.escape[None, :, None], pose_parts[:, None], self.clearance).all(axis=(1, 2))
+                if near.any():
+                    return f"robot {poses[int(np.argmax(near))].robot} stands in its way out from {target}"
+                ways = [(p, p.escape) for p in poses if p.escape is not None]
+                if ways:
+                    esc = np.stack([e for _, e in ways])
+                    near = ~apart(pose.parts[None, :, None], esc[:, None], self.clearance).all(axis=(1, 2))
+                    if near.any():
+                        return f"it would stop in robot {ways[int(np.argmax(near))][0].robot}'s way out"
         return Job(r, items, pose, start, waits, target, [(target or "-", t) for t in turns], f)
 
     def place(self, job: Job) -> None:
@@ -630,12 +678,23 @@ class _Fleet:
         self._ended[old.index] = True
         t = job.start
         for it in job.items:
+            if it.kind == "leg":
+                it.program = make_program(r, np.array([MOVE], np.uint8), it.to[None])
+            elif it.kind == "print":
+                it.program, _ = self._print_program(r, it.chunk, it.start_at)
             dur = it.end
             it.start, it.end = t, t + dur
             t = it.end
             self._add(it)
             if it.kind == "print":
-                self.printed.append(it.chunk)
+                if it.chunk in self.foot:
+                    if len(self.printed) >= len(self._feet):
+                        self._feet = np.concatenate([self._feet, np.zeros((max(64, len(self._feet)), NDIR))])
+                        self._boxes = np.concatenate([self._boxes, np.full((max(64, len(self._boxes)), 5), np.nan)])
+                    self._feet[len(self.printed)] = self.foot[it.chunk]
+                    box = self.box.get(it.chunk)
+                    self._boxes[len(self.printed)] = box if box is not None else np.nan
+                    self.printed.append(it.chunk)
                 self.done_chunks[it.chunk] = it
         pose = job.pose
         pose.start = t
@@ -652,12 +711,18 @@ class _Fleet:
         self.at_home[r] = job.target is None
 
     def run(self) -> None:
+        """Place every robot's jobs (see the module doc). A robot's next job, once worked out, is
+        kept until a job placed near it (or a pose that blocked it) may have changed it."""
+        cache: dict[str, Job | str] = {}
+        margin = self.clearance + max(b.nozzle_depth for b in self.bodies.values()) + 1.0
         while any(self.todo[r] for r in self.robots):
             best, why = None, {}
             for r in self.robots:
                 if not self.todo[r]:
                     continue
-                j = self.job(r, self.todo[r][0])
+                if r not in cache:
+                    cache[r] = self.job(r, self.todo[r][0])
+                j = cache[r]
                 if isinstance(j, str):
                     why[r] = j
                 elif best is None or j.start < best[1].start:
@@ -674,6 +739,11 @@ class _Fleet:
             self.place(j)
             if not home:
                 self.todo[r].pop(0)
+            new = _whole(j)
+            for o in list(cache):
+                c = cache[o]
+                if o == r or isinstance(c, str) or not apart(_whole(c), new, margin):
+                    del cache[o]
 
     # --- the programs ----------------------------------------------------------------------------
 
@@ -730,6 +800,15 @@ class _Fleet:
                                            (float(xy[0]), float(xy[1]), float(quantize(self.clearance))),
                                            tuple(facings))
         return programs, placements
+
+
+def _whole(job: Job) -> np.ndarray:
+    """(NDIR,) the support of everything a job covers: its items, the pose it ends in, and the
+    pose's way out."""
+    parts = [it.parts for it in job.items] + [job.pose.parts]
+    if job.pose.escape is not None:
+        parts.append(job.pose.escape)
+    return np.concatenate(parts).max(axis=0)
 
 
 def _via(f: np.ndarray, g: np.ndarray) -> list[np.ndarray]:
