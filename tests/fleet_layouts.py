@@ -69,3 +69,37 @@ def layout(chunks: list[Chunk], deps: dict[str, tuple[str, ...]], sequences: dic
 def scaled(profile: RobotProfile, speed: float) -> RobotProfile:
     return dataclasses.replace(profile, print_speed=profile.print_speed * speed,
                                travel_speed=profile.travel_speed * speed)
+
+
+def seed2_bar(length: float = 900.0, robots_seq: dict[str, tuple[str, ...]] | None = None,
+              slicing: SlicingSettings = SLICING, profile: RobotProfile = SMALL):
+    """The seed's two-sided cut (``cut_chunks``) of a bar along y, 40 mm wide and 6 mm tall, for
+    ``profile``; the centre chunk faced like the first side chunk of its robot. Returns the chunk
+    set and :func:`layout` of it for ``robots_seq`` (``{robot: chunk ids}``, a callable of the ids
+    too)."""
+    from cooprint.chunking import cut_chunks, plan_chunks
+    from cooprint.config import ChunkingSettings
+    from cooprint.io.mesh import Solid
+    from cooprint.io.place import place  # noqa: F401  (the Solid as the pipeline makes it)
+
+    tm = solids.to_trimesh(solids.box(40.0, length, 6.0))
+    from cooprint.io.mesh import MeshReport
+
+    lo, hi = tm.bounds
+    report = MeshReport(path="<bar>", format="test", triangles_read=len(tm.faces), triangles=len(tm.faces),
+                        vertices=len(tm.vertices), bbox_min=tuple(lo), bbox_max=tuple(hi), volume_mm3=float(tm.volume),
+                        watertight_as_read=True, repairs=())
+    solid = Solid(np.asarray(tm.vertices, float), np.asarray(tm.faces, np.int64), report)
+    plan = plan_chunks(solid.vertices, profile, ChunkingSettings(), 2)
+    cs = cut_chunks(solid, plan)
+    seqs = robots_seq(cs.ids) if callable(robots_seq) else robots_seq
+    axis = np.asarray(plan.axis, float)[:2]
+    chunks = []
+    for c in cs.chunks:
+        f = c.facing
+        if f is None:  # the centre: as its robot's first side chunk
+            r = next(r for r, s in seqs.items() if c.id in s)
+            side = next((cs[x].role for x in seqs[r] if cs[x].role != "centre"), "left")
+            f = tuple(-axis if side == "right" else axis)
+        chunks.append(dataclasses.replace(c, facing=tuple(float(x) for x in f)))
+    return cs, layout(chunks, dict(cs.deps), seqs, slicing, profile)

@@ -234,3 +234,29 @@ def test_a_chunk_under_the_body_of_a_chunk_printed_later_is_refused():
     dag, sched, layers, material = layout(chunks, {}, {"A": ("OUT", "IN")})
     with pytest.raises(FleetError, match=r"\bA\b.* body over chunk OUT"):
         fleet_programs(sched, dag, layers, material, {"A": SMALL}, CLEARANCE)
+
+
+# ------------------------------------------------------------------------------------------------
+# the seed's cut of a long bar (cut_chunks), for 2 and 4 robots
+
+
+def _seed2_sequences(n: int):
+    def make(ids):
+        left = sorted((c for c in ids if c.startswith("L")), key=lambda c: int(c[1:]))
+        right = sorted((c for c in ids if c.startswith("R")), key=lambda c: int(c[1:]))
+        if n == 2:
+            return {"A": ("C", *left), "B": tuple(right)}
+        return {"A": ("C", *left[0::2]), "B": tuple(right[0::2]), "C": tuple(left[1::2]), "D": tuple(right[1::2])}
+    return make
+
+
+@pytest.mark.parametrize("n", [2, 4])
+def test_the_seed_cut_of_a_bar_is_clean_for_2_and_4_robots_whatever_the_speeds(n):
+    from fleet_layouts import seed2_bar
+
+    cs, (dag, sched, layers, material) = seed2_bar(900.0, _seed2_sequences(n))
+    assert len(cs.chunks) >= 7
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in sched.sequences},
+                                          CLEARANCE)
+    for speeds in ({}, {"A": 0.5, "B": 1.7, "C": 1.0, "D": 3.0}, {"A": 1.7, "B": 0.5, "C": 3.0, "D": 0.4}):
+        assert _simulate(programs, placements, dag, speeds)[1] == [], speeds

@@ -244,6 +244,7 @@ def parking(robots: list[str], first: dict[str, tuple[np.ndarray, np.ndarray]], 
     depth = max(float(b.rects[:, 1].max() - b.rects[:, 0].min()) for b in bodies.values())
     reach_in = max(float(b.rects[:, 1].max()) for b in bodies.values())
     base = lane + rmax + reach_in + clearance
+    gap = clearance + 0.01
 
     def side_of(f: np.ndarray) -> int:
         return int(np.argmax(_SIDES @ unit_xy(f)))
@@ -255,6 +256,7 @@ def parking(robots: list[str], first: dict[str, tuple[np.ndarray, np.ndarray]], 
 
     def pack(members: list[tuple[str, float]], side: int, extra: float) -> dict[str, float] | None:
         """Positions along the side (coordinate along |t|) of ``members`` (robot, preferred), or None."""
+        clearance = gap  # the spacing: the clearance and a little for the 1 um grid
         a, b = span(side, extra)
         members = sorted(members, key=lambda m: m[1])
         need = sum(2 * half[r] + clearance for r, _ in members)
