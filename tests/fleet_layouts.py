@@ -79,11 +79,9 @@ def seed2_bar(length: float = 900.0, robots_seq: dict[str, tuple[str, ...]] | No
     too)."""
     from cooprint.chunking import cut_chunks, plan_chunks
     from cooprint.config import ChunkingSettings
-    from cooprint.io.mesh import Solid
-    from cooprint.io.place import place  # noqa: F401  (the Solid as the pipeline makes it)
+    from cooprint.io.mesh import MeshReport, Solid
 
     tm = solids.to_trimesh(solids.box(40.0, length, 6.0))
-    from cooprint.io.mesh import MeshReport
 
     lo, hi = tm.bounds
     report = MeshReport(path="<bar>", format="test", triangles_read=len(tm.faces), triangles=len(tm.faces),

@@ -260,3 +260,19 @@ def test_the_seed_cut_of_a_bar_is_clean_for_2_and_4_robots_whatever_the_speeds(n
                                           CLEARANCE)
     for speeds in ({}, {"A": 0.5, "B": 1.7, "C": 1.0, "D": 3.0}, {"A": 1.7, "B": 0.5, "C": 3.0, "D": 0.4}):
         assert _simulate(programs, placements, dag, speeds)[1] == [], speeds
+
+
+def test_a_robot_with_only_an_empty_chunk_keeps_its_word_from_home():
+    """B's only chunk has nothing to print (an empty slice): B stays home and announces it, A's
+    chunk that depends on it goes on; nothing else waits for B."""
+    chunks = _row(3, 150.0)
+    seqs = {"A": ("X0", "X2"), "B": ("X1",)}
+    dag, sched, layers, material = layout(chunks, {"X2": ("X1",)}, seqs)
+    layers["X1"] = []
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE)
+    b = programs["B"]
+    assert not (b.kind == MOVE).any()
+    assert [b.events[b.event[i]] for i in np.flatnonzero(b.event >= 0)] == [("X1",)]
+    a = programs["A"]
+    assert ("X1",) in [a.events[a.event[i]] for i in np.flatnonzero(a.kind == WAIT)]
+    assert _simulate(programs, placements, dag)[1] == []

@@ -379,6 +379,7 @@ class Job:
     target: str | None  # chunk id, None: home
     turns: list[tuple[str, float]]
     facing: np.ndarray  # the way it faces afterwards
+    stay: bool = False  # an empty chunk: it does not move
 
 
 class _Fleet:
@@ -435,7 +436,8 @@ class _Fleet:
             it = Item(r, "pose", b.parts(home[None, :2], n), 0.0, math.inf, ended=False, permanent=idle)
             self._add(it)
             self.pose[r], self.here[r], self.facing[r], self.at_home[r] = it, home, n, True
-            self.todo[r] = [] if idle else list(schedule.sequences[r]) + [None]
+            # a robot without anything to print still keeps its word: its empty chunks, where it stands
+            self.todo[r] = list(schedule.sequences[r]) + ([] if idle else [None])
 
     def _add(self, it: Item) -> None:
         it.seq = len(self.per_robot[it.robot])
@@ -584,6 +586,15 @@ class _Fleet:
             for d in self.dag.preds(target):
                 if d not in self.done_chunks:
                     return f"chunk {d} is not placed"
+            if target not in self.pts:  # nothing to print: done where it stands, once its preds are
+                now = self.pose[r]
+                it = Item(r, "print", now.parts, chunk=target, end=0.0)
+                it.start_at = self.here[r]
+                waits = {self.done_chunks[d].index: self.done_chunks[d] for d in self.dag.preds(target)
+                         if self.owner[d] != r}
+                start = max([now.start] + [w.end for w in waits.values()])
+                pose = Item(r, "pose", now.parts, ended=False, permanent=not self.todo[r][1:], escape=now.escape)
+                return Job(r, [it], pose, start, waits, target, [], self.facing[r], stay=True)
         poses = self._others_poses(r)
         pose_parts = np.stack([p.parts for p in poses]) if poses else np.zeros((0, 3, NDIR))
         placed = self.printed
@@ -619,9 +630,11 @@ class _Fleet:
                     w = self.done_chunks[d]
                     waits[w.index] = w
             if target in self.foot:
-                for p in poses:
-                    if p.escape is not None and not apart(p.escape[0], self.foot[target], 0.0):
-                        return f"robot {p.robot} must back out over it"
+                ways = [p for p in poses if p.escape is not None]
+                if ways:
+                    over = ~apart(np.stack([p.escape[0] for p in ways]), self.foot[target][None], 0.0)
+                    if over.any():
+                        return f"robot {ways[int(np.argmax(over))].robot} must back out over it"
                 own = [c for c, h in zip(placed, ~apart(pr.parts[0][None], feet, 0.0)) if h and c != target] \
                     if len(feet) else []
                 if own:
@@ -682,7 +695,7 @@ class _Fleet:
         for it in job.items:
             if it.kind == "leg":
                 it.program = make_program(r, np.array([MOVE], np.uint8), it.to[None])
-            elif it.kind == "print":
+            elif it.kind == "print" and not job.stay:
                 it.program, _ = self._print_program(r, it.chunk, it.start_at)
             dur = it.end
             it.start, it.end = t, t + dur
@@ -710,7 +723,7 @@ class _Fleet:
                 self.here[r] = quantize(last.program.xyz[mv[-1]])
         self.facing[r] = job.facing
         self.jobs[r].append(job)
-        self.at_home[r] = job.target is None
+        self.at_home[r] = job.target is None or (job.stay and self.at_home[r])
 
     def run(self) -> None:
         """Place every robot's jobs (see the module doc). A robot's next job, once worked out, is
