@@ -54,6 +54,7 @@ from typing import Mapping
 import numpy as np
 
 from cooprint.config import RobotProfile, outline_rects
+from cooprint.errors import InfeasibleError
 from cooprint.geometry import unit_xy
 from cooprint.program.build import MaterialIndex, RobotPlacement, facing_deg, layer_program
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program, make_program, quantize
@@ -71,8 +72,9 @@ BOX = np.array([0, NDIR // 4, NDIR // 2, 3 * NDIR // 4])
 PARTS = ("body", "frame", "printhead")
 
 
-class FleetError(ValueError):
-    """The fleet's programs cannot be made (a layout or ring rule the planner cannot keep)."""
+class FleetError(InfeasibleError):
+    """The fleet's programs cannot be made: a body would have to stand on printed material, a
+    robot is walled in, a parked robot is in the way (one line naming the robots and chunks)."""
 
 
 # ------------------------------------------------------------------------------------------------
