@@ -774,6 +774,9 @@ class _Fleet:
             for j in self.jobs[r]:
                 top: dict[str, Item] = {}
                 for it in j.waits.values():
+                    if it.kind == "turn":  # a turn takes effect with the move after it: wait for that
+                        it = self.per_robot[it.robot][it.seq + 1]
+                        assert it.kind != "pose", "a turn ends a job"  # ways go on after turning
                     if it.seq > last.get(it.robot, -1) and (it.robot not in top or it.seq > top[it.robot].seq):
                         top[it.robot] = it
                 for o, it in top.items():
