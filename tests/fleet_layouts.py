@@ -101,3 +101,39 @@ def seed2_bar(length: float = 900.0, robots_seq: dict[str, tuple[str, ...]] | No
             f = tuple(-axis if side == "right" else axis)
         chunks.append(dataclasses.replace(c, facing=tuple(float(x) for x in f)))
     return cs, layout(chunks, dict(cs.deps), seqs, slicing, profile)
+
+
+def grid_boxes(rows: int, cols: int, robots: tuple[str, ...], width: float = 120.0, depth: float = 60.0,
+               profile: RobotProfile = SMALL, slicing: SlicingSettings = SLICING):
+    """A grid of ``rows`` x ``cols`` boxes (one box sliced once, its layers moved to each place):
+    row 0 and the rows below it printed facing +y, the rows above facing -y, every chunk leaning on
+    its neighbour towards row 0 and after the chunks under its robot's body (three rows out, the
+    columns beside), columns dealt round-robin to the robots, rows from the centre out. Returns
+    ``(dag, schedule, layers, material)`` (the schedule's times are placeholders)."""
+    proto = box_chunk("P", (0, 0, 0), (width, depth, 3.0), (0, 1))
+    base = list(enumerate(iter_layers(proto.as_solid(), slicing, workers=1, base=0.0)))
+    chunks, layers, deps, body = [], {}, {}, {}
+    half = rows // 2
+    span = range(-half, rows - half)
+    for k in span:
+        for c in range(cols):
+            cid = f"r{k}c{c}"
+            f = (0.0, -1.0) if k > 0 else (0.0, 1.0)
+            chunks.append(box_chunk(cid, (c * width, k * depth, 0), (c * width + width, k * depth + depth, 3.0),
+                                    f, k, c))
+            off = np.array([c * width, k * depth])
+            layers[cid] = [(i, dataclasses.replace(la, points=la.points + off)) for i, la in base]
+            if k != 0:
+                deps[cid] = (f"r{k + 1 if k < 0 else k - 1}c{c}",)
+            for kk in ([k - j for j in (1, 2, 3)] if k <= 0 else [k + j for j in (1, 2, 3)]):
+                for cc in (c - 1, c + 1):
+                    if kk in span and 0 <= cc < cols:
+                        body.setdefault(f"r{kk}c{cc}", []).append(cid)
+    ids = tuple(c.id for c in chunks)
+    order = sorted(span, key=lambda k: (abs(k), k))
+    seqs = {r: tuple(f"r{k}c{c}" for k in order for c in range(i, cols, len(robots))) for i, r in enumerate(robots)}
+    n = len(ids)
+    dag = ChunkDAG(ids, np.ones(n), np.array([c.facing for c in chunks]), np.zeros((n, 3)), np.zeros((n, 3)),
+                   np.zeros((n, 4)), {c: deps.get(c, ()) for c in ids}, {c: tuple(body.get(c, ())) for c in ids})
+    sched = Schedule(seqs, "hand", {c: 0.0 for c in ids}, {c: 1.0 for c in ids}, 1.0, 1.0)
+    return dag, sched, layers, MaterialIndex.of(chunks, margin=slicing.layer_height)

@@ -264,3 +264,17 @@ def test_a_robot_with_only_an_empty_chunk_keeps_its_word_from_home():
     a = programs["A"]
     assert ("X1",) in [a.events[a.event[i]] for i in np.flatnonzero(a.kind == WAIT)]
     assert _simulate(programs, placements, dag)[1] == []
+
+
+def test_a_grid_dealt_round_robin_is_clean_at_random_speeds():
+    """Four rows of boxes on both sides of the centre line, six columns dealt round-robin to four
+    robots (neighbours belong to different robots, every robot prints on both sides): clean with
+    each robot at its own speed from 0.4x to 2.5x."""
+    from fleet_layouts import grid_boxes
+
+    names = robot_names(4)
+    dag, sched, layers, material = grid_boxes(4, 6, names)
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in names}, CLEARANCE)
+    rng = np.random.default_rng(14)
+    for speeds in ({}, *({r: float(x) for r, x in zip(names, rng.uniform(0.4, 2.5, 4))} for _ in range(2))):
+        assert _simulate(programs, placements, dag, speeds)[1] == [], speeds
