@@ -278,3 +278,24 @@ def test_a_grid_dealt_round_robin_is_clean_at_random_speeds():
     rng = np.random.default_rng(14)
     for speeds in ({}, *({r: float(x) for r, x in zip(names, rng.uniform(0.4, 2.5, 4))} for _ in range(2))):
         assert _simulate(programs, placements, dag, speeds)[1] == [], speeds
+
+
+def test_a_parked_robot_in_the_way_is_a_bug_named_not_a_deadlock(monkeypatch):
+    """The parking ring keeps parked robots out of every way; if a spot were in the way (here an
+    idle robot put over the part by hand), the planner names both robots instead of waiting for
+    ever."""
+    import cooprint.program.fleet as fleet
+
+    real = fleet.parking
+
+    def misplaced(*args, **kwargs):
+        rings = real(*args, **kwargs)
+        rings.spots["Z"] = (np.array([75.0, -20.0]), np.array([0.0, 1.0]))
+        return rings
+
+    monkeypatch.setattr(fleet, "parking", misplaced)
+    chunks = _row(2, 150.0)
+    dag, sched, layers, material = layout(chunks, {}, {"A": ("X0", "X1"), "Z": ()})
+    with pytest.raises(FleetError, match=r"^robot A cannot get to chunk X0: robot Z, parked for good at "
+                                         r"\[75\.0, -20\.0\], is in its way"):
+        fleet_programs(sched, dag, layers, material, {"A": SMALL, "Z": SMALL}, CLEARANCE)

@@ -615,8 +615,11 @@ class _Fleet:
             if len(poses):
                 near = ~apart(mine[:, None, :, None], pose_parts[None, :, None], self.clearance).all(axis=(2, 3))
                 if near.any():
-                    reason = f"robot {poses[int(np.nonzero(near)[1][0])].robot} stands in its way"
+                    q = poses[int(np.nonzero(near)[1][0])]
+                    reason = f"robot {q.robot} stands in its way"
                     if name == "highway":
+                        if q.permanent:
+                            raise FleetError(self._parked(r, q.robot, target))
                         return reason
                     continue
             break
@@ -642,8 +645,13 @@ class _Fleet:
                 if own:
                     raise FleetError(f"robot {r} prints {target} with its body over chunk {own[0]}, printed before "
                                      f"(the chunk rules must put {own[0]} after {target})")
-            if len(poses) and (~apart(pr.parts[None, :, None], pose_parts[:, None], self.clearance)).any():
-                return "a robot stands in the way of its print"
+            if len(poses):
+                near = (~apart(pr.parts[None, :, None], pose_parts[:, None], self.clearance)).any(axis=(1, 2))
+                if near.any():
+                    q = poses[int(np.argmax(near))]
+                    if q.permanent:
+                        raise FleetError(self._parked(r, q.robot, target))
+                    return f"robot {q.robot} stands in the way of its print"
             items.append(pr)
         # the items placed before that it must follow: a box prefilter, then the exact test
         mine = np.stack([it.parts for it in items])  # (k, 3, NDIR)
@@ -687,6 +695,11 @@ class _Fleet:
                     if near.any():
                         return f"it would stop in robot {ways[int(np.argmax(near))][0].robot}'s way out"
         return Job(r, items, pose, start, waits, target, [(target or "-", t) for t in turns], f)
+
+    def _parked(self, r: str, q: str, target: str | None) -> str:
+        where = f"chunk {target}" if target else "its spot"
+        return (f"robot {r} cannot get to {where}: robot {q}, parked for good at {self.rings.spots[q][0].round(1).tolist()}, "
+                "is in its way (the parking ring should keep parked robots out of every way; a bug)")
 
     def place(self, job: Job) -> None:
         r = job.robot
