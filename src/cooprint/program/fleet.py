@@ -356,7 +356,7 @@ class Item:
     kind: str  # pose, leg, turn, print
     parts: np.ndarray  # (3, NDIR)
     start: float = 0.0
-    end: float = math.inf
+    end: float = math.inf  # before it is placed: its duration
     ended: bool = True  # a pose is not, until the robot moves on
     permanent: bool = False  # a robot's last pose
     chunk: str | None = None
@@ -385,6 +385,9 @@ class Job:
 
 
 class _Fleet:
+    """The replay's state: every robot's items, jobs, where it stands and what it has left to do
+    (:meth:`run` places the jobs, :meth:`programs` writes them out)."""
+
     def __init__(self, schedule: Schedule, dag: ChunkDAG, layers: dict, material: MaterialIndex,
                  profiles: Mapping[str, RobotProfile], clearance: float):
         self.sched, self.dag, self.layers, self.material = schedule, dag, layers, material
@@ -393,7 +396,7 @@ class _Fleet:
         self.bodies = {r: Body.of(profiles[r]) for r in self.robots}
         self.idx = dag.index
         self.owner = {c: r for r, seq in schedule.sequences.items() for c in seq}
-        self.pts, self.first, self.top = {}, {}, {}
+        self.pts, self.first = {}, {}
         for cid in dag.ids:
             pts = [layer.points[:, :2] for _, layer in layers.get(cid, ()) if len(layer)]
             if pts:
@@ -402,8 +405,8 @@ class _Fleet:
                 self.first[cid] = quantize(np.r_[l0.points[0], l0.z])
         self.foot = {c: point_support(p) for c, p in self.pts.items()}
         boxes = {c: b for c, b in material.boxes.items() if len(b)}
-        self.box = {c: np.r_[b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max(), b[:, 4].max() + material.margin]
-                    for c, b in boxes.items()}
+        self.box = {c: np.r_[b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max(),
+                             b[:, 4].max() + material.margin] for c, b in boxes.items()}
         allp = [p for p in self.pts.values()] + [b[[0, 1]][None] for b in self.box.values()] + \
             [b[[2, 3]][None] for b in self.box.values()]
         allp = np.concatenate(allp) if allp else np.zeros((1, 2))
@@ -698,8 +701,9 @@ class _Fleet:
 
     def _parked(self, r: str, q: str, target: str | None) -> str:
         where = f"chunk {target}" if target else "its spot"
-        return (f"robot {r} cannot get to {where}: robot {q}, parked for good at {self.rings.spots[q][0].round(1).tolist()}, "
-                "is in its way (the parking ring should keep parked robots out of every way; a bug)")
+        at = self.rings.spots[q][0].round(1).tolist()
+        return (f"robot {r} cannot get to {where}: robot {q}, parked for good at {at}, is in its way "
+                "(the parking ring should keep parked robots out of every way; a bug)")
 
     def place(self, job: Job) -> None:
         r = job.robot
