@@ -232,115 +232,109 @@ def parking(robots: list[str], first: dict[str, tuple[np.ndarray, np.ndarray]], 
             lo: np.ndarray, hi: np.ndarray, clearance: float) -> Rings:
     """The highway and every robot's spot (see :class:`Rings`).
 
-    ``first``: for each robot with work, the first point and facing of its first chunk. A spot
-    faces the part across one of its four sides; its nozzle stands ``D`` outside the part's box,
-    ``D`` = highway + largest radius + the printhead's reach + clearance, so that a robot on the
-    highway (or inside it) never comes within the clearance of a parked one. Along a side, spots
-    are packed by the outlines' widths (plus the clearance) inside the highway's span, so spots of
-    two sides never meet at a corner. Working robots are all on the inner ring (pushed out until
-    they fit), nobody ever passes between parked robots; idle robots fill rings further out."""
+    ``first``: for each robot with work, the first point and facing of its first chunk. The
+    highway runs ``2 r + clearance`` outside the part's box (``r`` the largest outline radius): a
+    robot on it, in any facing, is clear of every robot whose nozzle is over the part. A spot
+    faces the part across one of its four sides, its nozzle ``r + reach + clearance`` outside the
+    highway (``reach``: how far the outline reaches ahead of the nozzle), so that no robot on the
+    highway or inside it comes within the clearance of a parked one. Along a side, spots are
+    packed by the outlines' widths (plus the clearance) within the highway's span: a robot goes
+    straight in from its spot to the highway, and two sides' spots never meet at a corner (one of
+    the two is always more than ``r`` further out than the other reaches). Every robot with work
+    is on the inner ring, on the side it faces its first chunk from, near its first point (a side
+    too full passes robots to the side with most room; the highway moves out until all fit), so
+    nobody ever passes between parked robots. Idle robots take the room left and then rings
+    further out, each wider by as much as it is further out."""
     rmax = max(b.radius for b in bodies.values())
-    lane = 2 * rmax + clearance  # a robot on it is clear of every robot whose nozzle is over the part
-    rings = Rings(np.asarray(lo, float), np.asarray(hi, float), lane)
     half = {r: max(bodies[r].rects[:, 3].max(), -bodies[r].rects[:, 2].min()) for r in robots}  # half width
     depth = max(float(b.rects[:, 1].max() - b.rects[:, 0].min()) for b in bodies.values())
     reach_in = max(float(b.rects[:, 1].max()) for b in bodies.values())
-    base = lane + rmax + reach_in + clearance
-    gap = clearance + 0.01
+    gap = clearance + 0.01  # the spacing: the clearance and a little for the 1 um grid
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
 
     def side_of(f: np.ndarray) -> int:
         return int(np.argmax(_SIDES @ unit_xy(f)))
 
-    def span(side: int, extra: float) -> tuple[float, float]:
-        t = np.array([-_SIDES[side][1], _SIDES[side][0]])
-        a, b = sorted([float(rings.hlo @ np.abs(t)) - extra, float(rings.hhi @ np.abs(t)) + extra])
-        return a, b
+    def along(side: int) -> np.ndarray:
+        n = _SIDES[side]
+        return np.abs(np.array([-n[1], n[0]]))
 
-    def pack(members: list[tuple[str, float]], side: int, extra: float) -> dict[str, float] | None:
-        """Positions along the side (coordinate along |t|) of ``members`` (robot, preferred), or None."""
-        clearance = gap  # the spacing: the clearance and a little for the 1 um grid
-        a, b = span(side, extra)
+    def span(rings: Rings, side: int, extra: float) -> tuple[float, float]:
+        t = along(side)
+        return float(rings.hlo @ t) - extra, float(rings.hhi @ t) + extra
+
+    def room(rings: Rings, side: int, members: list[tuple[str, float]]) -> float:
+        a, b = span(rings, side, 0.0)
+        return (b - a + gap) - sum(2 * half[r] + gap for r, _ in members)
+
+    def pack(rings: Rings, members: list[tuple[str, float]], side: int, extra: float) -> dict[str, float] | None:
+        """Positions along the side of ``members`` (robot, preferred position), or None."""
+        a, b = span(rings, side, extra)
         members = sorted(members, key=lambda m: m[1])
-        need = sum(2 * half[r] + clearance for r, _ in members)
-        if need > b - a + clearance:
+        if sum(2 * half[r] + gap for r, _ in members) > b - a + gap:
             return None
-        pos, prev = {}, a - clearance
+        pos, prev = {}, a - gap
         for r, pref in members:
-            x = max(pref, prev + clearance + half[r])
-            pos[r] = x
-            prev = x + half[r]
-        nxt = b + clearance
+            pos[r] = prev = max(pref, prev + gap + half[r])
+            prev += half[r]
+        nxt = b + gap
         for r, _ in reversed(members):
-            x = min(pos[r], nxt - clearance - half[r])
-            pos[r] = x
-            nxt = x - half[r]
+            pos[r] = min(pos[r], nxt - gap - half[r])
+            nxt = pos[r] - half[r]
         return pos
 
-    def put(side: int, extra: float, r: str, x: float) -> None:
+    def put(rings: Rings, side: int, extra: float, r: str, x: float) -> None:
         n = _SIDES[side]
-        t = np.abs(np.array([-n[1], n[0]]))
-        edge = float(lo @ np.abs(n)) if side < 2 else float(hi @ np.abs(n))
-        coord = edge - (base + extra) if side < 2 else edge + (base + extra)
-        xy = t * x + np.abs(n) * coord
-        rings.spots[r] = (xy, n.copy())
+        base = rings.lane + rmax + reach_in + gap + extra
+        coord = float(lo @ np.abs(n)) - base if side < 2 else float(hi @ np.abs(n)) + base
+        rings.spots[r] = (along(side) * x + np.abs(n) * coord, n.copy())
 
     working = [r for r in robots if r in first]
     idle = [r for r in robots if r not in first]
-    extra = 0.0
-    while True:  # the inner ring: each working robot on the side it faces its first chunk from
+    lane = 2 * rmax + gap
+    while True:  # the inner ring: each robot with work on the side it faces its first chunk from
+        rings = Rings(lo, hi, lane)
         wanted: dict[int, list[tuple[str, float]]] = {s: [] for s in range(4)}
         for r in working:
             p, f = first[r]
             s = side_of(f)
-            t = np.abs(np.array([-_SIDES[s][1], _SIDES[s][0]]))
-            wanted[s].append((r, float(p[:2] @ t)))
-        placed = {}
-        ok = True
+            wanted[s].append((r, float(p[:2] @ along(s))))
         for s in range(4):  # a side too full passes its outermost robots to the side with most room
-            while pack(wanted[s], s, extra) is None and wanted[s]:
-                room = {o: (span(o, extra)[1] - span(o, extra)[0]) - sum(2 * half[m] + clearance for m, _ in wanted[o])
-                        for o in range(4) if o != s}
-                o = max(room, key=lambda k: room[k])
-                r, _ = max(wanted[s], key=lambda m: abs(m[1] - sum(span(s, extra)) / 2))
+            while wanted[s] and pack(rings, wanted[s], s, 0.0) is None:
+                o = max((k for k in range(4) if k != s), key=lambda k: room(rings, k, wanted[k]))
+                mid = sum(span(rings, s, 0.0)) / 2
+                r, _ = max(wanted[s], key=lambda m: abs(m[1] - mid))
+                if room(rings, o, wanted[o]) < 2 * half[r] + gap:
+                    break
                 wanted[s] = [m for m in wanted[s] if m[0] != r]
-                if room[o] < 2 * half[r] + clearance:
-                    ok = False
-                    break
-                a, b = span(o, extra)
-                wanted[o].append((r, (a + b) / 2))
-            if not ok:
-                break
-        if ok:
-            for s in range(4):
-                pos = pack(wanted[s], s, extra)
-                if pos is None:
-                    ok = False
-                    break
-                placed[s] = pos
-        if ok:
+                wanted[o].append((r, sum(span(rings, o, 0.0)) / 2))
+        placed = {s: pack(rings, wanted[s], s, 0.0) for s in range(4)}
+        if all(p is not None for p in placed.values()):
             break
-        extra += depth + clearance
+        lane += depth + clearance  # no room: the highway (and the ring) further out
+    taken: dict[int, list[tuple[str, float]]] = {}
     for s, pos in placed.items():
+        assert pos is not None
+        taken[s] = list(pos.items())
         for r, x in pos.items():
-            put(s, extra, r, x)
+            put(rings, s, 0.0, r, x)
     ring = 0
-    taken = {s: list((r, x) for r, x in placed.get(s, {}).items()) for s in range(4)}
-    while idle:  # idle robots: what room is left on this ring, then rings further out
-        e = extra + ring * (depth + clearance)
+    while idle:  # idle robots (they never move): what room is left on this ring, then rings further out
+        e = ring * (depth + clearance)
         for s in range(4):
             while idle:
-                trial = [(r, x) for r, x in taken[s]] + [(idle[0], span(s, e)[1])]
-                pos = pack(trial, s, e)
+                trial = taken[s] + [(idle[0], span(rings, s, e)[1])]
+                pos = pack(rings, trial, s, e)
                 if pos is None:
                     break
-                r = idle.pop(0)
+                idle.pop(0)
                 taken[s] = [(m, pos[m]) for m, _ in trial]
                 for m, x in pos.items():
-                    put(s, e, m, x)
+                    put(rings, s, e, m, x)
         ring += 1
         taken = {s: [] for s in range(4)}
         if ring > 1000:
-            raise FleetError("no room on 1000 parking rings")
+            raise FleetError("no room for the idle robots on 1000 parking rings")
     return rings
 
 
