@@ -70,6 +70,9 @@ OPP = (np.arange(NDIR) + NDIR // 2) % NDIR
 #: The four axis directions (+x, +y, -x, -y) among DIRS: a cheap box prefilter.
 BOX = np.array([0, NDIR // 4, NDIR // 2, 3 * NDIR // 4])
 PARTS = ("body", "frame", "printhead")
+#: A chunk's print is cut into at most this many items (runs of layers): two robots whose chunks
+#: meet only near their tops print the rest of them at the same time.
+BANDS = 8
 
 
 class FleetError(InfeasibleError):
@@ -359,6 +362,8 @@ class Item:
     seq: int = -1  # index among the robot's items
     index: int = -1  # index among all items
     to: np.ndarray | None = None  # a leg: where it goes
+    band: list | None = None  # a print: its layers ``[(index, LayerPaths), ...]``
+    last: bool = False  # a print: the chunk's last band (its end is the chunk's)
     start_at: np.ndarray | None = None  # a print: where the nozzle is before it
     notify: str | None = None  # the event its end is announced by, once someone waits for it
 
@@ -371,7 +376,7 @@ class Job:
     items: list[Item]
     pose: Item  # where it stands afterwards
     start: float
-    waits: dict[int, Item]
+    waits: list[dict[int, Item]]  # per item: the items of others it follows
     target: str | None  # chunk id, None: home
     turns: list[tuple[str, float]]
     facing: np.ndarray  # the way it faces afterwards
@@ -412,6 +417,7 @@ class _Fleet:
         self.rings = parking(self.robots, firsts, self.bodies, allp.min(0), allp.max(0), self.clearance)
         self.items: list[Item] = []
         self._times: dict = {}
+        self._band_cache: dict = {}
         self._feet = np.zeros((0, NDIR))  # the footprints of the placed prints, in self.printed's order
         self._boxes = np.zeros((0, 5))  # and their material boxes (xmin, ymin, xmax, ymax, top)
         self._parts = np.zeros((0, 3, NDIR))
@@ -426,6 +432,7 @@ class _Fleet:
         self.at_home: dict[str, bool] = {}
         self.todo: dict[str, list[str | None]] = {}
         self.printed: list[str] = []  # placed prints, in order
+        self._printed: set[str] = set()
         self.done_chunks: dict[str, Item] = {}
         for r in self.robots:
             xy, n = self.rings.spots[r]
@@ -538,41 +545,56 @@ class _Fleet:
         it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.travel_speed  # duration, for now
         return it
 
-    def _chunk_time(self, r: str, cid: str) -> tuple[float, np.ndarray]:
-        """Nominal time of a chunk's layers for robot ``r`` from above its first point, and where
-        the nozzle ends (cached)."""
-        key = (r, cid)
-        if key not in self._times:
-            prog, last = self._print_program(r, cid, np.full(3, np.nan))
-            b = self.bodies[r]
-            mv = prog.kind == MOVE
-            xyz = prog.xyz[mv]
-            length = np.r_[0.0, np.linalg.norm(np.diff(xyz, axis=0), axis=1)]
-            on = prog.tool_on()[mv]
-            self._times[key] = (float(np.sum(np.where(on, length / b.print_speed, length / b.travel_speed))),
-                                np.asarray(last, float))
-        return self._times[key]
+    def _bands(self, cid: str) -> list[tuple[list, np.ndarray]]:
+        """A chunk's layers in at most ``BANDS`` runs of consecutive layers, each with the support
+        of its printed points (its footprint), cached."""
+        if cid not in self._band_cache:
+            full = [(li, la) for li, la in self.layers.get(cid, ()) if len(la)]
+            k = min(BANDS, len(full))
+            cuts = np.linspace(0, len(full), k + 1).round().astype(int) if k else np.zeros(1, int)
+            self._band_cache[cid] = [(full[i:j], point_support(np.concatenate([la.points for _, la in full[i:j]])))
+                                     for i, j in zip(cuts[:-1], cuts[1:]) if j > i]
+        return self._band_cache[cid]
 
-    def _print_program(self, r: str, cid: str, here: np.ndarray) -> tuple[Program, np.ndarray]:
+    def _band_program(self, r: str, cid: str, band: list, here: np.ndarray) -> tuple[Program, np.ndarray]:
         pieces, pos = [], here
-        for li, layer in self.layers.get(cid, ()):
+        for li, layer in band:
             piece, pos = layer_program(layer, pos, robot=r, index=li, chunk=cid)
             pieces.append(piece)
-        return (Program.concat(r, pieces) if pieces else Program.empty(r)), pos
+        return (Program.concat(r, pieces) if pieces else Program.empty(r)), np.asarray(pos, float)
 
-    def _print(self, r: str, cid: str, here: np.ndarray, f: np.ndarray) -> tuple[Item, np.ndarray]:
+    def _band_times(self, r: str, cid: str) -> list[tuple[float, np.ndarray]]:
+        """Nominal time of each band of a chunk for robot ``r`` (from its own first point) and
+        where the nozzle ends (cached)."""
+        key = (r, cid)
+        if key not in self._times:
+            b = self.bodies[r]
+            out = []
+            for band, _ in self._bands(cid):
+                prog, last = self._band_program(r, cid, band, np.full(3, np.nan))
+                mv = prog.kind == MOVE
+                xyz = prog.xyz[mv]
+                length = np.r_[0.0, np.linalg.norm(np.diff(xyz, axis=0), axis=1)]
+                on = prog.tool_on()[mv]
+                out.append((float(np.sum(np.where(on, length / b.print_speed, length / b.travel_speed))), last))
+            self._times[key] = out
+        return self._times[key]
+
+    def _prints(self, r: str, cid: str, here: np.ndarray, f: np.ndarray) -> tuple[list[Item], np.ndarray]:
+        """The print items of chunk ``cid`` (one per band of layers: a robot far from another's
+        band of a chunk may print beside it), and where the nozzle ends."""
         b = self.bodies[r]
-        pts = self.pts.get(cid)
-        if pts is None:
-            it = Item(r, "print", b.parts(here[None, :2], f), chunk=cid, end=0.0)
-            it.start_at = here
-            return it, here
-        dur, last = self._chunk_time(r, cid)
-        first = self.first[cid]
-        it = Item(r, "print", self.foot[cid][None] + b.rect_parts(f), chunk=cid)
-        it.start_at = here
-        it.end = dur + float(np.linalg.norm(here - first)) / b.travel_speed
-        return it, last
+        rects = b.rect_parts(f)
+        items, pos = [], np.asarray(here, float)
+        for (band, foot), (dur, last) in zip(self._bands(cid), self._band_times(r, cid)):
+            it = Item(r, "print", foot[None] + rects, chunk=cid, band=band)
+            first = np.r_[band[0][1].points[0], band[0][1].z]
+            it.start_at = pos
+            it.end = dur + float(np.linalg.norm(pos - first)) / b.travel_speed
+            items.append(it)
+            pos = last
+        items[-1].last = True
+        return items, pos
 
     # --- a job ---------------------------------------------------------------------------------
 
@@ -589,11 +611,12 @@ class _Fleet:
                 now = self.pose[r]
                 it = Item(r, "print", now.parts, chunk=target, end=0.0)
                 it.start_at = self.here[r]
+                it.last = True
                 waits = {self.done_chunks[d].index: self.done_chunks[d] for d in self.dag.preds(target)
                          if self.owner[d] != r}
-                start = max([now.start] + [w.end for w in waits.values()])
+                it.start = it.end = max([now.start] + [w.end for w in waits.values()])
                 pose = Item(r, "pose", now.parts, ended=False, permanent=not self.todo[r][1:], escape=now.escape)
-                return Job(r, [it], pose, start, waits, target, [], self.facing[r], stay=True)
+                return Job(r, [it], pose, it.start, [waits], target, [], self.facing[r], stay=True)
         poses = self._others_poses(r)
         pose_parts = np.stack([p.parts for p in poses]) if poses else np.zeros((0, 3, NDIR))
         placed = self.printed
@@ -623,34 +646,36 @@ class _Fleet:
         else:
             return reason
         f = unit_xy(self.dag.facing[self.idx[target]]) if target is not None else self.rings.spots[r][1]
-        waits: dict[int, Item] = {}
-        pr = None
+        first_print = None
         if target is not None:
-            pr, pos = self._print(r, target, pos, f)
-            for d in self.dag.preds(target):
-                if self.owner[d] != r:
-                    w = self.done_chunks[d]
-                    waits[w.index] = w
-            if target in self.foot:
-                ways = [p for p in poses if p.escape is not None]
-                if ways:
-                    over = ~apart(np.stack([p.escape[0] for p in ways]), self.foot[target][None], 0.0)
-                    if over.any():
-                        return f"robot {ways[int(np.argmax(over))].robot} must back out over it"
-                own = [c for c, h in zip(placed, ~apart(pr.parts[0][None], feet, 0.0)) if h and c != target] \
-                    if len(feet) else []
-                if own:
-                    raise FleetError(f"robot {r} prints {target} with its body over chunk {own[0]}, printed before "
-                                     f"(the chunk rules must put {own[0]} after {target})")
+            prints, pos = self._prints(r, target, pos, f)
+            whole = self.foot[target][None] + self.bodies[r].rect_parts(f)  # the whole chunk's print
+            ways = [p for p in poses if p.escape is not None]
+            if ways:
+                over = ~apart(np.stack([p.escape[0] for p in ways]), self.foot[target][None], 0.0)
+                if over.any():
+                    return f"robot {ways[int(np.argmax(over))].robot} must back out over it"
+            own = [c for c, h in zip(placed, ~apart(whole[0][None], feet, 0.0)) if h and c != target] \
+                if len(feet) else []
+            if own:
+                raise FleetError(f"robot {r} prints {target} with its body over chunk {own[0]}, printed before "
+                                 f"(the chunk rules must put {own[0]} after {target})")
             if len(poses):
-                near = (~apart(pr.parts[None, :, None], pose_parts[:, None], self.clearance)).any(axis=(1, 2))
+                near = (~apart(whole[None, :, None], pose_parts[:, None], self.clearance)).any(axis=(1, 2))
                 if near.any():
                     q = poses[int(np.argmax(near))]
                     if q.permanent:
                         raise FleetError(self._parked(r, q.robot, target))
                     return f"robot {q.robot} stands in the way of its print"
-            items.append(pr)
-        # the items placed before that it must follow: a box prefilter, then the exact test
+            first_print = len(items)
+            items += prints
+        # the items placed before that each must follow: a box prefilter, then the exact test
+        waits: list[dict[int, Item]] = [{} for _ in items]
+        if first_print is not None:
+            for d in self.dag.preds(target):
+                if self.owner[d] != r:
+                    w = self.done_chunks[d]
+                    waits[first_print][w.index] = w
         mine = np.stack([it.parts for it in items])  # (k, 3, NDIR)
         n = len(self.items)
         reach = mine.max(axis=(0, 1))[BOX]  # the job's box
@@ -664,15 +689,21 @@ class _Fleet:
             ii, jj = np.nonzero(close)
             if len(ii):
                 hit = ~apart(mine[ii][:, :, None], theirs[jj][:, None], self.clearance).all(axis=(1, 2))
-                for j in np.unique(jj[hit]):
+                for i, j in zip(ii[hit].tolist(), jj[hit].tolist()):
                     w = self.items[int(sel[j])]
-                    waits[w.index] = w
-            if pr is not None and target in self.foot:
+                    waits[i][w.index] = w
+            if first_print is not None:  # whatever body went over the chunk goes first
                 hit = ~apart(theirs[:, 0], self.foot[target][None], 0.0)
                 for j in np.flatnonzero(hit):
                     w = self.items[int(sel[j])]
-                    waits[w.index] = w
-        start = max([self.pose[r].start] + [w.end for w in waits.values()])
+                    waits[first_print][w.index] = w
+        # in time: each item as soon as the one before and those it follows are done
+        t = self.pose[r].start
+        for it, w in zip(items, waits):
+            dur = it.end
+            it.start = max([t] + [x.end for x in w.values()])
+            it.end = t = it.start + dur
+        start = items[0].start
         end_pose_at = pos
         b = self.bodies[r]
         pose = Item(r, "pose", b.parts(end_pose_at[None, :2], f), ended=False, permanent=target is None
@@ -709,13 +740,11 @@ class _Fleet:
             if it.kind == "leg":
                 it.program = make_program(r, np.array([MOVE], np.uint8), it.to[None])
             elif it.kind == "print" and not job.stay:
-                it.program, _ = self._print_program(r, it.chunk, it.start_at)
-            dur = it.end
-            it.start, it.end = t, t + dur
+                it.program, _ = self._band_program(r, it.chunk, it.band, it.start_at)
             t = it.end
             self._add(it)
             if it.kind == "print":
-                if it.chunk in self.foot:
+                if it.chunk in self.foot and it.chunk not in self._printed:
                     if len(self.printed) >= len(self._feet):
                         self._feet = np.concatenate([self._feet, np.zeros((max(64, len(self._feet)), NDIR))])
                         self._boxes = np.concatenate([self._boxes, np.full((max(64, len(self._boxes)), 5), np.nan)])
@@ -723,7 +752,9 @@ class _Fleet:
                     box = self.box.get(it.chunk)
                     self._boxes[len(self.printed)] = box if box is not None else np.nan
                     self.printed.append(it.chunk)
-                self.done_chunks[it.chunk] = it
+                    self._printed.add(it.chunk)
+                if it.last:
+                    self.done_chunks[it.chunk] = it
         pose = job.pose
         pose.start = t
         pose.end = math.inf
@@ -777,29 +808,29 @@ class _Fleet:
 
     def programs(self) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
         # which waits to keep: per robot pair, only one beyond the last kept (transitive reduction)
-        keep: dict[str, list[list[Item]]] = {}
+        keep: dict[int, list[Item]] = {}  # item index -> the items it waits for
         needed: set[int] = set()
         for r in self.robots:
             last: dict[str, int] = {}
-            keep[r] = []
             for j in self.jobs[r]:
-                top: dict[str, Item] = {}
-                for it in j.waits.values():
-                    if it.kind == "turn":  # a turn takes effect with the move after it: wait for that
-                        it = self.per_robot[it.robot][it.seq + 1]
-                        assert it.kind != "pose", "a turn ends a job"  # ways go on after turning
-                    if it.seq > last.get(it.robot, -1) and (it.robot not in top or it.seq > top[it.robot].seq):
-                        top[it.robot] = it
-                for o, it in top.items():
-                    last[o] = it.seq
-                    needed.add(it.index)
-                keep[r].append(sorted(top.values(), key=lambda it: (it.robot, it.seq)))
+                for item, waits in zip(j.items, j.waits):
+                    top: dict[str, Item] = {}
+                    for it in waits.values():
+                        if it.kind == "turn":  # a turn takes effect with the move after it: wait for that
+                            it = self.per_robot[it.robot][it.seq + 1]
+                            assert it.kind != "pose", "a turn ends a job"  # ways go on after turning
+                        if it.seq > last.get(it.robot, -1) and (it.robot not in top or it.seq > top[it.robot].seq):
+                            top[it.robot] = it
+                    for o, it in top.items():
+                        last[o] = it.seq
+                        needed.add(it.index)
+                    keep[item.index] = sorted(top.values(), key=lambda it: (it.robot, it.seq))
         depended = {d for c in self.dag.ids for d in self.dag.preds(c)
                     if c in self.owner and d in self.owner and self.owner[d] != self.owner[c]}
         for r in self.robots:  # name the events
             n = 0
             for it in self.per_robot[r]:
-                if it.kind == "print" and (it.index in needed or it.chunk in depended):
+                if it.kind == "print" and it.last and (it.index in needed or it.chunk in depended):
                     it.notify = it.chunk
                     n += 1
                 elif it.index in needed:
@@ -809,13 +840,13 @@ class _Fleet:
         for r in self.robots:
             pieces: list[Program] = []
             items = self.per_robot[r]
-            for j, waits in zip(self.jobs[r], keep[r]):
-                if waits:
-                    pieces.append(_sync(r, WAIT, [w.notify for w in waits]))
-                before = items[j.items[0].seq - 1] if j.items else None  # the pose it leaves
-                if before is not None and before.notify:
-                    pieces.append(_sync(r, NOTIFY, [before.notify]))
-                for it in j.items:
+            for j in self.jobs[r]:
+                for k, it in enumerate(j.items):
+                    if keep[it.index]:
+                        pieces.append(_sync(r, WAIT, [w.notify for w in keep[it.index]]))  # type: ignore[misc]
+                    before = items[it.seq - 1]  # the pose it leaves, as it starts the job
+                    if k == 0 and before.notify:
+                        pieces.append(_sync(r, NOTIFY, [before.notify]))
                     if it.program is not None:
                         pieces.append(it.program)
                     if it.notify:
