@@ -382,6 +382,14 @@ class Job:
     facing: np.ndarray  # the way it faces afterwards
     stay: bool = False  # an empty chunk: it does not move
 
+    @property
+    def key(self) -> float:
+        """What the replay places first: the job that could start soonest with all its waits
+        before it (its end less its work), so that a job that would stop half-way for long does
+        not hold its ways meanwhile."""
+        return self.items[-1].end - sum(it.end - it.start for it in self.items if it.end > it.start) \
+            if self.items else self.start
+
 
 class _Fleet:
     """The replay's state: every robot's items, jobs, where it stands and what it has left to do
@@ -784,13 +792,13 @@ class _Fleet:
                 j = cache[r]
                 if isinstance(j, str):
                     why[r] = j
-                elif best is None or j.start < best[1].start:
+                elif best is None or j.key < best[1].key:
                     best = (r, j, False)
             if best is None:  # a standoff: someone standing in the way goes home to wait
                 for r in self.robots:
                     if self.todo[r] and not self.at_home[r] and self.todo[r][0] is not None:
                         j = self.job(r, None)
-                        if not isinstance(j, str) and (best is None or j.start < best[1].start):
+                        if not isinstance(j, str) and (best is None or j.key < best[1].key):
                             best = (r, j, True)
             if best is None:
                 raise FleetError("the robots cannot go on: " + "; ".join(f"{r}: {w}" for r, w in why.items()))
