@@ -10,7 +10,9 @@ The plan is cut into *items*, each a stretch of one robot's time with the XY are
   moves on;
 * ``leg``: a straight travel move of the nozzle, in one facing, lifted above printed material;
 * ``turn``: a turn about the nozzle (the disc of the outline's radius around it);
-* ``print``: a chunk's layers (:func:`~cooprint.program.build.layer_program`).
+* ``print``: a run of a chunk's layers (:func:`~cooprint.program.build.layer_program`; a chunk is
+  up to ``BANDS`` items, so that two robots whose chunks meet only near their tops print the rest
+  at the same time).
 
 Each item's area is given per part of the robot's outline (body, frame, printhead:
 :func:`cooprint.config.outline_rects`) by its support values in ``NDIR`` fixed directions: the
@@ -19,26 +21,31 @@ printed points, a turn's disc). Two items are apart when some direction separate
 clearance: a separating axis of the true swept shapes, so the test never calls apart what is not
 (it may call near what is not, which only adds a wait).
 
-A robot does *jobs*: from where it stands, travel to a chunk and print it (or travel home). A job
-is placed in an event-driven replay at nominal speeds (the simulator's timing), all its waits at
-its start, where the robot stands still:
+A robot does *jobs*: from where it stands, travel to a chunk and print it (or travel home). Jobs
+are placed one at a time in an event-driven replay at nominal speeds (the simulator's timing),
+all items of a job at once, each right before it waiting (WAIT) for what it must follow:
 
-* an item of the job that comes within the clearance of an item of another robot placed before
-  waits for that item's end (its NOTIFY);
-* a print waits for its chunk's :meth:`ChunkDAG.preds` and for every placed item whose body swept
-  over its footprint;
+* an item that comes within the clearance of an item of another robot placed before waits for
+  that item's end (its NOTIFY);
+* a chunk's first print item waits for the chunk's :meth:`ChunkDAG.preds` and for every placed
+  item whose body swept over its footprint;
 * a job whose way crosses the spot where another robot stands (a pose not yet ended) cannot be
   placed until that robot has moved on; a print whose footprint lies in the way out of a robot
-  standing at the end of its print cannot either (so that robot can always back out);
+  standing at the end of its print cannot either, and a robot may not end a job in another's way
+  out (so every standing robot can always back out to the highway);
 * travel never drives a body over a chunk placed before (material that may be there at any speed),
   choosing the first clear one of: straight; back off, across, in; out to the *highway* (a ring
-  around the part where the robot's whole outline is clear of the part), along it, and in.
-  Turns happen on the highway.
+  around the part where the robot's whole outline is clear of the part and of every robot over
+  it), along it, and in. Turns happen on the highway.
 
-Every wait goes from an item placed earlier to an item placed later, so the WAIT graph is acyclic:
-no deadlock, whatever the speeds; and every pair of items that could meet is ordered by a WAIT,
-so no collision and no body on material, whatever the speeds. When no job can be placed (a robot
-stands in the way of the work another one waits for), a robot goes home to wait there.
+A robot stopped between two items of a job stands where both of them sweep: an item placed
+before that could meet it there meets the item before (and was waited for), one placed after
+meets the item after (and waits for it). Every wait goes from an item placed earlier to an item
+placed later, so the WAIT graph is acyclic: no deadlock, whatever the speeds; and every pair of
+items that could meet is ordered by a WAIT, so no collision and no body on material, whatever the
+speeds. The replay places first the job that could start soonest with all its waits before it;
+when no job can be placed (a robot stands in the way of the work another one waits for), a robot
+standing in the way goes home to wait there.
 
 Robots start and end on a *parking ring* outside the highway, where no working robot ever comes:
 robots with work on the inner ring, each near its first chunk on the side it faces it from,
