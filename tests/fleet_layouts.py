@@ -72,8 +72,8 @@ def scaled(profile: RobotProfile, speed: float) -> RobotProfile:
 
 
 def seed2_bar(length: float = 900.0, robots_seq: dict[str, tuple[str, ...]] | None = None,
-              slicing: SlicingSettings = SLICING, profile: RobotProfile = SMALL):
-    """The seed's two-sided cut (``cut_chunks``) of a bar along y, 40 mm wide and 6 mm tall, for
+              slicing: SlicingSettings = SLICING, profile: RobotProfile = SMALL, height: float = 6.0):
+    """The seed's two-sided cut (``cut_chunks``) of a bar along y, 40 mm wide and ``height`` tall, for
     ``profile``; the centre chunk faced like the first side chunk of its robot. Returns the chunk
     set and :func:`layout` of it for ``robots_seq`` (``{robot: chunk ids}``, a callable of the ids
     too)."""
@@ -81,7 +81,7 @@ def seed2_bar(length: float = 900.0, robots_seq: dict[str, tuple[str, ...]] | No
     from cooprint.config import ChunkingSettings
     from cooprint.io.mesh import MeshReport, Solid
 
-    tm = solids.to_trimesh(solids.box(40.0, length, 6.0))
+    tm = solids.to_trimesh(solids.box(40.0, length, height))
 
     lo, hi = tm.bounds
     report = MeshReport(path="<bar>", format="test", triangles_read=len(tm.faces), triangles=len(tm.faces),

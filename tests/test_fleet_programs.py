@@ -78,6 +78,13 @@ def test_the_robots_work_at_once_where_they_may(row_plan):
     takes well under the sum of the robots' work)."""
     dag, programs, placements = row_plan
     res, _ = _simulate(programs, placements, dag)
+    spans = _spans(res, programs)
+    assert spans["X2"][0] < spans["X0"][1] and spans["X4"][0] < spans["X0"][1]  # the even columns overlap
+    assert res.makespan < 0.75 * float(dag.work.sum())
+
+
+def _spans(res, programs) -> dict[str, tuple[float, float]]:
+    """When each chunk's material is laid: its first and last deposit, s."""
     spans = {}
     for r, tl in res.timelines.items():
         p = programs[r]
@@ -85,8 +92,7 @@ def test_the_robots_work_at_once_where_they_may(row_plan):
         for c in set(p.chunk[tl.index[on]].tolist()):
             sel = on & (p.chunk[tl.index] == c)
             spans[p.chunks[c]] = (float(tl.t0[sel].min()), float(tl.t1[sel].max()))
-    assert spans["X2"][0] < spans["X0"][1] and spans["X4"][0] < spans["X0"][1]  # the even columns overlap
-    assert res.makespan < 0.75 * float(dag.work.sum())
+    return spans
 
 
 def test_the_programs_are_valid_coop_and_name_their_events(row_plan):
@@ -242,12 +248,18 @@ def _seed2_sequences(n: int):
 def test_the_seed_cut_of_a_bar_is_clean_for_2_and_4_robots_whatever_the_speeds(n):
     from fleet_layouts import seed2_bar
 
-    cs, (dag, sched, layers, material) = seed2_bar(900.0, _seed2_sequences(n))
+    cs, (dag, sched, layers, material) = seed2_bar(900.0, _seed2_sequences(n), height=6.0 if n == 4 else 30.0)
     assert len(cs.chunks) >= 7
     programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in sched.sequences},
                                           CLEARANCE)
     for speeds in ({}, {"A": 0.5, "B": 1.7, "C": 1.0, "D": 3.0}, {"A": 1.7, "B": 0.5, "C": 3.0, "D": 0.4}):
-        assert _simulate(programs, placements, dag, speeds)[1] == [], speeds
+        res, errors = _simulate(programs, placements, dag, speeds)
+        assert errors == [], speeds
+        if not speeds and n == 2:
+            spans = _spans(res, programs)
+            # L1 and R1 lean on C from either side, their printheads meet only near its top (30 mm
+            # tall, C is wider below): the robots print their lower layers at the same time
+            assert spans["R1"][0] < spans["L1"][1] and spans["L1"][0] < spans["R1"][1]
 
 
 def test_a_robot_with_only_an_empty_chunk_keeps_its_word_from_home():
