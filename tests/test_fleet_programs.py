@@ -311,3 +311,33 @@ def test_a_parked_robot_in_the_way_is_a_bug_named_not_a_deadlock(monkeypatch):
     with pytest.raises(FleetError, match=r"^robot A cannot get to chunk X0: robot Z, parked for good at "
                                          r"\[75\.0, -20\.0\], is in its way"):
         fleet_programs(sched, dag, layers, material, {"A": SMALL, "Z": SMALL}, CLEARANCE)
+
+
+def test_the_plan_as_a_bundle_loads_and_simulates_clean(two_sided, tmp_path):
+    """What `cooprint run` will write for N robots: job.json with each robot's placement record
+    (side, facing, start, facings naming its own chunks), profile and chunks, the chunks' deps,
+    and robots/<name>.coop; the simulator reads it back (its checks of the record included)."""
+    import dataclasses
+    import json
+
+    from cooprint.config import load_settings
+    from cooprint.program.commands import write_coop
+    from cooprint.simulation import load_inputs
+
+    dag, programs, placements, _ = two_sided
+    settings = dataclasses.replace(load_settings(), robot=SMALL, slicing=SLICING)
+    (tmp_path / "robots").mkdir()
+    robots = []
+    owner = {"A": ("S0", "N1", "S2", "N3"), "B": ("S1", "N0", "S3", "N2"), "C": (), "D": ()}
+    for r, p in programs.items():
+        with open(tmp_path / "robots" / f"{r}.coop", "w", encoding="utf-8") as fh:
+            write_coop(fh, p)
+        robots.append({**placements[r].to_dict(), "program": f"robots/{r}.coop", "chunks": list(owner[r]),
+                       "profile": dataclasses.asdict(SMALL)})
+    record = {"format": "cooprint-job/2", "settings": settings.to_dict(), "robots": robots,
+              "chunks": [{"id": c, "deps": list(dag.preds(c))} for c in dag.ids]}
+    (tmp_path / "job.json").write_text(json.dumps(record))
+    assert [f["from_chunk"] for f in placements["A"].to_dict()["facings"]] == ["S0", "N1", "S2", "N3"]
+    res = simulate(load_inputs([str(tmp_path)]))
+    assert "chunk-order" in res.checked
+    assert [(f.kind, f.robot) for f in res.findings if f.severity == "error"] == []

@@ -737,7 +737,7 @@ class _Fleet:
                     near = ~apart(pose.parts[None, :, None], esc[:, None], self.clearance).all(axis=(1, 2))
                     if near.any():
                         return f"it would stop in robot {ways[int(np.argmax(near))][0].robot}'s way out"
-        return Job(r, items, pose, start, waits, target, [(target or "-", t) for t in turns], f)
+        return Job(r, items, pose, start, waits, target, [(target or "", t) for t in turns], f)
 
     def _parked(self, r: str, q: str, target: str | None) -> str:
         where = f"chunk {target}" if target else "its spot"
@@ -870,8 +870,10 @@ class _Fleet:
             xy, n = self.rings.spots[r]
             seq = self.sched.sequences[r]
             faces = {tuple(np.round(unit_xy(self.dag.facing[self.idx[c]]), 9)) for c in seq}
-            facings = [(seq[0] if seq else "-", facing_deg(n))]
-            facings += [t for j in self.jobs[r] for t in j.turns]
+            # job.json's record: the facing at the start, and each chunk it turned round for (turns
+            # on the way home are the program's ;@facing annotations alone)
+            facings = [(seq[0], facing_deg(n))] if seq else []
+            facings += [j.turns[-1] for j in self.jobs[r] if j.turns and j.target is not None]
             side = _side(faces, n)
             placements[r] = RobotPlacement(r, side, (float(n[0]), float(n[1])),
                                            (float(xy[0]), float(xy[1]), float(quantize(self.clearance))),
