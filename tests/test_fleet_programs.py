@@ -341,3 +341,24 @@ def test_the_plan_as_a_bundle_loads_and_simulates_clean(two_sided, tmp_path):
     res = simulate(load_inputs([str(tmp_path)]))
     assert "chunk-order" in res.checked
     assert [(f.kind, f.robot) for f in res.findings if f.severity == "error"] == []
+
+
+def test_a_mixed_fleet_keeps_each_robots_own_outline_apart():
+    """B is wider (body and frame 130 mm) and C has a longer reach (printhead 20 mm, body 140 mm
+    behind its front): each robot's own outline is swept, and the plan is clean with each robot
+    simulated with its own profile, at very different speeds."""
+    import dataclasses
+
+    profiles = {"A": SMALL, "B": dataclasses.replace(SMALL, body_width=130.0, frame_width=130.0),
+                "C": dataclasses.replace(SMALL, nozzle_depth=20.0, body_length=140.0)}
+    chunks = _row(6, 150.0)
+    deps = {f"X{i}": tuple(f"X{j}" for j in (i - 1, i + 1) if 0 <= j < 6) for i in range(1, 6, 2)}
+    seqs = {"A": ("X0", "X1"), "B": ("X2", "X3"), "C": ("X4", "X5")}
+    dag, sched, layers, material = layout(chunks, deps, seqs)
+    programs, placements = fleet_programs(sched, dag, layers, material, profiles, CLEARANCE)
+    for speeds in ({}, {"A": 0.5, "B": 1.7, "C": 3.0}, {"A": 3.0, "B": 0.5, "C": 1.0}):
+        robots = [SimRobot(r, programs[r], np.asarray(placements[r].start), np.asarray(placements[r].facing),
+                           profile=dataclasses.replace(profiles[r], print_speed=40.0 * speeds.get(r, 1.0),
+                                                       travel_speed=120.0 * speeds.get(r, 1.0))) for r in seqs]
+        res = simulate(SimInput(robots, SMALL, SLICING, "test", deps={c: dag.preds(c) for c in dag.ids}))
+        assert [(f.kind, f.robot) for f in res.findings if f.kind in ERRORS] == [], speeds
