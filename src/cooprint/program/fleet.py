@@ -398,6 +398,18 @@ class Job:
             if self.items else self.start
 
 
+class Blocked(str):
+    """Why a job cannot be placed now, and the robot whose standing is the reason (``by``; None:
+    anything placed may change it)."""
+
+    by: str | None
+
+    def __new__(cls, reason: str, by: str | None = None) -> "Blocked":
+        out = super().__new__(cls, reason)
+        out.by = by
+        return out
+
+
 class _Fleet:
     """The replay's state: every robot's items, jobs, where it stands and what it has left to do
     (:meth:`run` places the jobs, :meth:`programs` writes them out)."""
@@ -616,12 +628,12 @@ class _Fleet:
     def _others_poses(self, r: str) -> list[Item]:
         return [self.pose[o] for o in self.robots if o != r and not self.pose[o].ended]
 
-    def job(self, r: str, target: str | None) -> Job | str:
+    def job(self, r: str, target: str | None) -> "Job | Blocked":
         """The job of ``r`` to ``target`` (``None``: home), or why it cannot be placed now."""
         if target is not None:
             for d in self.dag.preds(target):
                 if d not in self.done_chunks:
-                    return f"chunk {d} is not placed"
+                    return Blocked(f"chunk {d} is not placed")
             if target not in self.pts:  # nothing to print: done where it stands, once its preds are
                 now = self.pose[r]
                 it = Item(r, "print", now.parts, chunk=target, end=0.0)
@@ -651,7 +663,7 @@ class _Fleet:
                 near = ~apart(mine[:, None, :, None], pose_parts[None, :, None], self.clearance).all(axis=(2, 3))
                 if near.any():
                     q = poses[int(np.nonzero(near)[1][0])]
-                    reason = f"robot {q.robot} stands in its way"
+                    reason = Blocked(f"robot {q.robot} stands in its way", q.robot)
                     if name == "highway":
                         if q.permanent:
                             raise FleetError(self._parked(r, q.robot, target))
@@ -659,7 +671,7 @@ class _Fleet:
                     continue
             break
         else:
-            return reason
+            return Blocked(reason)
         f = unit_xy(self.dag.facing[self.idx[target]]) if target is not None else self.rings.spots[r][1]
         first_print = None
         if target is not None:
@@ -669,7 +681,8 @@ class _Fleet:
             if ways:
                 over = ~apart(np.stack([p.escape[0] for p in ways]), self.foot[target][None], 0.0)
                 if over.any():
-                    return f"robot {ways[int(np.argmax(over))].robot} must back out over it"
+                    q = ways[int(np.argmax(over))]
+                    return Blocked(f"robot {q.robot} must back out over it", q.robot)
             own = [c for c, h in zip(placed, ~apart(whole[0][None], feet, 0.0)) if h and c != target] \
                 if len(feet) else []
             if own:
@@ -681,7 +694,7 @@ class _Fleet:
                     q = poses[int(np.argmax(near))]
                     if q.permanent:
                         raise FleetError(self._parked(r, q.robot, target))
-                    return f"robot {q.robot} stands in the way of its print"
+                    return Blocked(f"robot {q.robot} stands in the way of its print", q.robot)
             first_print = len(items)
             items += prints
         # the items placed before that each must follow: a box prefilter, then the exact test
@@ -730,13 +743,15 @@ class _Fleet:
             if len(poses):
                 near = ~apart(pose.escape[None, :, None], pose_parts[:, None], self.clearance).all(axis=(1, 2))
                 if near.any():
-                    return f"robot {poses[int(np.argmax(near))].robot} stands in its way out from {target}"
+                    q = poses[int(np.argmax(near))]
+                    return Blocked(f"robot {q.robot} stands in its way out from {target}", q.robot)
                 ways = [(p, p.escape) for p in poses if p.escape is not None]
                 if ways:
                     esc = np.stack([e for _, e in ways])
                     near = ~apart(pose.parts[None, :, None], esc[:, None], self.clearance).all(axis=(1, 2))
                     if near.any():
-                        return f"it would stop in robot {ways[int(np.argmax(near))][0].robot}'s way out"
+                        q = ways[int(np.argmax(near))][0]
+                        return Blocked(f"it would stop in robot {q.robot}'s way out", q.robot)
         return Job(r, items, pose, start, waits, target, [(target or "", t) for t in turns], f)
 
     def _parked(self, r: str, q: str, target: str | None) -> str:
@@ -787,20 +802,25 @@ class _Fleet:
     def run(self) -> None:
         """Place every robot's jobs (see the module doc). A robot's next job, once worked out, is
         kept until a job placed near it (or a pose that blocked it) may have changed it."""
-        cache: dict[str, Job | str] = {}
+        cache: dict[str, Job | Blocked] = {}
         margin = self.clearance + max(b.nozzle_depth for b in self.bodies.values()) + 1.0
         while any(self.todo[r] for r in self.robots):
             best, why = None, {}
-            for r in self.robots:
-                if not self.todo[r]:
-                    continue
-                if r not in cache:
-                    cache[r] = self.job(r, self.todo[r][0])
-                j = cache[r]
-                if isinstance(j, str):
-                    why[r] = j
-                elif best is None or j.key < best[1].key:
-                    best = (r, j, False)
+            for fresh in (False, True):  # nothing to place with what is kept: work every job out anew
+                if fresh:
+                    cache.clear()
+                for r in self.robots:
+                    if not self.todo[r]:
+                        continue
+                    if r not in cache:
+                        cache[r] = self.job(r, self.todo[r][0])
+                    j = cache[r]
+                    if isinstance(j, str):
+                        why[r] = j
+                    elif best is None or j.key < best[1].key:
+                        best = (r, j, False)
+                if best is not None:
+                    break
             if best is None:  # a standoff: someone standing in the way goes home to wait
                 for r in self.robots:
                     if self.todo[r] and not self.at_home[r] and self.todo[r][0] is not None:
@@ -816,7 +836,9 @@ class _Fleet:
             new = _whole(j)
             for o in list(cache):
                 c = cache[o]
-                if o == r or isinstance(c, str) or not apart(_whole(c), new, margin):
+                # a job blocked by a robot standing somewhere stays blocked until that one moves
+                if o == r or (isinstance(c, Blocked) and c.by in (None, r)) or \
+                        (isinstance(c, Job) and not apart(_whole(c), new, margin)):
                     del cache[o]
 
     # --- the programs ----------------------------------------------------------------------------
