@@ -362,3 +362,16 @@ def test_a_mixed_fleet_keeps_each_robots_own_outline_apart():
                                                        travel_speed=120.0 * speeds.get(r, 1.0))) for r in seqs]
         res = simulate(SimInput(robots, SMALL, SLICING, "test", deps={c: dag.preds(c) for c in dag.ids}))
         assert [(f.kind, f.robot) for f in res.findings if f.kind in ERRORS] == [], speeds
+
+
+def test_a_chunk_without_a_facing_or_a_robot_without_a_profile_is_refused():
+    import dataclasses
+
+    chunks = _row(2, 150.0)
+    dag, sched, layers, material = layout(chunks, {}, {"A": ("X0", "X1")})
+    with pytest.raises(ValueError, match=r"^fleet_programs: no profile for robot A$"):
+        fleet_programs(sched, dag, layers, material, {}, CLEARANCE)
+    facing = dag.facing.copy()
+    facing[1] = np.nan
+    with pytest.raises(ValueError, match=r"^fleet_programs: chunk X1 \(robot A\) has no facing"):
+        fleet_programs(sched, dataclasses.replace(dag, facing=facing), layers, material, {"A": SMALL}, CLEARANCE)

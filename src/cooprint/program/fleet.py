@@ -960,6 +960,16 @@ def fleet_programs(schedule: Schedule, dag: ChunkDAG, layers: dict[str, list[tup
     Raises :class:`FleetError` when the robots cannot go on (a body would have to stand on printed
     material, a robot is walled in) or a parked robot is in the way (a bug of the ring rule).
     """
+    missing = [r for r in schedule.sequences if r not in profiles]
+    if missing:
+        raise ValueError(f"fleet_programs: no profile for robot {missing[0]}")
+    idx = dag.index
+    for r, seq in schedule.sequences.items():
+        for c in seq:
+            f = dag.facing[idx[c]]
+            if not (np.isfinite(f).all() and np.hypot(*f[:2]) > 1e-9):
+                raise ValueError(f"fleet_programs: chunk {c} (robot {r}) has no facing ({list(f)}): the DAG must "
+                                 "say which way its robot faces")
     fleet = _Fleet(schedule, dag, layers, material, profiles, clearance)
     fleet.run()
     return fleet.programs()
