@@ -10,9 +10,9 @@ The plan is cut into *items*, each a stretch of one robot's time with the XY are
   moves on;
 * ``leg``: a straight travel move of the nozzle, in one facing, lifted above printed material;
 * ``turn``: a turn about the nozzle (the disc of the outline's radius around it);
-* ``print``: a run of a chunk's layers (:func:`~cooprint.program.build.layer_program`; a chunk is
-  up to ``BANDS`` items, so that two robots whose chunks meet only near their tops print the rest
-  at the same time).
+* ``print``: a piece of a chunk's commands (:func:`~cooprint.program.build.layer_program`; a
+  chunk is up to ``PIECES`` items cut after a TOOL OFF, so that two robots whose chunks meet only
+  in places print the rest at the same time).
 
 Each item's area is given per part of the robot's outline (body, frame, printhead:
 :func:`cooprint.config.outline_rects`) by its support values in ``NDIR`` fixed directions: the
@@ -64,7 +64,7 @@ from cooprint.config import RobotProfile, outline_rects
 from cooprint.errors import InfeasibleError
 from cooprint.geometry import unit_xy
 from cooprint.program.build import MaterialIndex, RobotPlacement, facing_deg, layer_program
-from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program, make_program, quantize
+from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, WAIT, Program, make_program, quantize
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.scheduling.schedule import Schedule
 from cooprint.slicing.paths import LayerPaths
@@ -77,9 +77,9 @@ OPP = (np.arange(NDIR) + NDIR // 2) % NDIR
 #: The four axis directions (+x, +y, -x, -y) among DIRS: a cheap box prefilter.
 BOX = np.array([0, NDIR // 4, NDIR // 2, 3 * NDIR // 4])
 PARTS = ("body", "frame", "printhead")
-#: A chunk's print is cut into at most this many items (runs of layers): two robots whose chunks
-#: meet only near their tops print the rest of them at the same time.
-BANDS = 8
+#: A chunk's print is cut into at most this many items (pieces of about as many moves): two
+#: robots whose chunks meet only in places print the rest of them at the same time.
+PIECES = 12
 
 
 class FleetError(InfeasibleError):
@@ -369,8 +369,7 @@ class Item:
     seq: int = -1  # index among the robot's items
     index: int = -1  # index among all items
     to: np.ndarray | None = None  # a leg: where it goes
-    band: list | None = None  # a print: its layers ``[(index, LayerPaths), ...]``
-    last: bool = False  # a print: the chunk's last band (its end is the chunk's)
+    last: bool = False  # a print: the chunk's last piece (its end is the chunk's)
     start_at: np.ndarray | None = None  # a print: where the nozzle is before it
     notify: str | None = None  # the event its end is announced by, once someone waits for it
 
@@ -444,7 +443,6 @@ class _Fleet:
         self.rings = parking(self.robots, firsts, self.bodies, allp.min(0), allp.max(0), self.clearance)
         self.items: list[Item] = []
         self._times: dict = {}
-        self._band_cache: dict = {}
         self._feet = np.zeros((0, NDIR))  # the footprints of the placed prints, in self.printed's order
         self._boxes = np.zeros((0, 5))  # and their material boxes (xmin, ymin, xmax, ymax, top)
         self._parts = np.zeros((0, 3, NDIR))
@@ -572,56 +570,59 @@ class _Fleet:
         it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.travel_speed  # duration, for now
         return it
 
-    def _bands(self, cid: str) -> list[tuple[list, np.ndarray]]:
-        """A chunk's layers in at most ``BANDS`` runs of consecutive layers, each with the support
-        of its printed points (its footprint), cached."""
-        if cid not in self._band_cache:
-            full = [(li, la) for li, la in self.layers.get(cid, ()) if len(la)]
-            k = min(BANDS, len(full))
-            cuts = np.linspace(0, len(full), k + 1).round().astype(int) if k else np.zeros(1, int)
-            self._band_cache[cid] = [(full[i:j], point_support(np.concatenate([la.points for _, la in full[i:j]])))
-                                     for i, j in zip(cuts[:-1], cuts[1:]) if j > i]
-        return self._band_cache[cid]
-
-    def _band_program(self, r: str, cid: str, band: list, here: np.ndarray) -> tuple[Program, np.ndarray]:
-        pieces, pos = [], here
-        for li, layer in band:
-            piece, pos = layer_program(layer, pos, robot=r, index=li, chunk=cid)
-            pieces.append(piece)
-        return (Program.concat(r, pieces) if pieces else Program.empty(r)), np.asarray(pos, float)
-
-    def _band_times(self, r: str, cid: str) -> list[tuple[float, np.ndarray]]:
-        """Nominal time of each band of a chunk for robot ``r`` (from its own first point) and
-        where the nozzle ends (cached)."""
+    def _pieces(self, r: str, cid: str) -> list[tuple[Program, np.ndarray, float]]:
+        """Chunk ``cid``'s commands for robot ``r`` (every layer, from above its first point) cut
+        into at most ``PIECES`` pieces of about as many moves, each cut right after a TOOL OFF
+        (a robot that waits between two pieces does so with its tool off): each piece's program,
+        the support of its nozzle positions (from where the piece before ends) and its nominal
+        time. Cached."""
         key = (r, cid)
         if key not in self._times:
+            parts, pos = [], np.full(3, np.nan)
+            for li, layer in self.layers.get(cid, ()):
+                piece, pos = layer_program(layer, pos, robot=r, index=li, chunk=cid)
+                parts.append(piece)
+            prog = Program.concat(r, parts)
             b = self.bodies[r]
+            mv = np.flatnonzero(prog.kind == MOVE)
+            xyz = prog.xyz[mv]
+            length = np.r_[0.0, np.linalg.norm(np.diff(xyz, axis=0), axis=1)]
+            on = prog.tool_on()[mv]
+            dur = np.where(on, length / b.print_speed, length / b.travel_speed)
+            ends = np.flatnonzero(prog.kind == TOOL_OFF) + 1  # where a piece may end
+            step = max(1.0, len(mv) / PIECES)
+            cuts, moves_before = [0], np.searchsorted(mv, ends)
+            for e, m in zip(ends.tolist(), moves_before.tolist()):
+                if m - np.searchsorted(mv, cuts[-1]) >= step and e < len(prog):
+                    cuts.append(e)
+            cuts.append(len(prog))
             out = []
-            for band, _ in self._bands(cid):
-                prog, last = self._band_program(r, cid, band, np.full(3, np.nan))
-                mv = prog.kind == MOVE
-                xyz = prog.xyz[mv]
-                length = np.r_[0.0, np.linalg.norm(np.diff(xyz, axis=0), axis=1)]
-                on = prog.tool_on()[mv]
-                out.append((float(np.sum(np.where(on, length / b.print_speed, length / b.travel_speed))), last))
+            for c0, c1 in zip(cuts[:-1], cuts[1:]):
+                k0, k1 = np.searchsorted(mv, c0), np.searchsorted(mv, c1)
+                pts = xyz[max(k0 - 1, 0):max(k1, 1), :2]  # from where the piece before ends
+                sub = Program(r, prog.kind[c0:c1], prog.xyz[c0:c1], prog.role[c0:c1], prog.width[c0:c1],
+                              prog.layer[c0:c1], prog.height[c0:c1], prog.chunk[c0:c1], prog.event[c0:c1],
+                              prog.chunks)
+                out.append((sub, point_support(pts), float(dur[k0:k1].sum())))
             self._times[key] = out
         return self._times[key]
 
     def _prints(self, r: str, cid: str, here: np.ndarray, f: np.ndarray) -> tuple[list[Item], np.ndarray]:
-        """The print items of chunk ``cid`` (one per band of layers: a robot far from another's
-        band of a chunk may print beside it), and where the nozzle ends."""
+        """The print items of chunk ``cid`` (its pieces: a robot away from a piece of another's
+        chunk may print beside it meanwhile), and where the nozzle ends."""
         b = self.bodies[r]
         rects = b.rect_parts(f)
-        items, pos = [], np.asarray(here, float)
-        for (band, foot), (dur, last) in zip(self._bands(cid), self._band_times(r, cid)):
-            it = Item(r, "print", foot[None] + rects, chunk=cid, band=band)
-            first = np.r_[band[0][1].points[0], band[0][1].z]
-            it.start_at = pos
-            it.end = dur + float(np.linalg.norm(pos - first)) / b.travel_speed
+        pieces = self._pieces(r, cid)
+        first = self.first[cid]
+        items = []
+        for k, (prog, support, dur) in enumerate(pieces):
+            it = Item(r, "print", support[None] + rects, chunk=cid, program=prog)
+            it.end = dur + (float(np.linalg.norm(np.asarray(here, float) - first)) / b.travel_speed if k == 0 else 0.0)
             items.append(it)
-            pos = last
         items[-1].last = True
-        return items, pos
+        last = pieces[-1][0]
+        mv = np.flatnonzero(last.kind == MOVE)
+        return items, last.xyz[mv[-1]] if len(mv) else np.asarray(here, float)
 
     # --- a job ---------------------------------------------------------------------------------
 
@@ -769,8 +770,6 @@ class _Fleet:
         for it in job.items:
             if it.kind == "leg":
                 it.program = make_program(r, np.array([MOVE], np.uint8), it.to[None])
-            elif it.kind == "print" and not job.stay:
-                it.program, _ = self._band_program(r, it.chunk, it.band, it.start_at)
             t = it.end
             self._add(it)
             if it.kind == "print":
