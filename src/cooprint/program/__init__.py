@@ -2,7 +2,8 @@
 
 ``commands`` is the command language (MOVE / TOOL / NOTIFY / WAIT, with annotations) as a record,
 a writer and a parser; ``build`` makes each robot's stream from the chunks' layers (transitions,
-synchronisation); ``gcode`` writes any stream as Marlin G-code.
+synchronisation) for the seed's one or two robots; ``fleet`` makes N robots' streams from a
+schedule, guarded so that they are safe at any speeds; ``gcode`` writes any stream as Marlin G-code.
 """
 
 from cooprint.program.commands import (MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, ProgramError, coop_text,
