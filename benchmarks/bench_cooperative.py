@@ -20,10 +20,6 @@ dashes, and a missing ``cooprint.simulation.perturb`` as "not available".
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import importlib
-import pkgutil
-import statistics
 import sys
 import tempfile
 import time
@@ -88,8 +84,7 @@ def _solid(man: Any, name: str) -> Any:
 
 
 def job_settings(layout: str, strategy: str, extra: dict | None = None) -> Any:
-    """The large-part settings with ``[chunking] layout`` and ``[scheduling] strategy`` (a
-    cooprint without those fields runs with its own)."""
+    """The large-part settings with ``[chunking] layout`` and ``[scheduling] strategy``."""
     from cooprint.config import load_settings
 
     tables = {k: dict(v) for k, v in LARGE_PART.items()}
@@ -97,64 +92,7 @@ def job_settings(layout: str, strategy: str, extra: dict | None = None) -> Any:
         tables.setdefault(section, {})[key] = value
     for section, values in (extra or {}).items():
         tables.setdefault(section, {}).update(values)
-    try:
-        return load_settings(tables=[("bench_cooperative", tables)])
-    except Exception:  # an older cooprint: no such fields
-        for section, key, _ in (("chunking", "layout", 0), ("scheduling", "strategy", 0)):
-            tables.get(section, {}).pop(key, None)
-        return load_settings(tables=[("bench_cooperative", {k: v for k, v in tables.items() if v})])
-
-
-# ---------------------------------------------------------------------------------------------
-# timing the scheduler inside coop_job
-
-class SchedulerTimer:
-    """Wall time spent in cooprint.scheduling during a block: every function defined in a
-    module of the package is wrapped, where it is defined and where cooprint.jobs imported it,
-    and only the outermost calls are summed (a strategy calling a helper counts once).
-    ``calls`` 0 afterwards: nothing of the package was called by name, so it could not be timed."""
-
-    def __init__(self) -> None:
-        self.seconds = 0.0
-        self.calls = 0
-        self._depth = 0
-        self._saved: list[tuple[Any, str, Any]] = []
-
-    def _wrap(self, fn: Callable) -> Callable:
-        def timed(*args: Any, **kw: Any) -> Any:
-            self._depth += 1
-            t0 = time.perf_counter()
-            try:
-                return fn(*args, **kw)
-            finally:
-                self._depth -= 1
-                if self._depth == 0:
-                    self.seconds += time.perf_counter() - t0
-                    self.calls += 1
-        timed.__wrapped__ = fn  # type: ignore[attr-defined]
-        return timed
-
-    def __enter__(self) -> "SchedulerTimer":
-        import cooprint.jobs
-        import cooprint.scheduling as pkg
-
-        modules = [pkg] + [importlib.import_module(f"{pkg.__name__}.{m.name}")
-                           for m in pkgutil.iter_modules(pkg.__path__)]
-        wrapped: dict[int, Callable] = {}
-        for mod in modules + [cooprint.jobs]:
-            for name, value in list(vars(mod).items()):
-                if (callable(value) and getattr(value, "__module__", "").startswith(pkg.__name__)
-                        and type(value).__name__ == "function" and not name.startswith("__")
-                        and name not in ("check_schedule",)):
-                    new = wrapped.setdefault(id(value), self._wrap(value))
-                    self._saved.append((mod, name, value))
-                    setattr(mod, name, new)
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        for mod, name, value in reversed(self._saved):
-            setattr(mod, name, value)
-        self._saved.clear()
+    return load_settings(tables=[("bench_cooperative", tables)])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -177,34 +115,34 @@ def sim_input(job: Any, folder: Path) -> Any:
     robots = [SimRobot(name, prog, np.asarray(job.placements[name].start, float),
                        np.asarray(job.placements[name].facing, float), profile=s.robot)
               for name, prog in job.programs.items()]
-    fields = {f.name for f in dataclasses.fields(SimInput)}
-    extra = {"chunk_files": files, "robot_chunks": {r: tuple(seq) for r, seq in job.chunked.assignment.sequences.items()}}
-    return SimInput(robots, s.robot, s.slicing, "<bench>", deps=dict(job.chunked.chunks.deps),
-                    **{k: v for k, v in extra.items() if k in fields})
+    dag = job.chunked.dag
+    return SimInput(robots, s.robot, s.slicing, "<bench>", deps={c: dag.preds(c) for c in dag.ids},
+                    chunk_files=files,
+                    robot_chunks={r: tuple(seq) for r, seq in job.chunked.assignment.sequences.items()})
 
 
 def plan_row(make: Callable[[], Any], n: int, layout: str, strategy: str, work: Path,
              monte_carlo: bool = False) -> tuple[dict, Any]:
     """Plan one job for ``n`` robots and simulate it; the table row (an ``error`` on failure)
-    and the SimInput (for a Monte-Carlo run)."""
-    from cooprint.jobs import coop_job
+    and the SimInput (for a Monte-Carlo run). The scheduler's wall time is that of scheduling
+    the job's final DAG again (what ``coop_job`` does after slicing), alone."""
+    from cooprint.jobs import coop_job, make_schedule_for
     from cooprint.simulation import failures, simulate, summary
 
     row: dict[str, Any] = {"robots": n, "layout_asked": layout, "strategy_asked": strategy}
     try:
         solid = make()
-        timer = SchedulerTimer()
+        settings = job_settings(layout, strategy)
         t0 = time.perf_counter()
-        with timer:
-            job = coop_job(solid, job_settings(layout, strategy), robots=n)
+        job = coop_job(solid, settings, robots=n)
         row["pipeline_s"] = time.perf_counter() - t0
-        row["schedule_s"] = timer.seconds if timer.calls else None
+        t0 = time.perf_counter()
+        make_schedule_for(job.chunked.dag, job.chunked.chunks, settings, n)
+        row["schedule_s"] = time.perf_counter() - t0
         asg = job.chunked.assignment
-        row.update(chunks=len(job.chunked.chunks.chunks), layout=getattr(job.chunked.chunks, "layout", "seed2"),
-                   strategy=asg.strategy, estimate_s=_num(getattr(asg, "makespan", None)),
-                   lb_s=_num(getattr(asg, "lower_bound", None)), bound_s=_num(getattr(asg, "bound", None)),
-                   gap_est=_num(getattr(asg, "gap", None)) if getattr(asg, "lower_bound", 0) else None,
-                   note=getattr(asg, "note", ""), idle=[r for r, seq in asg.sequences.items() if not seq])
+        row.update(chunks=len(job.chunked.chunks.chunks), layout=job.chunked.chunks.layout,
+                   strategy=asg.strategy, estimate_s=asg.makespan, lb_s=asg.lower_bound, bound_s=asg.bound,
+                   gap_est=asg.gap, note=asg.note, idle=list(asg.idle_robots))
         inp = sim_input(job, work / "chunks")
         flat = summary(simulate(inp))
         accel = summary(simulate(inp, accel=True))
@@ -212,8 +150,7 @@ def plan_row(make: Callable[[], Any], n: int, layout: str, strategy: str, work: 
                    errors={k: v + failures(accel).get(k, 0) for k, v in failures(flat).items()} | {
                        k: v for k, v in failures(accel).items() if k not in failures(flat)},
                    warnings={k: v for k, v in flat["finding_counts"].items() if v and k not in failures(flat)})
-        if row["lb_s"]:
-            row["gap_sim"] = flat["makespan_s"] / row["lb_s"] - 1.0
+        row["gap_sim"] = flat["makespan_s"] / row["lb_s"] - 1.0
         if monte_carlo:
             row["monte_carlo"] = monte_carlo_run(inp)
         return row, inp
@@ -229,52 +166,17 @@ def _num(value: Any) -> float | None:
 
 def monte_carlo_run(inp: Any) -> dict:
     """``perturb_runs(inp, MC_FRACTION, MC_RUNS, MC_SEED, accel=False)``: the makespans
-    (min / median / p95 / max) and the error-level findings of all runs, or why not."""
-    try:
-        from cooprint.simulation.perturb import perturb_runs
-    except ImportError:
-        return {"error": "not available (no cooprint.simulation.perturb.perturb_runs)"}
+    (min / median / p95 / max) and the error-level findings of all runs."""
+    from cooprint.simulation import severity
+    from cooprint.simulation.perturb import perturb_runs
+
     t0 = time.perf_counter()
-    try:
-        out = perturb_runs(inp, MC_FRACTION, MC_RUNS, MC_SEED, False)
-    except Exception as exc:  # noqa: BLE001
-        return {"error": f"{type(exc).__name__}: {exc}"[:300]}
-    spans, findings = _mc_parts(out)
-    res: dict[str, Any] = {"runs": MC_RUNS, "fraction": MC_FRACTION, "seed": MC_SEED,
-                           "wall_s": time.perf_counter() - t0, "findings": findings}
-    if spans:
-        spans = sorted(spans)
-        res.update(min_s=spans[0], median_s=statistics.median(spans),
-                   p95_s=float(np.percentile(spans, 95)), max_s=spans[-1])
-    return res
-
-
-def _mc_parts(out: Any) -> tuple[list[float], int | None]:
-    """Makespans and error-level finding count from whatever ``perturb_runs`` returned: an
-    object or dict with ``makespans`` / ``runs`` / ``findings`` / ``finding_counts``, or a list
-    of simulation results or summaries."""
-    def get(obj: Any, key: str) -> Any:
-        return obj.get(key) if isinstance(obj, dict) else getattr(obj, key, None)
-
-    def errors(obj: Any) -> int | None:
-        counts = get(obj, "finding_counts")
-        if isinstance(counts, dict):
-            return sum(v for k, v in counts.items() if k != "overhang")
-        found = get(obj, "findings")
-        if isinstance(found, (list, tuple)):
-            return sum(1 for f in found if getattr(f, "severity", get(f, "severity") if isinstance(f, dict) else "error")
-                       == "error")
-        return found if isinstance(found, int) else None
-
-    runs = get(out, "runs") if not isinstance(out, (list, tuple)) else out
-    spans = get(out, "makespans") if not isinstance(out, (list, tuple)) else None
-    if spans is None and isinstance(runs, (list, tuple)):
-        spans = [get(r, "makespan") if get(r, "makespan") is not None else get(r, "makespan_s") for r in runs]
-    total = errors(out) if not isinstance(out, (list, tuple)) else None
-    if total is None and isinstance(runs, (list, tuple)):
-        per = [errors(r) for r in runs]
-        total = sum(p for p in per if p is not None) if any(p is not None for p in per) else None
-    return [float(s) for s in (spans or []) if isinstance(s, (int, float))], total
+    out = perturb_runs(inp, MC_FRACTION, MC_RUNS, MC_SEED, False)
+    dist = out.distribution()
+    errors = sum(n for k, n in out.finding_counts().items() if severity(k) == "error")
+    return {"runs": MC_RUNS, "fraction": MC_FRACTION, "seed": MC_SEED, "wall_s": time.perf_counter() - t0,
+            "findings": errors, "min_s": dist["min"], "median_s": dist["median"], "p95_s": dist["p95"],
+            "max_s": dist["max"]}
 
 
 # ---------------------------------------------------------------------------------------------
