@@ -9,10 +9,9 @@ the programs in memory, at constant speed and with acceleration), beside it the 
 for N = 2, the exact scheduler for jobs of at most ``EXACT_MAX_CHUNKS`` chunks, and a
 Monte-Carlo run (``perturb_runs``) at 20% for N = 4 and 16.
 
-The script asks the API for what it needs and records what is missing instead of failing: a
-layout or strategy the chunker or scheduler does not honour yet shows as the one it used, a
-robot count it refuses as that row's error, a scheduler record without times, bounds or gaps as
-dashes, and a missing ``cooprint.simulation.perturb`` as "not available".
+A row records what cooprint did: the layout and strategy it used when they differ from the ones
+asked (``exact`` falls back to ``list`` when it finds no schedule in time, and says so), and a
+robot count it refuses as that row's error.
 
     python benchmarks/run.py --stages cooperative     # the whole stage, writes docs/benchmarks.md
     python benchmarks/bench_cooperative.py --smoke     # a tiny job, N = 1, 2: checks it runs, writes nothing
