@@ -5,6 +5,7 @@ DAG, the schedule, its lower bound and its gap; bad robot counts and layouts are
 from __future__ import annotations
 
 import json
+import shutil
 
 import pytest
 
@@ -63,17 +64,50 @@ def test_grid_plan_is_clean_and_records_its_bound(slab, tmp_path, robots, capsys
             assert a[1] <= b[0] + 1e-6 or b[1] <= a[0] + 1e-6
 
 
-def test_grid_plan_is_clean_under_perturbation(slab, tmp_path, capsys):
-    out = tmp_path / "n4"
+@pytest.fixture(scope="module")
+def plan4(slab, tmp_path_factory):
+    """The slab planned for four robots on the grid (no simulation)."""
+    out = tmp_path_factory.mktemp("plan4") / "n4"
     assert main(["run", str(slab), "--out", str(out), "--robots", "4", "--layout", "grid", "-q", *FLAGS]) == 0
+    return out
+
+
+def test_grid_plan_is_clean_under_perturbation(plan4, tmp_path, capsys):
     sim = tmp_path / "sim"
-    code = main(["simulate", str(out), "--out", str(sim), "--perturb", "0.3", "--runs", "5", "--seed", "1"])
+    code = main(["simulate", str(plan4), "--out", str(sim), "--perturb", "0.3", "--runs", "5", "--seed", "1"])
     text = capsys.readouterr()
     assert code == 0, text.out + text.err
     perturb = json.loads((sim / "sim" / "summary.json").read_text())["perturb"]
     assert len(perturb["per_run"]) == 5
     assert all(sum(r["finding_counts"].values()) == 0 for r in perturb["per_run"])
     assert perturb["makespan_s"]["min"] <= perturb["makespan_s"]["median"] <= perturb["makespan_s"]["max"]
+
+
+def test_without_its_guard_waits_the_plan_collides(plan4, tmp_path, capsys):
+    """The WAITs on another robot's "<robot>:<n>" events (that robot announced it left a place)
+    are what keeps the robots apart: removed, the perturbed runs find robots meeting and bodies
+    on material."""
+    bare = tmp_path / "bare"
+    shutil.copytree(plan4, bare)
+    removed = 0
+    for f in (bare / "robots").glob("*.coop"):
+        lines = []
+        for line in f.read_text().splitlines(keepends=True):
+            if line.startswith("WAIT "):
+                events = [e.strip() for e in line[5:].split(",")]
+                kept = [e for e in events if ":" not in e]  # chunk events stay: the precedences
+                removed += len(events) - len(kept)
+                if not kept:
+                    continue
+                line = "WAIT " + ", ".join(kept) + "\n"
+            lines.append(line)
+        f.write_text("".join(lines))
+    assert removed > 0
+    code = main(["simulate", str(bare), "--perturb", "0.3", "--runs", "3", "--seed", "1", "-q"])
+    capsys.readouterr()
+    assert code == 1
+    counts = json.loads((bare / "sim" / "summary.json").read_text())["perturb"]["finding_counts"]
+    assert counts["robots-collide"] > 0
 
 
 def test_more_robots_than_work_are_idle_not_an_error():
