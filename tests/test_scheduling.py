@@ -306,7 +306,8 @@ def test_grid_gaps(rows, cols, n_robots, capsys):
     assert ex.makespan <= lst.makespan + 1e-6
     assert lst.makespan / best_bound - 1 <= 0.10
     assert ex.makespan / best_bound - 1 <= 0.03
-    assert ex.gap <= 0.03
+    assert ex.gap == pytest.approx(ex.makespan / ex.lower_bound - 1)  # the gap is to LB
+    assert ex.bound_gap is not None and ex.bound_gap <= 0.03  # and to the proven bound
 
 
 def test_problem_reversal_mirrors_time():

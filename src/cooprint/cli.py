@@ -272,7 +272,7 @@ def schedule_line(sched: dict[str, Any]) -> str:
     text = (f"schedule ({sched['strategy']}): makespan estimate {sched['makespan_s'] / 3600:.2f} h, lower bound "
             f"{sched['lower_bound_s'] / 3600:.2f} h (+{100 * sched['gap']:.1f}%)")
     if sched.get("bound_s"):
-        text += f", proven bound {sched['bound_s'] / 3600:.2f} h"
+        text += f", proven bound {sched['bound_s'] / 3600:.2f} h (+{100 * (sched.get('bound_gap') or 0):.1f}%)"
     idle = sched.get("idle_robots") or []
     if idle:
         text += f"; {len(idle)} robot{'s' if len(idle) > 1 else ''} idle ({', '.join(idle[:8])}{', ...' if len(idle) > 8 else ''}): more robots than the part has room or work for"
@@ -404,10 +404,9 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         if not quiet:
             from cooprint.simulation import bound_line, findings_line
 
-            click.echo(f"simulated: makespan {sim['makespan_s'] / 3600:.2f} h, findings: "
+            bound = bound_line(sim)  # "makespan X h, lower bound Y h (+Z%)...", when job.json states a bound
+            click.echo(f"simulated: {bound or 'makespan {:.2f} h'.format(sim['makespan_s'] / 3600)}; findings: "
                        f"{findings_line(sim['finding_counts'])}; wrote {out}/sim/summary.json, gantt.png, snapshot.png")
-            if bound_line(sim):  # the scheduler's lower bound, when job.json states one
-                click.echo(f"simulated {bound_line(sim)}")
     if record is not None:
         _report_run(record, out, no_picture)
     if sim is not None:

@@ -128,13 +128,13 @@ def chunk_dag(chunks: ChunkSet, settings: JobSettings, work: dict[str, float],
     """The scheduling record of ``chunks`` (:func:`cooprint.scheduling.graph.build_dag`): the
     precedences, the body rule and the exclusions for this robot, with ``work`` (s per chunk).
 
-    Two chunks are exclusive when their robots' outlines would *overlap* (the issue's rule, a
-    clearance of 0): the margin between working robots is in the layout (the grid's lane has
-    ``clearance`` in it), and seed2's two printheads at the centre chunk's top, which touch exactly
-    at its default top width, stay parallel as the seed prints them."""
+    Two chunks are exclusive when their robots' outlines come closer than ``[program] clearance``:
+    the margin the programs keep between robots (:mod:`cooprint.program.fleet` makes a robot wait
+    wherever its outline would come nearer another's), so that the schedule knows the waits the
+    programs will have."""
     from cooprint.scheduling.graph import build_dag
 
-    return build_dag(chunks, settings.robot, 0.0, work, settings.robot.travel_speed, ends)
+    return build_dag(chunks, settings.robot, settings.program.clearance, work, settings.robot.travel_speed, ends)
 
 
 def make_schedule_for(dag: "ChunkDAG", chunks: ChunkSet, settings: JobSettings, robots: int) -> Schedule:
@@ -148,6 +148,11 @@ def make_schedule_for(dag: "ChunkDAG", chunks: ChunkSet, settings: JobSettings, 
     if strategy == "seed" and chunks.layout != "seed2":
         raise UserError(f"scheduling.strategy = seed: the seed's order is for the seed2 layout, this is "
                         f"{chunks.layout}; use list or exact")
+    if strategy == "seed":
+        # the seed's builder (program.build.robot_programs) prints L1 and R1 side by side, their
+        # printheads kept apart by the centre chunk's top width, not by a clearance: its times
+        # know no exclusion
+        dag = replace(dag, exclusive=())
     return make_schedule(dag, robot_names(robots), replace(settings.scheduling, strategy=strategy), chunks)
 
 
@@ -163,12 +168,16 @@ def choose_layout(solid: Solid, settings: JobSettings, robots: int,
     if name != "auto":
         return LAYOUTS[name](solid, settings, robots, progress)
     if robots <= 2:  # the grid's rows are seed2's: a part seed2 refuses, the grid refuses too
-        return LAYOUTS["seed2"](solid, settings, robots, progress)
+        seed2 = LAYOUTS["seed2"](solid, settings, robots, progress)
+        if robots == 1 or len(seed2.chunks) > 1:
+            return seed2
+        # seed2 leaves the second robot idle (the part fits the build depth: one chunk): the
+        # grid's columns give it work
     if settings.chunking.column_width is not None:
         return LAYOUTS["grid"](solid, settings, robots, progress)
     best: tuple[float, ChunkSet] | None = None
     first = LAYOUTS["grid"](solid, settings, robots, progress)
-    widths = [None] + [w for w in _wider_columns(first) if w]
+    widths = [None] + _other_columns(first)
     for width in widths:
         try:
             chunks = first if width is None else LAYOUTS["grid"](
@@ -184,13 +193,16 @@ def choose_layout(solid: Solid, settings: JobSettings, robots: int,
     return best[1]
 
 
-def _wider_columns(chunks: ChunkSet) -> list[float]:
-    """Wider column widths (1.5x and 2x the grid's default, half its period) for ``auto`` to weigh
-    against the default: fewer, larger columns wait less on their neighbours but share less work."""
+def _other_columns(chunks: ChunkSet) -> list[float]:
+    """Other column widths (half a period) for ``auto`` to weigh against the grid's default: the
+    narrowest the robots' lane allows (more columns: more robots at work) and 1.5x and 2x the
+    default (fewer, larger columns: less waiting on neighbours)."""
     columns = getattr(chunks.plan, "columns", None)
-    if columns is None or not np.isfinite(columns.period) or columns.count < 3:
+    if columns is None or not np.isfinite(columns.period):
         return []
-    return [0.75 * columns.period, 1.0 * columns.period]
+    narrowest = (columns.lane + columns.run) * (1 + 1e-9)
+    widths = [narrowest] if narrowest < columns.period / 2 * (1 - 1e-6) else []
+    return widths + ([0.75 * columns.period, 1.0 * columns.period] if columns.count >= 3 else [])
 
 
 def job_record(job: ChunkJob) -> dict[str, Any]:
@@ -225,7 +237,8 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
         "sync": [{"after": b, "before": a} for b, a in asg.cross_robot_deps(ch.deps)]}
     if isinstance(asg, Schedule):
         schedule |= {"makespan_s": asg.makespan, "lower_bound_s": asg.lower_bound, "gap": asg.gap,
-                     "bound_s": asg.bound, "note": asg.note, "idle_robots": list(asg.idle_robots)}
+                     "bound_s": asg.bound, "bound_gap": asg.bound_gap, "note": asg.note,
+                     "idle_robots": list(asg.idle_robots)}
     if dag is not None:
         length, path = dag.critical_path()
         schedule |= {"critical_path": list(path), "critical_path_s": length,

@@ -51,7 +51,8 @@ from typing import Callable
 import numpy as np
 
 from cooprint.chunking.cut import Chunk, ChunkSet, Piece, cut_pieces, row_pieces, split_ordered
-from cooprint.chunking.planes import MAX_CHUNKS, PLANE_EPS, ChunkPlan, Feasibility, Plane, _bound, _plan
+from cooprint.chunking.planes import (MAX_CHUNKS, PLANE_EPS, ChunkPlan, Feasibility, Plane, _bound, _plan,
+                                      safe_top_width)
 from cooprint.config import JobSettings, RobotProfile
 from cooprint.errors import InfeasibleError
 from cooprint.io.mesh import Solid
@@ -217,7 +218,13 @@ def _grid_plan(vertices: np.ndarray, settings: JobSettings, robots: int) -> tupl
     """The rule behind :func:`grid_feasibility` and :func:`plan_grid`: seed2's rows
     (:func:`cooprint.chunking.planes._plan`, the same limits and hints), then the columns
     (:func:`_columns`), at most ``MAX_CHUNKS`` chunks."""
-    record, rows = _plan(vertices, settings.robot, settings.chunking, robots)
+    chunking = settings.chunking
+    if chunking.top_width is None and robots >= 2:
+        # the centre row's top a clearance wider than seed2's: the robots printing rows L1 and R1
+        # side by side keep their printheads the programs' clearance apart (seed2's top has them
+        # touch), so those rows are not exclusive and print at the same time
+        chunking = replace(chunking, top_width=safe_top_width(settings.robot, robots) + settings.program.clearance)
+    record, rows = _plan(vertices, settings.robot, chunking, robots)
     if rows is None:
         return record, None
     columns, why, max_h, hints = _columns(vertices, rows, settings, robots)
