@@ -501,3 +501,20 @@ def test_work_from_volume_is_within_a_quarter_of_the_sliced_time(sliced_box):
     estimate = work_from_volume(cs, FAST, BIG)
     for cid in cs.ids:
         assert estimate[cid] == pytest.approx(sliced[cid], rel=0.25), cid
+
+
+def test_travel_between_sides_goes_round_the_part():
+    """A robot that changes sides drives out of the part, round its footprint box at the detour
+    distance and in: the schedulers see that cost (a straight line would cross the print)."""
+    from cooprint.scheduling.dag import ChunkDAG
+
+    box = np.array([[0.0, 0.0, 100.0, 100.0]] * 3)
+    mid = np.array([[50.0, 50.0, 0.0]] * 3)
+    facing = np.array([[0.0, 1.0], [0.0, -1.0], [0.0, 1.0]])
+    dag = ChunkDAG(("a", "b", "c"), np.ones(3), facing, mid, mid, box, {}, travel_speed=10.0, detour=50.0)
+    # a's robot backs out 100 mm to the ring (y = -50), goes half round the 200 x 200 mm ring
+    # (400 mm) and comes in 100 mm from y = 150: 600 mm at 10 mm/s
+    assert dag.travel("a", "b") == pytest.approx(60.0)
+    assert dag.travel("a", "c") == pytest.approx(0.0)  # one facing: straight (here, no way at all)
+    assert dag.travel_matrix().shape == (3, 3)
+    assert dag.travel_matrix()[1, 0] == pytest.approx(60.0)

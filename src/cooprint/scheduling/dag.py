@@ -45,6 +45,9 @@ class ChunkDAG:
         (c) Pairs never printed at the same time, each pair once, in ``ids`` order.
     travel_speed : float
         mm/s, for :meth:`travel`.
+    detour : float
+        How far outside the part's footprint a robot that changes sides drives round it (its
+        whole outline clear of the part and of the robots over it), mm: for :meth:`travel`.
     """
 
     ids: tuple[str, ...]
@@ -57,6 +60,7 @@ class ChunkDAG:
     body_deps: dict[str, tuple[str, ...]] = field(default_factory=dict)
     exclusive: tuple[tuple[str, str], ...] = ()
     travel_speed: float = 120.0
+    detour: float = 0.0
 
     def __post_init__(self) -> None:
         n = len(self.ids)
@@ -81,14 +85,38 @@ class ChunkDAG:
         return out
 
     def travel(self, a: str | None, b: str) -> float:
-        """Seconds to drive from the end of chunk ``a`` to the start of chunk ``b`` (straight,
-        at ``travel_speed``); 0 from nowhere (``a`` None: a robot starts where its first chunk
-        begins)."""
+        """Seconds to drive from the end of chunk ``a`` to the start of chunk ``b``
+        (:meth:`travel_matrix`); 0 from nowhere (``a`` None: a robot starts where its first
+        chunk begins)."""
         if a is None:
             return 0.0
         i, j = self.index[a], self.index[b]
-        return float(np.linalg.norm(self.end[i, :2] - self.start[j, :2])) / self.travel_speed
+        return float(self.travel_matrix(np.array([i]), np.array([j]))[0, 0])
 
+    def travel_matrix(self, rows: np.ndarray | None = None, cols: np.ndarray | None = None) -> np.ndarray:
+        """``[i, j]``: seconds from the end of chunk ``rows[i]`` to the start of chunk ``cols[j]``
+        (all chunks by default) at ``travel_speed``. In one facing the robot drives straight;
+        between two facings more than 60 degrees apart it changes sides: out of the part along
+        its old facing's back to a ring ``detour`` outside the part's footprint box, round the
+        box the shorter way, and in along the new facing (the program's way round, where it
+        turns clear of everything)."""
+        rows = np.arange(len(self.ids)) if rows is None else rows
+        cols = np.arange(len(self.ids)) if cols is None else cols
+        a, b = self.end[rows, :2], self.start[cols, :2]
+        straight = np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)
+        fr, fc = self.facing[rows], self.facing[cols]
+        known = (np.linalg.norm(fr, axis=1) > 0.5)[:, None] & (np.linalg.norm(fc, axis=1) > 0.5)[None, :]
+        turns = known & ((fr @ fc.T) < 0.5)  # (a facing left unknown, zero: straight)
+        if not turns.any():
+            return straight / self.travel_speed
+        lo = self.footprint[:, :2].min(axis=0) - self.detour
+        hi = self.footprint[:, 2:].max(axis=0) + self.detour
+        out_a, ring_a = _to_ring(a, -self.facing[rows], lo, hi)
+        out_b, ring_b = _to_ring(b, -self.facing[cols], lo, hi)
+        perimeter = 2 * float((hi - lo).sum())
+        along = np.abs(ring_a[:, None] - ring_b[None, :])
+        around = out_a[:, None] + np.minimum(along, perimeter - along) + out_b[None, :]
+        return np.where(turns, np.maximum(around, straight), straight) / self.travel_speed
     def topological_order(self) -> list[str]:
         """The ids in an order where every chunk follows its :meth:`preds`.
 
@@ -157,3 +185,21 @@ class ChunkDAG:
                 "deps": {c: list(self.deps.get(c, ())) for c in self.ids},
                 "body_deps": {c: list(self.body_deps.get(c, ())) for c in self.ids},
                 "exclusive": [list(p) for p in self.exclusive]}
+
+
+def _to_ring(p: np.ndarray, back: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For points ``p`` (k, 2) inside the box ``[lo, hi]`` driving along unit ``back`` (k, 2): the
+    distance to the box's edge and where they meet it, as a length along its perimeter (from
+    ``lo``, counter-clockwise)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx = np.where(back[:, 0] > 1e-9, (hi[0] - p[:, 0]) / back[:, 0],
+                      np.where(back[:, 0] < -1e-9, (lo[0] - p[:, 0]) / back[:, 0], np.inf))
+        ty = np.where(back[:, 1] > 1e-9, (hi[1] - p[:, 1]) / back[:, 1],
+                      np.where(back[:, 1] < -1e-9, (lo[1] - p[:, 1]) / back[:, 1], np.inf))
+    t = np.maximum(np.minimum(tx, ty), 0.0)
+    q = np.clip(p + t[:, None] * back, lo, hi)
+    w, h = hi - lo
+    x, y = q[:, 0] - lo[0], q[:, 1] - lo[1]
+    eps = 1e-6 * max(w, h, 1.0)
+    s = np.where(y <= eps, x, np.where(x >= w - eps, w + y, np.where(y >= h - eps, w + h + (w - x), 2 * w + h + (h - y))))
+    return t, s

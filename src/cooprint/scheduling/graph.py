@@ -402,7 +402,16 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
     exclusive = tuple((ids[a], ids[b]) for a, b in sorted(zip(ca[excl].tolist(), cb[excl].tolist())))
     return ChunkDAG(ids=ids, work=w, facing=facing, start=start, end=end, footprint=footprint, deps=deps,
                     body_deps={c: tuple(ids[x] for x in sorted(body_pred[i])) for i, c in enumerate(ids)},
-                    exclusive=exclusive, travel_speed=float(travel_speed))
+                    exclusive=exclusive, travel_speed=float(travel_speed), detour=_detour(robot, clearance))
+
+
+def _detour(robot: RobotProfile, clearance: float) -> float:
+    """How far outside the part a robot drives round it to change sides, mm: two radii of its
+    whole outline (the farthest corner from the nozzle) and the clearance, the ring where the
+    programs turn it clear of the part and of every robot over it (:mod:`cooprint.program.fleet`)."""
+    rects = np.array(list(robot.outline().values()))
+    corners = np.stack([rects[:, [0, 0, 1, 1]].ravel(), rects[:, [2, 3, 2, 3]].ravel()], axis=1)
+    return 2 * float(np.linalg.norm(corners, axis=1).max()) + clearance
 
 
 def _unprintable(ids: tuple[str, ...], preds: list[list[int]], both: list[list[int]], depth: np.ndarray,

@@ -90,8 +90,7 @@ class Problem:
                 succ[p].append(i)
         excl_sets = dag.exclusive_with()
         excl = tuple(tuple(sorted(idx[x] for x in excl_sets[c])) for c in dag.ids)
-        diff = np.asarray(dag.end, float)[:, None, :2] - np.asarray(dag.start, float)[None, :, :2]
-        travel = np.sqrt((diff ** 2).sum(axis=2)) / dag.travel_speed if n else np.zeros((0, 0))
+        travel = dag.travel_matrix() if n else np.zeros((0, 0))
         return cls(tuple(float(w) for w in dag.work), preds, tuple(tuple(s) for s in succ), excl, travel)
 
     @cached_property
