@@ -260,7 +260,7 @@ def test_a_nut_is_one_chunk_and_the_idle_robot_parks_off_it(tmp_path, capsys):
     assert b["facing"] == pytest.approx([0.0, -1.0])
     summary = json.loads((out / "sim" / "summary.json").read_text())
     assert summary["finding_counts"]["robots-collide"] == 0 and summary["finding_counts"]["body-on-material"] == 0
-    assert "robot B (right side): (idle)" in stdout
+    assert "idle (1): B" in stdout
 
 
 def test_info_states_the_number_of_chunks_that_chunk_makes(tmp_path, capsys):

@@ -296,7 +296,9 @@ def chunk(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: 
     if record is None:
         return
     for r in record["robots"]:
-        click.echo(f"  robot {r['name']}: {' -> '.join(r['chunks']) or '(idle)'}")
+        if r["chunks"]:
+            click.echo(f"  robot {r['name']}: {' -> '.join(r['chunks'])}")
+    _idle_line(record)
     click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl" + ("" if no_picture else f", {out}/chunks.png"))
 
 
@@ -413,13 +415,23 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         _judge(sim, strict, quiet, "its own simulation", Path(out) / "sim" / "summary.json")
 
 
+def _idle_line(record: dict[str, Any]) -> None:
+    """One line for the robots with no chunk (parked off the part all along), if any."""
+    idle = [r["name"] for r in record["robots"] if not r["chunks"]]
+    if idle:
+        click.echo(f"  idle ({len(idle)}): {', '.join(idle)}")
+
+
 def _report_run(record: dict[str, Any], out: str, no_picture: bool) -> None:
     """The lines ``cooprint run`` prints about the plan it wrote."""
     for r in record["robots"]:
+        if not r["chunks"]:
+            continue
         st = r["stats"]
         click.echo(f"  robot {r['name']} ({'both sides' if r['side'] == 'both' else r['side'] + ' side'}): {' -> '.join(r['chunks']) or '(idle)'}; "
                    f"{st['commands']:,} commands, {st['print_mm'] / 1000:.1f} m printed, "
                    f"{st['volume_mm3'] / 1000:.1f} cm3, {st['wait']} WAIT, {st['notify']} NOTIFY")
+    _idle_line(record)
     click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl, {out}/robots/*.coop, {out}/robots/*.gcode"
                + ("" if no_picture else f", {out}/chunks.png"))
 

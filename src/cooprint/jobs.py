@@ -109,6 +109,9 @@ def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, rob
         raise UserError(f"--robots {robots}: expected 1 to {MAX_ROBOTS}")
     cut_progress = (lambda d, t: progress("cut", d, t)) if progress else None
     chunks = choose_layout(solid, settings, robots, cut_progress)
+    if chunks.layout == "seed2" and settings.chunking.column_width is not None:
+        warn(f"chunking.column_width = {settings.chunking.column_width:g} mm is for the grid layout; the seed2 "
+             "layout has no columns (--layout grid uses it)")
     if chunks.layout == "seed2":
         safe = safe_top_width(settings.robot, robots)
         if chunks.plan.mode == "cut" and chunks.plan.top_width < safe:
@@ -172,7 +175,12 @@ def choose_layout(solid: Solid, settings: JobSettings, robots: int,
         if robots == 1 or len(seed2.chunks) > 1:
             return seed2
         # seed2 leaves the second robot idle (the part fits the build depth: one chunk): the
-        # grid's columns give it work
+        # grid's columns give it work, if the part is long enough for two
+        try:
+            grid = LAYOUTS["grid"](solid, settings, robots, None)
+        except UserError:
+            return seed2
+        return grid if len(grid.chunks) > 1 else seed2
     if settings.chunking.column_width is not None:
         return LAYOUTS["grid"](solid, settings, robots, progress)
     best: tuple[float, ChunkSet] | None = None

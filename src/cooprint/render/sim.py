@@ -333,25 +333,38 @@ def _upper_parts(result: SimResult, r, nozzle: np.ndarray, t: float) -> list[np.
 
 
 def _overlay(draw: ImageDraw.ImageDraw, scene: _Scene, t: float, size: tuple[int, int]) -> None:
-    """Clock and per-robot progress bars at the top."""
+    """Clock and per-robot progress bars at the top: name, bar and state for up to three robots
+    side by side; for more, every robot still gets a cell (name and bar, the bar grey while it
+    waits), in rows of as many as fit."""
     result = scene.result
-    font = _font(18)
     span = max(result.makespan, 1e-9)
     draw.text((20, 15), f"t = {_hms(t)} / {_hms(span)}", fill=(20, 20, 20), font=_font(22))
-    x = 320
+    states = []
     for i, r in enumerate(result.robots):
         tl = result.timelines[r.name]
         done, total = scene.printed(r.name, t)
-        total = total or 1.0
-        draw.text((x, 12), f"robot {r.name}", fill=_colour(i), font=font)
-        draw.rectangle([x, 40, x + 160, 54], outline=(90, 90, 90))
-        draw.rectangle([x, 40, x + int(160 * done / total), 54], fill=_colour(i))
         waiting = any(a <= t < b for a, b, _ in tl.waits)
-        label = "waiting" if waiting else ("done" if t >= tl.end else f"{100 * done / total:.0f}% printed")
-        draw.text((x + 170, 38), label, fill=(60, 60, 60), font=_font(14))
-        x += 300
-        if x > size[0] - 200:
-            break
+        states.append((i, r.name, done / (total or 1.0), waiting, t >= tl.end))
+    x0 = 320
+    if len(states) * 300 <= size[0] - x0 + 100:
+        font = _font(18)
+        for k, (i, name, frac, waiting, finished) in enumerate(states):
+            x = x0 + 300 * k
+            draw.text((x, 12), f"robot {name}", fill=_colour(i), font=font)
+            draw.rectangle([x, 40, x + 160, 54], outline=(90, 90, 90))
+            draw.rectangle([x, 40, x + int(160 * frac), 54], fill=_colour(i))
+            label = "waiting" if waiting else ("done" if finished else f"{100 * frac:.0f}% printed")
+            draw.text((x + 170, 38), label, fill=(60, 60, 60), font=_font(14))
+        return
+    cell = 90
+    per_row = max(1, (size[0] - x0 - 20) // cell)
+    font = _font(12)
+    for k, (i, name, frac, waiting, finished) in enumerate(states):
+        x, y = x0 + cell * (k % per_row), 8 + 26 * (k // per_row)
+        draw.text((x, y), name, fill=_colour(i), font=font)
+        bar = (150, 150, 150) if waiting else _colour(i)
+        draw.rectangle([x + 30, y + 3, x + cell - 8, y + 13], outline=(90, 90, 90))
+        draw.rectangle([x + 30, y + 3, x + 30 + int((cell - 38) * frac), y + 13], fill=bar)
 
 
 #: Gantt rows: the pitch (pixels from one robot's row to the next) for few robots, the least for
