@@ -74,7 +74,37 @@ def simulation_figures() -> None:
         render_gantt(result, IMG / "sim_gantt.png")
 
 
+def fleet_figures() -> None:
+    """A 1500 x 800 x 20 mm slab planned for six robots on the grid (docs/fleet.md): the chunks
+    by robot and order, and the Gantt chart with the critical path and the lower bound; a 2 mm
+    nozzle (a coarse print, so that it plans in seconds)."""
+    import shutil
+    import tempfile
+
+    import manifold3d as m3d
+    import numpy as np
+
+    from cooprint.jobs import run
+    from cooprint.render.sim import render_gantt
+    from cooprint.simulation import load_inputs, simulate
+
+    mesh = m3d.Manifold.cube((1500.0, 800.0, 20.0), center=True).translate((0, 0, 10)).to_mesh64()
+    slab = solid_from_arrays(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts), path="<slab>",
+                             fmt="generated")
+    coarse = {"slicing.nozzle_diameter": 2.0, "slicing.layer_height": 1.6, "slicing.first_layer_height": 1.6,
+              "slicing.extrusion_width": 3.0, "slicing.infill_density": 0.05, "slicing.perimeters": 1,
+              "slicing.top_layers": 1, "slicing.bottom_layers": 1, "chunking.layout": "grid"}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "job"
+        run(slab, out, overrides=coarse, robots=6)
+        shutil.copy(out / "chunks.png", IMG / "fleet_chunks.png")
+        inp = load_inputs([str(out)])
+        result = simulate(inp, checks=False)
+        render_gantt(result, IMG / "fleet_gantt.png", critical=inp.critical_path, lower_bound=inp.lower_bound)
+
+
 if __name__ == "__main__":
     main()
     slicer_figures()
     simulation_figures()
+    fleet_figures()
