@@ -39,6 +39,8 @@ def robot_names(n: int) -> tuple[str, ...]:
 
 #: The most robots a fleet may have (``--robots``).
 MAX_ROBOTS = 64
+#: Up to this many robots, :func:`_fleet_plan` tries every smaller fleet too.
+FLEET_TRIALS = 9
 
 
 @dataclass(frozen=True)
@@ -463,15 +465,58 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
             body=BodySize(settings.robot.build_depth, settings.robot.body_length, settings.robot.body_width,
                           settings.robot.frame_width))  # None: as wide as the body
     else:
-        from cooprint.program.fleet import fleet_programs
-
-        assert isinstance(chunked.assignment, Schedule) and chunked.dag is not None
-        programs, placements = fleet_programs(chunked.assignment, chunked.dag, layers, material,
-                                              {r: settings.robot for r in chunked.assignment.sequences},
-                                              settings.program.clearance)
+        chunked, programs, placements = _fleet_plan(chunked, layers, material, robots)
     if progress:
         progress("program", 1, 1)
     return CoopJob(chunked, layers, programs, placements)
+
+
+def _fleet_plan(chunked: ChunkJob, layers: dict[str, list], material: Any,
+                robots: int) -> tuple[ChunkJob, dict[str, Any], dict[str, Any]]:
+    """The programs of an N-robot schedule (:func:`cooprint.program.fleet.fleet_programs`), the
+    fastest of a few: the schedule for all ``robots`` and for fewer of them (the rest idle), each
+    made into programs and timed at constant speed as the simulator times them.
+
+    The scheduler cannot see every wait its programs will have (a robot's way to its next chunk
+    past robots at work, a finished robot's way out): with more robots those waits can cost more
+    than the extra robot gives, and then fewer robots finish sooner. Choosing by the programs'
+    own makespan means more robots are never slower than fewer (up to ``FLEET_TRIALS`` robots every
+    smaller fleet is tried; above, N - 1, 3N/4, N/2, N/3 and N/4)."""
+    from cooprint.program.fleet import fleet_programs
+
+    settings = chunked.settings
+    assert chunked.dag is not None
+    few = range(2, robots + 1) if robots <= FLEET_TRIALS else \
+        (robots, robots - 1, -(-3 * robots // 4), -(-robots // 2), -(-robots // 3), -(-robots // 4))
+    counts = sorted({n for n in few if n >= 2}, reverse=True)
+    if robots <= 2 or chunked.assignment.strategy == "exact":
+        counts = [robots]  # an exact schedule is the one asked for
+    names = robot_names(robots)
+    best: tuple[float, ChunkJob, dict[str, Any], dict[str, Any]] | None = None
+    for n in counts:
+        sched = chunked.assignment if n == robots else make_schedule_for(chunked.dag, chunked.chunks, settings, n)
+        assert isinstance(sched, Schedule)
+        if n < robots:  # the same schedule, with the robots it leaves out idle (LB is the fleet's)
+            sched = replace(sched, sequences={r: sched.sequences.get(r, ()) for r in names},
+                            lower_bound=chunked.dag.lower_bound(robots))
+        programs, placements = fleet_programs(sched, chunked.dag, layers, material,
+                                              {r: settings.robot for r in names}, settings.program.clearance)
+        span = _programs_makespan(programs, placements, settings)
+        if best is None or span < best[0] * (1 - 1e-6):
+            best = (span, replace(chunked, assignment=sched), programs, placements)
+    assert best is not None
+    return best[1], best[2], best[3]
+
+
+def _programs_makespan(programs: dict[str, Any], placements: dict[str, Any], settings: JobSettings) -> float:
+    """When the last of ``programs`` ends, s, timed as ``cooprint simulate`` times a bundle at
+    constant speed (every robot at its profile's speeds, WAITs on NOTIFYs)."""
+    from cooprint.simulation.timeline import SimRobot, schedule
+
+    robots = [SimRobot(r, p, np.asarray(placements[r].start, float), np.asarray(placements[r].facing, float),
+                       profile=settings.robot) for r, p in programs.items()]
+    timelines, _ = schedule(robots, settings.robot.print_speed, settings.robot.travel_speed)
+    return max((tl.end for tl in timelines.values()), default=0.0)
 
 
 def _rescheduled(chunked: ChunkJob, layers: dict[str, list], robots: int) -> ChunkJob:
