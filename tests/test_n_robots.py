@@ -182,3 +182,20 @@ def test_any_layout_size_fleet_and_outline_gives_a_valid_schedule(x, y, z, robot
     assert sched.makespan >= job.dag.lower_bound(robots) - 1e-6
     assert sorted(c for seq in sched.sequences.values() for c in seq) == sorted(job.chunks.ids)
     assert len(sched.sequences) == robots
+
+
+def test_more_robots_are_never_slower_than_fewer():
+    """`run` writes the programs of the fastest fleet up to N (the robots it leaves out idle), so
+    six robots never finish after three on the same part (a stranger found them slower before)."""
+    from cooprint.jobs import _programs_makespan
+
+    spans = {}
+    for n in (3, 6):
+        job = coop_job(as_solid(solids.plate(), "slab"), load_settings(overrides={**BIG, "chunking.layout": "grid"}),
+                       robots=n)
+        spans[n] = _programs_makespan(job.programs, job.placements, job.chunked.settings)
+        assert len(job.programs) == n
+        busy = [r for r, seq in job.chunked.assignment.sequences.items() if seq]
+        assert 2 <= len(busy) <= n
+        assert job.chunked.assignment.lower_bound == pytest.approx(job.chunked.dag.lower_bound(n))
+    assert spans[6] <= spans[3] * (1 + 1e-9)
