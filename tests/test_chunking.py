@@ -10,7 +10,7 @@ from cooprint.chunking.cut import SNAP
 from cooprint.config import ChunkingSettings, RobotProfile
 from cooprint.errors import InfeasibleError
 from cooprint.io.mesh import solid_from_trimesh
-from cooprint.scheduling import assign
+from cooprint.scheduling import seed_two_robots
 
 from solids import box, car, lying_tube, thin_walls, to_trimesh, tube
 
@@ -99,10 +99,10 @@ def test_dependencies_and_seed_assignment():
     _, cs = chunked(box(40, 300, 30), theta_deg=60.0, shift=50.0)
     assert cs.deps == {"C": (), "L1": ("C",), "L2": ("L1",), "L3": ("L2",),
                        "R1": ("C",), "R2": ("R1",), "R3": ("R2",)}
-    a = assign(cs, ["A", "B"])
+    a = seed_two_robots(cs, ["A", "B"])
     assert a.sequences == {"A": ("C", "L1", "L2", "L3"), "B": ("R1", "R2", "R3")}  # seed eq. (6)-(7)
     assert a.cross_robot_deps(cs.deps) == [("C", "R1")]  # the seed's single NOTIFY
-    one = assign(cs, ["A"])
+    one = seed_two_robots(cs, ["A"])
     assert one.sequences["A"][0] == "C" and len(one.sequences["A"]) == 7
 
 

@@ -7,12 +7,12 @@ scheduling, :mod:`.listsched`; ``exact``: OR-Tools CP-SAT, :mod:`.exact`);
 order (``seed2``) is the special case kept for the seed2 layout (:func:`seed_schedule`).
 """
 
-from cooprint.scheduling.assign import STRATEGIES, Assignment, assign, seed_two_robots
+from cooprint.scheduling.assign import Assignment, seed_two_robots
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.scheduling.exact import exact_schedule
 from cooprint.scheduling.listsched import list_schedule, seed_schedule, timed
 from cooprint.scheduling.schedule import Schedule, check_schedule
 from cooprint.scheduling.schedulers import SCHEDULERS, make_schedule
 
-__all__ = ["SCHEDULERS", "STRATEGIES", "Assignment", "ChunkDAG", "Schedule", "assign", "check_schedule",
+__all__ = ["SCHEDULERS", "Assignment", "ChunkDAG", "Schedule", "check_schedule",
            "exact_schedule", "list_schedule", "make_schedule", "seed_schedule", "seed_two_robots", "timed"]

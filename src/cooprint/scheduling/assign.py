@@ -1,9 +1,10 @@
-"""Chunk assignment strategies."""
+"""The ordered chunk lists per robot (:class:`Assignment`, which :class:`~cooprint.scheduling.Schedule`
+extends with times) and the seed's two-robot order."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Sequence
 
 from cooprint.chunking import ChunkSet
 from cooprint.errors import ConfigError
@@ -41,9 +42,6 @@ class Assignment:
                 if self.robot_of(d) != self.robot_of(cid)]
 
 
-Strategy = Callable[[ChunkSet, Sequence[str]], Assignment]
-
-
 def seed_two_robots(chunks: ChunkSet, robots: Sequence[str] = ("A", "B")) -> Assignment:
     """Seed eq. (6)-(7): robot A prints the centre chunk then the left chunks outwards,
     robot B the right chunks outwards (one robot: all of them, centre, left, then right)."""
@@ -56,23 +54,3 @@ def seed_two_robots(chunks: ChunkSet, robots: Sequence[str] = ("A", "B")) -> Ass
     if len(robots) != 2:
         raise ConfigError(f"robots = {len(robots)}: the seed strategy schedules 1 or 2 robots")
     return Assignment({robots[0]: tuple(centre + left), robots[1]: tuple(right)}, "seed2")
-
-
-STRATEGIES: dict[str, Strategy] = {"seed2": seed_two_robots}
-
-
-def assign(chunks: ChunkSet, robots: Sequence[str], strategy: str = "seed2") -> Assignment:
-    """Assign and order chunks with a named strategy, and check the result against the
-    dependency graph (every chunk once; a robot never prints a chunk before one of its own
-    chunks that it depends on)."""
-    if strategy not in STRATEGIES:
-        raise ConfigError(f"strategy = {strategy!r}: expected one of {', '.join(STRATEGIES)}")
-    result = STRATEGIES[strategy](chunks, robots)
-    placed = [c for seq in result.sequences.values() for c in seq]
-    if sorted(placed) != sorted(chunks.ids):
-        raise AssertionError(f"strategy {strategy} placed {placed}, chunks are {chunks.ids}")
-    for cid, ds in chunks.deps.items():
-        for d in ds:
-            if result.robot_of(d) == result.robot_of(cid) and result.order_of(d) > result.order_of(cid):
-                raise AssertionError(f"strategy {strategy} orders {cid} before its dependency {d}")
-    return result
