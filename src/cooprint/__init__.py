@@ -2,8 +2,10 @@
 
 Pipeline (one package per stage, data flowing one way)::
 
-    mesh --io.load_mesh--> Solid --chunking.cut_chunks--> ChunkSet --scheduling.assign--> Assignment
-         --slicing.iter_layers (each chunk)--> layers --program.build--> Program per robot
+    mesh --io.load_mesh--> Solid --chunking.LAYOUTS (seed2 | grid)--> ChunkSet
+         --slicing.iter_layers (each chunk)--> layers
+         --scheduling.graph.build_dag--> ChunkDAG --scheduling.SCHEDULERS (list | exact | seed)--> Schedule
+         --program.fleet (program.build for the seed's order)--> Program per robot
          --program.commands / program.gcode--> robots/<name>.coop, robots/<name>.gcode
 
 The public API is re-exported here; :func:`run` is the whole pipeline (``cooprint run``).
