@@ -392,3 +392,16 @@ def test_progress_counts_every_piece():
     solid = solid_of(box(2000, 600, 150))
     cs = LAYOUTS["grid"](solid, job(), 4, lambda done, total: calls.append((done, total)))
     assert calls[-1] == (len(cs.chunks), len(cs.chunks)) and [d for d, _ in calls] == list(range(1, len(calls) + 1))
+
+
+def test_centre_row_top_is_a_clearance_wider_where_the_part_allows_it():
+    """Two or more robots: the centre row's top is 2 nozzle_depth + clearance wide (rows L1 and
+    R1 keep their printheads a clearance apart); a part too tall for that keeps seed2's
+    2 nozzle_depth (nefertiti, 494.6 mm, was refused by the grid before)."""
+    settings = JobSettings()
+    low = solid_from_trimesh(to_trimesh(box(800.0, 600.0, 200.0)), path="<low>")
+    tall = solid_from_trimesh(to_trimesh(box(800.0, 600.0, 495.0)), path="<tall>")
+    nd, clearance = settings.robot.nozzle_depth, settings.program.clearance
+    assert plan_grid(low.vertices, settings, 4).top_width == pytest.approx(2 * nd + clearance)
+    assert plan_grid(tall.vertices, settings, 4).top_width == pytest.approx(2 * nd)
+    assert plan_grid(low.vertices, settings, 1).top_width == 0.0

@@ -315,3 +315,23 @@ def test_problem_reversal_mirrors_time():
     r = p.reversed
     assert r.preds == p.succ and r.succ == p.preds
     assert np.array_equal(r.travel, p.travel.T)
+
+
+def test_of_equal_makespans_the_list_scheduler_keeps_the_one_that_drives_least():
+    """Many schedules reach the lower bound; the one kept drives least (robots near their work,
+    where their programs' ways cross least: a wall's robots sent end to end waited 57 h)."""
+    from dataclasses import replace as dc_replace
+
+    from cooprint.scheduling.listsched import Problem, Timing, _better, _driving, best_timing
+
+    dag = dc_replace(grid_dag(1, 8), work=np.full(8, 1000.0))  # a wall: 4 even, then 4 odd columns
+    p = Problem.of(dag)
+    t = best_timing(p, 4)
+    assert t.makespan == pytest.approx(2000.0 + max(p.travel[a, b] for seq in t.seqs for a, b in zip(seq, seq[1:])))
+    for seq in t.seqs:
+        for a, b in zip(seq, seq[1:]):  # each robot's odd column is next to its even one
+            assert abs(a - b) == 1, t.seqs
+    near = Timing([[0, 1], [2, 3]], [0.0] * 4, [1.0] * 4)
+    far = Timing([[0, 3], [2, 1]], [0.0] * 4, [1.0] * 4)
+    assert _driving(p, near) < _driving(p, far)
+    assert _better(p, near, far) and not _better(p, far, near)

@@ -218,13 +218,17 @@ def _grid_plan(vertices: np.ndarray, settings: JobSettings, robots: int) -> tupl
     """The rule behind :func:`grid_feasibility` and :func:`plan_grid`: seed2's rows
     (:func:`cooprint.chunking.planes._plan`, the same limits and hints), then the columns
     (:func:`_columns`), at most ``MAX_CHUNKS`` chunks."""
-    chunking = settings.chunking
-    if chunking.top_width is None and robots >= 2:
-        # the centre row's top a clearance wider than seed2's: the robots printing rows L1 and R1
-        # side by side keep their printheads the programs' clearance apart (seed2's top has them
-        # touch), so those rows are not exclusive and print at the same time
-        chunking = replace(chunking, top_width=safe_top_width(settings.robot, robots) + settings.program.clearance)
-    record, rows = _plan(vertices, settings.robot, chunking, robots)
+    record, rows = _plan(vertices, settings.robot, settings.chunking, robots)
+    if rows is not None and settings.chunking.top_width is None and robots >= 2:
+        # the centre row's top a clearance wider than seed2's where the part allows it: the
+        # robots printing rows L1 and R1 side by side keep their printheads the programs'
+        # clearance apart (seed2's top has them touch), so those rows are not exclusive and print
+        # at the same time; a part too tall for that keeps seed2's top (L1 and R1 then take turns
+        # where they meet: the exclusions say where)
+        wider = replace(settings.chunking, top_width=safe_top_width(settings.robot, robots) + settings.program.clearance)
+        record_w, rows_w = _plan(vertices, settings.robot, wider, robots)
+        if rows_w is not None:
+            record, rows = record_w, rows_w
     if rows is None:
         return record, None
     columns, why, max_h, hints = _columns(vertices, rows, settings, robots)
