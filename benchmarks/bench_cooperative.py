@@ -102,8 +102,8 @@ def sim_input(job: Any, folder: Path) -> Any:
     bundle (each robot placed and profiled, the chunk dependencies), with the chunk meshes
     written to ``folder`` for the outside-part check (the programs are not written)."""
     from cooprint.io.bundle import write_stl
+    from cooprint.jobs import sim_robots
     from cooprint.simulation import SimInput
-    from cooprint.simulation.timeline import SimRobot
 
     s = job.chunked.settings
     folder.mkdir(parents=True, exist_ok=True)
@@ -111,9 +111,7 @@ def sim_input(job: Any, folder: Path) -> Any:
     for c in job.chunked.chunks.chunks:
         files[c.id] = folder / f"{c.id}.stl"
         write_stl(files[c.id], c.vertices, c.faces, name=c.id)
-    robots = [SimRobot(name, prog, np.asarray(job.placements[name].start, float),
-                       np.asarray(job.placements[name].facing, float), profile=s.robot)
-              for name, prog in job.programs.items()]
+    robots = sim_robots(job.programs, job.placements, s)
     dag = job.chunked.dag
     return SimInput(robots, s.robot, s.slicing, "<bench>", deps={c: dag.preds(c) for c in dag.ids},
                     chunk_files=files,

@@ -223,6 +223,7 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
     rows = []
     axis = np.asarray(ch.plan.axis)
     dag = job.dag
+    excl = dag.exclusive_with() if dag is not None else {}
     for c in ch.chunks:
         lo, hi = c.bounds
         row: dict[str, Any] = {
@@ -235,7 +236,6 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
             "planes": [p.to_dict() for p in c.planes], "file": f"chunks/{c.id}.stl",
         }
         if dag is not None:
-            excl = dag.exclusive_with()
             row |= {"body_deps": list(dag.body_deps.get(c.id, ())), "exclusive": sorted(excl[c.id]),
                     "work_s": float(dag.work[dag.index[c.id]])}
         if isinstance(asg, Schedule):
@@ -246,9 +246,7 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
         "strategy": asg.strategy, "sequences": {r: list(s) for r, s in asg.sequences.items()},
         "sync": [{"after": b, "before": a} for b, a in asg.cross_robot_deps(ch.deps)]}
     if isinstance(asg, Schedule):
-        schedule |= {"makespan_s": asg.makespan, "lower_bound_s": asg.lower_bound, "gap": asg.gap,
-                     "bound_s": asg.bound, "bound_gap": asg.bound_gap, "note": asg.note,
-                     "idle_robots": list(asg.idle_robots)}
+        schedule |= asg.to_dict()
     if dag is not None:
         length, path = dag.critical_path()
         schedule |= {"critical_path": list(path), "critical_path_s": length,
@@ -508,26 +506,35 @@ def _fleet_plan(chunked: ChunkJob, layers: dict[str, list], material: Any,
     return best[1], best[2], best[3]
 
 
+def sim_robots(programs: dict[str, Any], placements: dict[str, Any], settings: JobSettings) -> list[Any]:
+    """The simulator's robots of a plan in memory, as :func:`cooprint.simulation.load_inputs`
+    reads them from its bundle: each program at its placement's start and facing, in the job's
+    robot profile."""
+    from cooprint.simulation.timeline import SimRobot
+
+    return [SimRobot(r, p, np.asarray(placements[r].start, float), np.asarray(placements[r].facing, float),
+                     profile=settings.robot) for r, p in programs.items()]
+
+
 def _programs_makespan(programs: dict[str, Any], placements: dict[str, Any], settings: JobSettings) -> float:
     """When the last of ``programs`` ends, s, timed as ``cooprint simulate`` times a bundle at
     constant speed (every robot at its profile's speeds, WAITs on NOTIFYs)."""
-    from cooprint.simulation.timeline import SimRobot, schedule
+    from cooprint.simulation.timeline import schedule
 
-    robots = [SimRobot(r, p, np.asarray(placements[r].start, float), np.asarray(placements[r].facing, float),
-                       profile=settings.robot) for r, p in programs.items()]
-    timelines, _ = schedule(robots, settings.robot.print_speed, settings.robot.travel_speed)
+    timelines, _ = schedule(sim_robots(programs, placements, settings), settings.robot.print_speed,
+                            settings.robot.travel_speed)
     return max((tl.end for tl in timelines.values()), default=0.0)
 
 
 def _rescheduled(chunked: ChunkJob, layers: dict[str, list], robots: int) -> ChunkJob:
     """The job scheduled again with each chunk's work timed from its sliced paths (the volume
     estimate of :func:`chunk_job` was for the choice of layout) and its real first and last
-    points (for the travel between chunks)."""
-    from cooprint.scheduling.graph import ends_from_layers, work_from_layers
+    points (for the travel between chunks); the DAG's constraints (geometry) are kept."""
+    from cooprint.scheduling.graph import ends_from_layers, retimed, work_from_layers
 
     settings = chunked.settings
-    dag = chunk_dag(chunked.chunks, settings, work_from_layers(layers, settings.robot, settings.slicing),
-                    ends_from_layers(layers))
+    assert chunked.dag is not None
+    dag = retimed(chunked.dag, work_from_layers(layers, settings.robot, settings.slicing), ends_from_layers(layers))
     return replace(chunked, dag=dag, assignment=make_schedule_for(dag, chunked.chunks, settings, robots))
 
 

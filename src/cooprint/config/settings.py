@@ -106,6 +106,12 @@ class RobotProfile:
         return outline_rects(self.build_depth, self.body_length, self.body_width, self.resolved_frame_width,
                              self.nozzle_depth)
 
+    def outline_radius(self) -> float:
+        """How far the outline reaches from the nozzle, mm: its farthest corner (a robot turning
+        about its nozzle sweeps the disc of this radius)."""
+        return max(math.hypot(u, v) for u_lo, u_hi, v_lo, v_hi in self.outline().values()
+                   for u in (u_lo, u_hi) for v in (v_lo, v_hi))
+
 
 def outline_rects(build_depth: float, body_length: float, body_width: float, frame_width: float,
                   nozzle_depth: float) -> dict[str, tuple[float, float, float, float]]:

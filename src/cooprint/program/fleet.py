@@ -60,7 +60,7 @@ from typing import Mapping
 
 import numpy as np
 
-from cooprint.config import RobotProfile, outline_rects
+from cooprint.config import RobotProfile
 from cooprint.errors import InfeasibleError
 from cooprint.geometry import unit_xy
 from cooprint.program.build import MaterialIndex, RobotPlacement, facing_deg, layer_program
@@ -124,11 +124,8 @@ class Body:
 
     @staticmethod
     def of(p: RobotProfile) -> "Body":
-        rects = np.array(list(outline_rects(p.build_depth, p.body_length, p.body_width, p.resolved_frame_width,
-                                            p.nozzle_depth).values()))
-        corners = np.stack(np.meshgrid([0, 1], [2, 3]), -1).reshape(-1, 2)
-        radius = float(max(math.hypot(r[i], r[j]) for r in rects for i, j in corners))
-        return Body(rects, radius, p.nozzle_depth, p.build_depth, p.print_speed, p.travel_speed)
+        return Body(np.array(list(p.outline().values())), p.outline_radius(), p.nozzle_depth, p.build_depth,
+                    p.print_speed, p.travel_speed)
 
     def parts(self, nozzle: np.ndarray, facing: np.ndarray) -> np.ndarray:
         """(3, NDIR) the parts' supports over the nozzle positions ``nozzle`` (k, 2) (their hull)."""

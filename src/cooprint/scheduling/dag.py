@@ -18,6 +18,7 @@ from the end of chunk i to the start of chunk j costs :meth:`ChunkDAG.travel` (s
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 import numpy as np
 
 
@@ -68,8 +69,9 @@ class ChunkDAG:
             if len(getattr(self, name)) != n:
                 raise ValueError(f"ChunkDAG.{name} has {len(getattr(self, name))} rows for {n} chunks")
 
-    @property
+    @cached_property
     def index(self) -> dict[str, int]:
+        """``{chunk id: its row in the arrays}`` (made once)."""
         return {c: i for i, c in enumerate(self.ids)}
 
     def preds(self, cid: str) -> tuple[str, ...]:

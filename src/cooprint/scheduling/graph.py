@@ -29,6 +29,7 @@ profile's ``print_speed`` on every depositing move, ``travel_speed`` on the othe
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -312,6 +313,36 @@ def _outer_base_middle(box: np.ndarray, facing: np.ndarray, z: float) -> np.ndar
     return np.r_[centre - t * facing, z]
 
 
+def _work_array(ids: tuple[str, ...], work: Mapping[str, float]) -> np.ndarray:
+    """(n,) each chunk's work, s, checked (given and finite), at least :data:`MIN_WORK`."""
+    missing = [c for c in ids if c not in work]
+    if missing:
+        raise ValueError(f"build_dag: no work given for chunk {missing[0]}")
+    w = np.array([float(work[c]) for c in ids])
+    if not np.isfinite(w).all():
+        raise ValueError(f"build_dag: work of chunk {ids[int(np.flatnonzero(~np.isfinite(w))[0])]} is not finite")
+    return np.maximum(w, MIN_WORK)
+
+
+def _put_ends(ids: tuple[str, ...], start: np.ndarray, end: np.ndarray,
+              ends: Mapping[str, tuple[np.ndarray, np.ndarray]] | None) -> None:
+    """Write the printed first and last points of ``ends`` into ``start``/``end`` (rows of
+    ``ids``); chunks not in it keep theirs."""
+    for i, c in enumerate(ids):
+        if ends is not None and c in ends:
+            start[i], end[i] = (np.asarray(p, dtype=np.float64)[:3] for p in ends[c])
+
+
+def retimed(dag: ChunkDAG, work: Mapping[str, float],
+            ends: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> ChunkDAG:
+    """``dag`` with new work (and printed ends), its constraints kept: (a), (b) and (c) are
+    geometry and do not depend on the work, so the chunks' sweeps are not made again (what
+    :func:`build_dag` would give for the same chunks with this work and these ends)."""
+    start, end = dag.start.copy(), dag.end.copy()
+    _put_ends(dag.ids, start, end, ends)
+    return replace(dag, work=_work_array(dag.ids, work), start=start, end=end)
+
+
 def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Mapping[str, float],
               travel_speed: float, ends: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> ChunkDAG:
     """The :class:`ChunkDAG` of ``chunks`` for robots of profile ``robot``.
@@ -341,13 +372,7 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
     ids = tuple(c.id for c in chunks.chunks)
     n = len(ids)
     index = {c: i for i, c in enumerate(ids)}
-    missing = [c for c in ids if c not in work]
-    if missing:
-        raise ValueError(f"build_dag: no work given for chunk {missing[0]}")
-    w = np.array([float(work[c]) for c in ids])
-    if not np.isfinite(w).all():
-        raise ValueError(f"build_dag: work of chunk {ids[int(np.flatnonzero(~np.isfinite(w))[0])]} is not finite")
-    w = np.maximum(w, MIN_WORK)
+    w = _work_array(ids, work)
     axis = unit_xy(chunks.plan.axis)
     facing = np.array([axis if c.facing is None else unit_xy(c.facing) for c in chunks.chunks]).reshape(n, 2)
     hulls = [convex_hull(c.vertices[:, :2]) for c in chunks.chunks]
@@ -355,10 +380,8 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
                           for c in chunks.chunks]).reshape(n, 4)
     start, end = np.empty((n, 3)), np.empty((n, 3))
     for i, c in enumerate(chunks.chunks):
-        if ends is not None and c.id in ends:
-            start[i], end[i] = (np.asarray(p, dtype=np.float64)[:3] for p in ends[c.id])
-        else:
-            start[i] = end[i] = _outer_base_middle(footprint[i], facing[i], float(c.vertices[:, 2].min()))
+        start[i] = end[i] = _outer_base_middle(footprint[i], facing[i], float(c.vertices[:, 2].min()))
+    _put_ends(ids, start, end, ends)
 
     deps = {c: tuple(chunks.deps.get(c, ())) for c in ids}
     preds = [[index[d] for d in deps[c]] for c in ids]
@@ -409,9 +432,7 @@ def _detour(robot: RobotProfile, clearance: float) -> float:
     """How far outside the part a robot drives round it to change sides, mm: two radii of its
     whole outline (the farthest corner from the nozzle) and the clearance, the ring where the
     programs turn it clear of the part and of every robot over it (:mod:`cooprint.program.fleet`)."""
-    rects = np.array(list(robot.outline().values()))
-    corners = np.stack([rects[:, [0, 0, 1, 1]].ravel(), rects[:, [2, 3, 2, 3]].ravel()], axis=1)
-    return 2 * float(np.linalg.norm(corners, axis=1).max()) + clearance
+    return 2 * robot.outline_radius() + clearance
 
 
 def _unprintable(ids: tuple[str, ...], preds: list[list[int]], both: list[list[int]], depth: np.ndarray,

@@ -56,10 +56,12 @@ class Schedule(Assignment):
         return tuple(r for r, seq in self.sequences.items() if not seq)
 
     def to_dict(self) -> dict[str, object]:
-        return {"strategy": self.strategy, "makespan_s": self.makespan, "lower_bound_s": self.lower_bound,
-                "gap": self.gap, "bound_s": self.bound, "bound_gap": self.bound_gap, "note": self.note,
-                "sequences": {r: list(s) for r, s in self.sequences.items()},
-                "times": {c: [self.start[c], self.end[c]] for c in self.start}}
+        """job.json's ``schedule`` numbers (each chunk's times go in its own row, ``start_s`` and
+        ``end_s``)."""
+        return {"strategy": self.strategy, "sequences": {r: list(s) for r, s in self.sequences.items()},
+                "makespan_s": self.makespan, "lower_bound_s": self.lower_bound, "gap": self.gap,
+                "bound_s": self.bound, "bound_gap": self.bound_gap, "note": self.note,
+                "idle_robots": list(self.idle_robots)}
 
 
 def check_schedule(dag: ChunkDAG, sched: Schedule) -> None:
