@@ -428,12 +428,12 @@ class CoopJob:
 
 
 def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robots: int = 2,
-             progress: Progress | None = None) -> CoopJob:
+             progress: Progress | None = None, executor: Any = None) -> CoopJob:
     """Chunk, assign, slice every chunk in the object's layer grid, and make each robot's
-    command stream (transitions, NOTIFY / WAIT)."""
+    command stream (transitions, NOTIFY / WAIT). ``executor``: where the chunks' layers are
+    sliced (:func:`cooprint.slicing.slice_chunks`; None: a pool of local processes)."""
     from cooprint.program.build import BodySize, MaterialIndex, robot_programs
-    from cooprint.slicing import iter_layers
-    from cooprint.slicing.slicer import layer_range
+    from cooprint.slicing import slice_chunks
 
     settings = settings or load_settings()
     solid, placement = _load_with_progress(mesh, settings, progress)
@@ -441,16 +441,12 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     chunked = _chunk_placed(solid, placement, settings, robots, progress, preliminary=True)
     s = settings.slicing
     base = float(chunked.solid.bounds[0, 2])
+    # estimate: the output's size, the memory and the time, before the heavy work (issue 15 item 5)
     layers: dict[str, list] = {}
     solids = {c.id: c.as_solid() for c in chunked.chunks.chunks}
-    ranges = {cid: layer_range(sol, s, base) for cid, sol in solids.items()}
-    total = sum(end - first for first, end in ranges.values())
-    done = 0
-    for cid, solid in solids.items():
-        layers[cid] = list(enumerate(iter_layers(solid, s, base=base), start=ranges[cid][0]))
-        done += len(layers[cid])
-        if progress:
-            progress("slice", done, total)
+    slice_progress = (lambda d, t: progress("slice", d, t)) if progress else None
+    for cid, chunk_layers in slice_chunks(solids, s, base, slice_progress, executor):
+        layers[cid] = chunk_layers
     if progress:
         progress("program", 0, 1)
     chunked = _rescheduled(chunked, layers, robots)

@@ -2,7 +2,8 @@
 
 from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, ROLE_NAMES, SKIN, TRAVEL,
                                     LayerPaths, extrusion_area, extrusion_spacing)
-from cooprint.slicing.slicer import SlicedModel, iter_layers, layer_tops, slice_solid
+from cooprint.slicing.slicer import SlicedModel, iter_layers, layer_tops, slice_chunks, slice_solid
 
 __all__ = ["INFILL", "PERIMETER_INNER", "PERIMETER_OUTER", "ROLE_NAMES", "SKIN", "TRAVEL", "LayerPaths",
-           "SlicedModel", "extrusion_area", "extrusion_spacing", "iter_layers", "layer_tops", "slice_solid"]
+           "SlicedModel", "extrusion_area", "extrusion_spacing", "iter_layers", "layer_tops", "slice_chunks",
+           "slice_solid"]

@@ -24,7 +24,7 @@ import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator, Mapping
 
 import manifold3d
 import numpy as np
@@ -174,6 +174,30 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
         if pool is not None:
             pool.shutdown(wait=True)
         _WORKER = None
+
+
+def slice_chunks(solids: Mapping[str, Solid], settings: SlicingSettings, base: float,
+                 progress: Callable[[int, int], None] | None = None, executor: Any = None
+                 ) -> Iterator[tuple[str, list[tuple[int, LayerPaths]]]]:
+    """Each chunk's layers in the object's layer grid (``base``: the object's bottom), chunk after
+    chunk in the order of ``solids``: ``(chunk id, [(layer index, LayerPaths), ...])``, a chunk
+    as soon as all its layers are sliced, so that a consumer that writes each one out and lets
+    it go holds one chunk at a time (issue 15: memory bounded by the chunks in flight).
+
+    ``progress(layers done, layers in all)``; ``executor``: where the blocks of layers are sliced
+    (None: :func:`iter_layers`' own pool of worker processes). The layers are the same whatever
+    the executor: every chunk is cut into the same blocks of ``BLOCK`` layers."""
+    ranges = {cid: layer_range(sol, settings, base) for cid, sol in solids.items()}
+    total = sum(end - first for first, end in ranges.values())
+    done = 0
+    for cid, solid in solids.items():
+        layers = []
+        for layer in iter_layers(solid, settings, base=base):
+            layers.append((ranges[cid][0] + len(layers), layer))
+        done += len(layers)
+        if progress:
+            progress(done, total)
+        yield cid, layers
 
 
 #: ``prctl`` option: the signal a process gets when its parent dies (Linux).
