@@ -232,11 +232,11 @@ def plan_options(command: Any) -> Any:
     return command
 
 
-def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], overrides: dict[str, Any],
+def _plan(make: Any, mesh: str, out: str, config: tuple[str, ...], overrides: dict[str, Any],
           robots: int, force: bool, no_picture: bool, quiet: bool) -> dict[str, Any] | None:
-    """Make a job (``make(mesh, settings, robots, progress)``) and write its bundle
-    (``write(job, out, force, picture, progress)``) with progress bars; print the plan unless
-    ``quiet`` (then return ``None``), else return the record."""
+    """Make a job and write its bundle (``make(mesh, settings, out, robots, force, picture,
+    progress)``, returning the job record) with progress bars; print the plan unless ``quiet``
+    (then return ``None``), else return the record."""
     from cooprint.io.bundle import check_destination
     from cooprint.io.outputs import estimate_bytes
 
@@ -244,7 +244,7 @@ def _plan(make: Any, write: Any, mesh: str, out: str, config: tuple[str, ...], o
     settings = _settings(config, overrides)
     check_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     with stage_progress(not quiet) as progress:
-        record = write(make(mesh, settings, robots, progress), out, force, not no_picture, progress)
+        record = make(mesh, settings, out, robots, force, not no_picture, progress)
     if quiet:
         return None
     st, plan = record["stats"], record["plan"]
@@ -292,7 +292,10 @@ def chunk(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: 
     """
     from cooprint.jobs import chunk_job, write_chunk_bundle
 
-    record = _plan(chunk_job, write_chunk_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
+    def make(mesh: str, settings: Any, out: str, robots: int, force: bool, picture: bool, progress: Any) -> Any:
+        return write_chunk_bundle(chunk_job(mesh, settings, robots, progress), out, force, picture, progress)
+
+    record = _plan(make, mesh, out, config, overrides, robots, force, no_picture, quiet)
     if record is None:
         return
     for r in record["robots"]:
@@ -393,11 +396,15 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
     OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically.
     With --simulate, a plan whose own simulation finds errors is reported INVALID (exit 1).
     """
-    from cooprint.jobs import coop_job, write_coop_bundle
+    from cooprint.jobs import run_job
 
     if strict and not then_simulate:  # --strict judges a simulation: without one it would be ignored
         raise UserError("--strict needs --simulate (it makes warnings of the plan's simulation fail it)")
-    record = _plan(coop_job, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
+
+    def make(mesh: str, settings: Any, out: str, robots: int, force: bool, picture: bool, progress: Any) -> Any:
+        return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress)
+
+    record = _plan(make, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
     if then_simulate:
         from cooprint.jobs import simulate_bundle

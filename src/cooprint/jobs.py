@@ -10,8 +10,9 @@ from __future__ import annotations
 import os
 from contextlib import closing
 from dataclasses import dataclass, replace
+from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -407,32 +408,59 @@ def run_chunk(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path]
 
 @dataclass(frozen=True)
 class CoopJob:
-    """A cooperative job: chunks, their layers and every robot's command stream.
+    """A cooperative job: chunks, their commands and every robot's command stream.
 
     Attributes
     ----------
     chunked : ChunkJob
         The chunker's and scheduler's output.
-    layers : dict
-        ``{chunk id: [(layer index, LayerPaths), ...]}``, indices in the object's layer grid.
-    programs : dict
-        ``{robot: Program}``.
+    store : ChunkStore
+        Each chunk's commands (in memory, or spooled to disk for a big job) and summary
+        (:mod:`cooprint.program.stream`).
+    streams : dict
+        ``{robot: RobotStream}``: each robot's program as pieces in order (chunk pieces read
+        from ``store`` as they are needed).
     placements : dict
         ``{robot: RobotPlacement}``: side, facing, start position.
+    layers : dict or None
+        ``{chunk id: [(layer index, LayerPaths), ...]}``, indices in the object's layer grid;
+        kept by a job made in memory, None for a spooled one (its layers are not kept).
     """
 
     chunked: ChunkJob
-    layers: dict[str, list]
-    programs: dict[str, Any]
+    store: Any
+    streams: dict[str, Any]
     placements: dict[str, Any]
+    layers: dict[str, list] | None = None
+
+    @cached_property
+    def programs(self) -> Mapping[str, Any]:
+        """``{robot: Program}``, each made whole on first use (for small jobs: a big job's
+        programs are streamed, :attr:`streams`)."""
+        from cooprint.program.stream import Programs
+
+        return Programs(self.streams, self.store)
 
 
 def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robots: int = 2,
-             progress: Progress | None = None, executor: Any = None) -> CoopJob:
+             progress: Progress | None = None, executor: Any = None, spool: str | Path | None = None) -> CoopJob:
     """Chunk, assign, slice every chunk in the object's layer grid, and make each robot's
-    command stream (transitions, NOTIFY / WAIT). ``executor``: where the chunks' layers are
-    sliced (:func:`cooprint.slicing.slice_chunks`; None: a pool of local processes)."""
-    from cooprint.program.build import BodySize, MaterialIndex, robot_programs
+    command stream (transitions, NOTIFY / WAIT).
+
+    Parameters
+    ----------
+    executor
+        Where the chunks' layers are sliced (:func:`cooprint.slicing.slice_chunks`; None: a pool
+        of local processes).
+    spool
+        A folder for the chunks' commands (:class:`~cooprint.program.stream.ChunkStore`): each
+        chunk is written there as soon as it is sliced and let go, so that memory holds the
+        chunks in flight, not the job (``cooprint run``). None: everything in memory, the
+        layers kept too (:attr:`CoopJob.layers`).
+    """
+    from cooprint.program.build import BodySize, MaterialIndex, robot_streams
+    from cooprint.program.stream import ChunkStore
+    from cooprint.scheduling.graph import ends_from_layers, work_from_layers
     from cooprint.slicing import slice_chunks
 
     settings = settings or load_settings()
@@ -442,32 +470,43 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     s = settings.slicing
     base = float(chunked.solid.bounds[0, 2])
     # estimate: the output's size, the memory and the time, before the heavy work (issue 15 item 5)
-    layers: dict[str, list] = {}
+    store = ChunkStore(spool)
+    layers: dict[str, list] | None = {} if spool is None else None
+    work: dict[str, float] = {}
+    ends: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     solids = {c.id: c.as_solid() for c in chunked.chunks.chunks}
     slice_progress = (lambda d, t: progress("slice", d, t)) if progress else None
     for cid, chunk_layers in slice_chunks(solids, s, base, slice_progress, executor):
-        layers[cid] = chunk_layers
+        # what the later stages need of a chunk, while its layers are here: its work and ends
+        # (the schedule again), its commands (the store) and their summary
+        work |= work_from_layers({cid: chunk_layers}, settings.robot, s)
+        ends |= ends_from_layers({cid: chunk_layers})
+        store.put(cid, chunk_layers)
+        if layers is not None:
+            layers[cid] = chunk_layers
+        del chunk_layers
+    del solids
     if progress:
         progress("program", 0, 1)
-    chunked = _rescheduled(chunked, layers, robots)
+    chunked = _rescheduled(chunked, work, ends, robots)
     material = MaterialIndex.of(chunked.chunks.chunks, margin=max(s.layer_height, s.first_layer_height))
     if chunked.assignment.strategy == "seed":
-        programs, placements = robot_programs(
-            dict(chunked.assignment.sequences), layers, chunked.chunks.deps, material,
+        streams, placements = robot_streams(
+            dict(chunked.assignment.sequences), store, chunked.chunks.deps, material,
             reach=settings.robot.nozzle_depth, clearance=settings.program.clearance,
             axis=chunked.chunks.plan.axis, roles={c.id: c.role for c in chunked.chunks.chunks},
             body=BodySize(settings.robot.build_depth, settings.robot.body_length, settings.robot.body_width,
                           settings.robot.frame_width))  # None: as wide as the body
     else:
-        chunked, programs, placements = _fleet_plan(chunked, layers, material, robots)
+        chunked, streams, placements = _fleet_plan(chunked, store, material, robots)
     if progress:
         progress("program", 1, 1)
-    return CoopJob(chunked, layers, programs, placements)
+    return CoopJob(chunked, store, streams, placements, layers)
 
 
-def _fleet_plan(chunked: ChunkJob, layers: dict[str, list], material: Any,
+def _fleet_plan(chunked: ChunkJob, store: Any, material: Any,
                 robots: int) -> tuple[ChunkJob, dict[str, Any], dict[str, Any]]:
-    """The programs of an N-robot schedule (:func:`cooprint.program.fleet.fleet_programs`), the
+    """The programs of an N-robot schedule (:func:`cooprint.program.fleet.fleet_streams`), the
     fastest of a few: the schedule for all ``robots`` and for fewer of them (the rest idle), each
     made into programs and timed at constant speed as the simulator times them.
 
@@ -476,7 +515,7 @@ def _fleet_plan(chunked: ChunkJob, layers: dict[str, list], material: Any,
     than the extra robot gives, and then fewer robots finish sooner. Choosing by the programs'
     own makespan means more robots are never slower than fewer (up to ``FLEET_TRIALS`` robots every
     smaller fleet is tried; above, N - 1, 3N/4, N/2, N/3 and N/4)."""
-    from cooprint.program.fleet import fleet_programs
+    from cooprint.program.fleet import fleet_streams
 
     settings = chunked.settings
     assert chunked.dag is not None
@@ -493,9 +532,9 @@ def _fleet_plan(chunked: ChunkJob, layers: dict[str, list], material: Any,
         if n < robots:  # the same schedule, with the robots it leaves out idle (LB is the fleet's)
             sched = replace(sched, sequences={r: sched.sequences.get(r, ()) for r in names},
                             lower_bound=chunked.dag.lower_bound(robots))
-        programs, placements = fleet_programs(sched, chunked.dag, layers, material,
-                                              {r: settings.robot for r in names}, settings.program.clearance)
-        span = _programs_makespan(programs, placements, settings)
+        programs, placements = fleet_streams(sched, chunked.dag, store, material,
+                                             {r: settings.robot for r in names}, settings.program.clearance)
+        span = _programs_makespan(programs, placements, settings, store)
         if best is None or span < best[0] * (1 - 1e-6):
             best = (span, replace(chunked, assignment=sched), programs, placements)
     assert best is not None
@@ -512,52 +551,61 @@ def sim_robots(programs: dict[str, Any], placements: dict[str, Any], settings: J
                      profile=settings.robot) for r, p in programs.items()]
 
 
-def _programs_makespan(programs: dict[str, Any], placements: dict[str, Any], settings: JobSettings) -> float:
+def _programs_makespan(programs: Mapping[str, Any], placements: dict[str, Any], settings: JobSettings,
+                       store: Any = None) -> float:
     """When the last of ``programs`` ends, s, timed as ``cooprint simulate`` times a bundle at
-    constant speed (every robot at its profile's speeds, WAITs on NOTIFYs)."""
-    from cooprint.simulation.timeline import schedule
+    constant speed (every robot at its profile's speeds, WAITs on NOTIFYs). ``programs``:
+    ``{robot: Program}``, or ``{robot: RobotStream}`` with the ``store`` of their chunks (read
+    one piece at a time)."""
+    from cooprint.simulation.timeline import event_times
 
-    timelines, _ = schedule(sim_robots(programs, placements, settings), settings.robot.print_speed,
-                            settings.robot.travel_speed)
-    return max((tl.end for tl in timelines.values()), default=0.0)
+    return event_times(piece_robots(programs, placements, settings, store)).makespan
 
 
-def _rescheduled(chunked: ChunkJob, layers: dict[str, list], robots: int) -> ChunkJob:
-    """The job scheduled again with each chunk's work timed from its sliced paths (the volume
-    estimate of :func:`chunk_job` was for the choice of layout) and its real first and last
-    points (for the travel between chunks); the DAG's constraints (geometry) are kept."""
-    from cooprint.scheduling.graph import ends_from_layers, retimed, work_from_layers
+def piece_robots(programs: Mapping[str, Any], placements: dict[str, Any], settings: JobSettings,
+                 store: Any = None, speed: Callable[[Any, bool], np.ndarray] | None = None) -> list[Any]:
+    """The robots of a plan for :func:`cooprint.simulation.timeline.event_times`: each program
+    (or stream, read from ``store``) from its placement's start, at the job's robot speeds or
+    at ``speed(piece, tool)``."""
+    from cooprint.simulation.timeline import PieceRobot
 
-    settings = chunked.settings
+    def pieces(p: Any) -> Callable[[], Iterable[Any]]:
+        return (lambda: [p]) if store is None else (lambda: p.programs(store))
+
+    robot = settings.robot
+    return [PieceRobot(r, np.asarray(placements[r].start, float), pieces(p), robot.print_speed, robot.travel_speed,
+                       speed) for r, p in programs.items()]
+
+
+def _rescheduled(chunked: ChunkJob, work: dict[str, float], ends: dict[str, tuple[np.ndarray, np.ndarray]],
+                 robots: int) -> ChunkJob:
+    """The job scheduled again with each chunk's ``work`` timed from its sliced paths
+    (:func:`~cooprint.scheduling.graph.work_from_layers`; the volume estimate of :func:`chunk_job`
+    was for the choice of layout) and its real first and last points ``ends`` (for the travel
+    between chunks); the DAG's constraints (geometry) are kept."""
+    from cooprint.scheduling.graph import retimed
+
     assert chunked.dag is not None
-    dag = retimed(chunked.dag, work_from_layers(layers, settings.robot, settings.slicing), ends_from_layers(layers))
-    return replace(chunked, dag=dag, assignment=make_schedule_for(dag, chunked.chunks, settings, robots))
+    dag = retimed(chunked.dag, work, ends)
+    return replace(chunked, dag=dag, assignment=make_schedule_for(dag, chunked.chunks, chunked.settings, robots))
 
 
 def program_stats(program: Any, s: SlicingSettings) -> dict[str, Any]:
     """Counts and lengths of a command stream, and the material it deposits."""
-    from cooprint.program.commands import MOVE, NOTIFY, WAIT
-    from cooprint.slicing.paths import extrusion_area
+    from cooprint.program.stream import ProgramStats
 
-    mv = np.flatnonzero(program.kind == MOVE)
-    xyz = program.xyz[mv]
-    seg = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
-    on = program.tool_on()[mv][1:]
-    area = extrusion_area(program.width[mv][1:], program.height[mv][1:])
-    volume = float((np.where(on, area, 0.0) * seg).sum())
-    return {"commands": int(len(program)), "moves": int(len(mv)), "print_mm": float(seg[on].sum()),
-            "travel_mm": float(seg[~on].sum()), "volume_mm3": volume,
-            "filament_mm": volume / (np.pi * (s.filament_diameter / 2) ** 2),
-            "notify": int((program.kind == NOTIFY).sum()), "wait": int((program.kind == WAIT).sum())}
+    return ProgramStats().add(program).to_dict(s.filament_diameter)
 
 
-def coop_record(job: CoopJob) -> dict[str, Any]:
+def coop_record(job: CoopJob, stats: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """``job.json`` of a cooperative run: the chunk record, robots with their placement, their
     whole profile (so that the bundle says each robot's speeds and geometry itself; a mixed fleet
-    gives each its own) and program statistics, and the synchronisation events."""
+    gives each its own) and program statistics (``stats``, as they were written; else counted
+    here), and the synchronisation events."""
     from dataclasses import asdict
 
-    from cooprint.program.commands import NOTIFY
+    from cooprint.program.commands import NOTIFY, Program
+    from cooprint.program.stream import ProgramStats
 
     record = job_record(job.chunked)
     s = job.chunked.settings.slicing
@@ -567,13 +615,20 @@ def coop_record(job: CoopJob) -> dict[str, Any]:
         r.update(job.placements[name].to_dict())
         r["program"] = f"robots/{name}.coop"
         r["gcode"] = f"robots/{name}.gcode"
-        r["stats"] = program_stats(job.programs[name], s)
+        if stats is None:
+            counted = ProgramStats()
+            for piece in job.streams[name].programs(job.store):
+                counted.add(piece)
+            r["stats"] = counted.to_dict(s.filament_diameter)
+        else:
+            r["stats"] = stats[name]
     for row in record["chunks"]:
-        row["layers"] = sum(1 for _, layer in job.layers[row["id"]] if len(layer))
+        row["layers"] = job.store.summary(row["id"]).layers
     record["format"] = "cooprint-job/2"
     record["schedule"]["events"] = [
         {"robot": name, "kind": "notify" if p.kind[i] == NOTIFY else "wait", "events": list(p.events[p.event[i]])}
-        for name, p in job.programs.items() for i in np.flatnonzero(p.event >= 0).tolist()]
+        for name, stream in job.streams.items() for p in stream.parts if isinstance(p, Program)
+        for i in np.flatnonzero(p.event >= 0).tolist()]
     return record
 
 
@@ -581,66 +636,123 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
                       progress: Progress | None = None) -> dict[str, Any]:
     """Write the whole bundle (job.json, chunks/, robots/<name>.coop and .gcode, chunks.png)
     atomically; returns the job record."""
-    from cooprint.program.commands import write_coop
-    from cooprint.program.gcode import Feeds, Heating, write_gcode
-    from cooprint.simulation.timeline import SimRobot, wait_estimates
+    with atomic_dir(Path(out), force, inputs=_input_paths(job.chunked.solid)) as tmp:
+        return write_coop_files(job, tmp, picture, progress)
 
-    out = Path(out)
+
+def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Progress | None = None) -> dict[str, Any]:
+    """Write the bundle's files into the (new, empty) folder ``tmp``: each robot's ``.coop`` and
+    G-code written as its stream's pieces come (one chunk's commands in memory at a time).
+    Returns the job record."""
+    from cooprint.program.commands import CoopWriter
+    from cooprint.program.gcode import Feeds, Heating, write_gcode
+    from cooprint.program.stream import ChunkPiece, ProgramStats
+    from cooprint.simulation.timeline import event_times
+
     settings = job.chunked.settings
     s = settings.slicing
     # how long each WAIT is expected to last, every move at the G-code's feed rate: the G-code
     # keeps a nozzle hot only across short ones
     feeds = Feeds.of_robot(settings.robot, s)
-    waits = wait_estimates([SimRobot(r, p, np.asarray(job.placements[r].start, float), np.zeros(2), feeds.speeds(p))
-                            for r, p in job.programs.items()], settings.robot.print_speed, settings.robot.travel_speed)
-    with atomic_dir(out, force, inputs=_input_paths(job.chunked.solid)) as tmp:
-        (tmp / "chunks").mkdir()
-        (tmp / "robots").mkdir()
-        n = len(job.chunked.chunks.chunks)
-        for i, c in enumerate(job.chunked.chunks.chunks):
-            write_stl(tmp / "chunks" / f"{c.id}.stl", c.vertices, c.faces, name=c.id)
-            if progress:
-                progress("write", i + 1, n + 2 * len(job.programs))
-        name = Path(job.chunked.solid.report.path).name
-        for k, (robot, program) in enumerate(job.programs.items()):
-            place = job.placements[robot]
-            turns = "".join(f", turns to {d:.1f} deg before {c}" for c, d in place.facings[1:])
-            header = [f"job: {name}, robot '{settings.robot.name}' as {robot}",
-                      f"side {place.side}, facing {place.facing_deg:.1f} deg, "
-                      f"start {place.start[0]:.3f}, {place.start[1]:.3f}, {place.start[2]:.3f}{turns}",
-                      "annotations: ;@chunk ID, ;@layer INDEX HEIGHT, ;@path ROLE WIDTH"
-                      + (", ;@facing DEGREES" if program.turns else "") + " (docs/program.md)"]
-            with open(tmp / "robots" / f"{robot}.coop", "w", encoding="utf-8") as fh:
-                write_coop(fh, program, header)
-            if progress:
-                progress("write", n + 2 * k + 1, n + 2 * len(job.programs))
-            with open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as fh:
-                write_gcode(fh, [program], s, feeds, f"{name}, robot {robot}",
-                            notes=header[:2], home=False,
-                            heating=Heating.of_robot(settings.robot, s, settings.program.heater_idle_limit_s,
-                                                     waits[robot]))
-            if progress:
-                progress("write", n + 2 * k + 2, n + 2 * len(job.programs))
-        record = coop_record(job)
-        if picture:
-            from cooprint.render.chunks import render_chunks
+    waits = event_times(piece_robots(job.streams, job.placements, settings, job.store, feeds.speeds)).waits
+    (tmp / "chunks").mkdir()
+    (tmp / "robots").mkdir()
+    n = len(job.chunked.chunks.chunks)
+    total = n + sum(_stream_commands(st, job.store) for st in job.streams.values())
+    done = 0
+    for c in job.chunked.chunks.chunks:
+        write_stl(tmp / "chunks" / f"{c.id}.stl", c.vertices, c.faces, name=c.id)
+        done += 1
+        if progress:
+            progress("write", done, total)
+    name = Path(job.chunked.solid.report.path).name
+    stats = {}
+    for robot, stream in job.streams.items():
+        place = job.placements[robot]
+        turns = "".join(f", turns to {d:.1f} deg before {c}" for c, d in place.facings[1:])
+        has_turns = any(not isinstance(p, ChunkPiece) and p.turns for p in stream.parts)
+        header = [f"job: {name}, robot '{settings.robot.name}' as {robot}",
+                  f"side {place.side}, facing {place.facing_deg:.1f} deg, "
+                  f"start {place.start[0]:.3f}, {place.start[1]:.3f}, {place.start[2]:.3f}{turns}",
+                  "annotations: ;@chunk ID, ;@layer INDEX HEIGHT, ;@path ROLE WIDTH"
+                  + (", ;@facing DEGREES" if has_turns else "") + " (docs/program.md)"]
+        counted = ProgramStats()
+        with open(tmp / "robots" / f"{robot}.coop", "w", encoding="utf-8") as coop, \
+                open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as gcode:
+            writer = CoopWriter(coop, robot, header)
 
-            render_chunks(job.chunked.chunks, tmp / "chunks.png", schedule=job.chunked.assignment)  # by robot
-            record["picture"] = "chunks.png"
-        write_json(tmp / "job.json", record)
+            def pieces() -> Iterator[Any]:
+                nonlocal done
+                for piece in stream.programs(job.store):
+                    writer.write(piece)
+                    counted.add(piece)
+                    done += len(piece)
+                    if progress:
+                        progress("write", done, total)
+                    yield piece
+
+            write_gcode(gcode, pieces(), s, feeds, f"{name}, robot {robot}", notes=header[:2], home=False,
+                        heating=Heating.of_robot(settings.robot, s, settings.program.heater_idle_limit_s,
+                                                 waits[robot]))
+            writer.close()
+        stats[robot] = counted.to_dict(s.filament_diameter)
+    record = coop_record(job, stats)
+    if picture:
+        from cooprint.render.chunks import render_chunks
+
+        render_chunks(job.chunked.chunks, tmp / "chunks.png", schedule=job.chunked.assignment)  # by robot
+        record["picture"] = "chunks.png"
+    write_json(tmp / "job.json", record)
     return record
+
+
+def _stream_commands(stream: Any, store: Any) -> int:
+    """Commands of a robot's stream (its chunk pieces counted from the store's summaries)."""
+    from cooprint.program.stream import ChunkPiece
+
+    total = 0
+    for p in stream.parts:
+        if isinstance(p, ChunkPiece):
+            whole = store.summary(p.chunk).commands + (1 if p.entry is not None else 0)
+            total += (p.stop if p.stop is not None else whole) - p.start
+        else:
+            total += len(p)
+    return total
 
 
 def run(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
         overrides: dict[str, Any] | None = None, robots: int = 2, force: bool = False,
-        picture: bool = True, progress: Progress | None = None) -> dict[str, Any]:
+        picture: bool = True, progress: Progress | None = None, executor: Any = None) -> dict[str, Any]:
     """Python twin of ``cooprint run``: the whole cooperative pipeline; returns the job record
     written to ``out/job.json``."""
     from cooprint.io.bundle import check_destination
 
     check_destination(Path(out), force, inputs=(mesh, *config))
-    job = coop_job(mesh, load_settings(*config, overrides=overrides), robots, progress)
-    return write_coop_bundle(job, out, force, picture, progress)
+    return run_job(mesh, load_settings(*config, overrides=overrides), out, robots, force=force, picture=picture,
+                   progress=progress, executor=executor)
+
+
+#: The folder of a bundle being written that holds the chunks' commands meanwhile (removed
+#: before the bundle is complete).
+SPOOL = ".spool"
+
+
+def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, robots: int = 2, *,
+            force: bool = False, picture: bool = True, progress: Progress | None = None,
+            executor: Any = None) -> dict[str, Any]:
+    """Plan and write a cooperative job, streamed (issue 15): each chunk's commands are spooled
+    into the bundle's temporary folder as soon as it is sliced, and each robot's files are
+    written piece by piece from there, so that memory holds the chunks in flight, not the job.
+    The bundle appears complete or not at all (:func:`~cooprint.io.bundle.atomic_dir`: an error
+    or a Ctrl-C removes the temporary folder and the spool in it). Returns the job record."""
+    import shutil
+
+    inputs = (str(mesh),) if not isinstance(mesh, Solid) and os.path.exists(mesh) else ()
+    with atomic_dir(Path(out), force, inputs=inputs) as tmp:
+        job = coop_job(mesh, settings, robots, progress, executor, spool=tmp / SPOOL)
+        record = write_coop_files(job, tmp, picture, progress)
+        shutil.rmtree(tmp / SPOOL)
+    return record
 
 
 def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False) -> dict[str, Any]:

@@ -27,6 +27,7 @@ import numpy as np
 from cooprint.config import outline_rects
 from cooprint.geometry import unit_deg, unit_xy
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, make_program, quantize
+from cooprint.program.stream import ChunkPiece, ChunkStore, RobotStream
 from cooprint.slicing.paths import TRAVEL, LayerPaths
 
 
@@ -335,15 +336,31 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
                    clearance: float, axis: Sequence[float], roles: dict[str, str],
                    body: BodySize | Mapping[str, BodySize] | None = None
                    ) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
+    """:func:`robot_streams` of chunks sliced into ``layers`` (``{chunk id: [(layer index,
+    LayerPaths), ...]}``), each robot's program made whole in memory."""
+    store = ChunkStore()
+    for cid in dict.fromkeys(c for seq in sequences.values() for c in seq):
+        store.put(cid, layers[cid])
+    streams, placements = robot_streams(sequences, store, deps, material, reach=reach, clearance=clearance,
+                                        axis=axis, roles=roles, body=body)
+    return {r: s.program(store) for r, s in streams.items()}, placements
+
+
+def robot_streams(sequences: dict[str, tuple[str, ...]], store: ChunkStore,
+                  deps: dict[str, tuple[str, ...]], material: MaterialIndex, *, reach: float,
+                  clearance: float, axis: Sequence[float], roles: dict[str, str],
+                  body: BodySize | Mapping[str, BodySize] | None = None
+                  ) -> tuple[dict[str, RobotStream], dict[str, RobotPlacement]]:
     """Each robot's command stream and placement.
 
     Parameters
     ----------
     sequences
         ``{robot: (chunk id, ...)}`` in print order (the scheduler's assignment).
-    layers
-        ``{chunk id: [(layer index, LayerPaths), ...]}``, the index in the object's layer grid
-        (shared by all chunks, so that their layers line up).
+    store
+        The chunks' commands (:class:`~cooprint.program.stream.ChunkStore`: sliced in the
+        object's layer grid, shared by all chunks, so that their layers line up); a chunk's
+        commands are referenced (:class:`ChunkPiece`), not copied.
     deps
         ``{chunk id: chunk ids it waits for}``.
     reach, clearance
@@ -370,7 +387,7 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
     outlines = {r: (bodies[r].outline(reach) if bodies.get(r) is not None else Outline.printhead(reach))
                 for r in sequences}
     faces = {r: chunk_facings(seq, roles, ax) for r, seq in sequences.items()}
-    points = _PrintedPoints(layers)
+    points = _PrintedPoints(store)
 
     def occupants(robot: str, waits: Iterable[str]) -> list[tuple[np.ndarray, np.ndarray, Outline]]:
         """Where the robots that print ``waits`` may be while ``robot`` waits for them: each
@@ -386,11 +403,11 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
 
     idle_robots = []
     for robot, seq in sequences.items():
-        pieces: list[Program] = []
+        pieces: list[Program | ChunkPiece] = []
         sides = {roles[c] for c in seq} - {"centre"}
         # the side its body stands on: a robot that prints only the centre chunk faces +axis, from the left
         side = "left" if not sides else ("both" if len(sides) > 1 else sides.pop())
-        printing = [c for c in seq if _first_point(layers, (c,)) is not None]
+        printing = [c for c in seq if _first_point(store, (c,)) is not None]
         if not printing:  # a robot with nothing to print parks once the others' ways are known
             idle_robots.append(robot)
             continue
@@ -400,7 +417,7 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
         facings = [(printing[0], facing_deg(current))]
         printed_before = [c for r, s in sequences.items() if r != robot for c in s]
         first = seq.index(printing[0])
-        first_point = _first_point(layers, seq)
+        first_point = _first_point(store, seq)
         assert first_point is not None
         # the start: above the first point, or parked clear of what the first chunk waits for
         start_waits = [d for c in seq[:first + 1] for d in deps.get(c, ()) if owner[d] != robot]
@@ -427,7 +444,7 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
                     parked = True
             if waits:
                 pieces.append(_sync(robot, WAIT, waits))
-            p4 = _first_point(layers, (cid,))
+            p4 = _first_point(store, (cid,))
             if p4 is None:  # nothing to print: done at once, and said so if another robot waits for it
                 if cid in notify_after:
                     pieces.append(_sync(robot, NOTIFY, [cid]))
@@ -453,24 +470,23 @@ def robot_programs(sequences: dict[str, tuple[str, ...]], layers: dict[str, Sequ
                 pieces.append(_moves(robot, _distinct(here, way)))
                 here = quantize(np.r_[p4[:2], z])
             parked = False
-            for li, layer in layers[cid]:
-                piece, here = layer_program(layer, here, robot=robot, index=li, chunk=cid)
-                pieces.append(piece)
+            pieces.append(ChunkPiece(cid, entry=(float(here[0]), float(here[1]), float(here[2]))))
+            here = store.summary(cid).last
             if cid in notify_after:
                 pieces.append(_sync(robot, NOTIFY, [cid]))
         pieces.append(_moves(robot, [here + [0.0, 0.0, clearance]]))  # lift off the last chunk
-        programs[robot] = Program.concat(robot, pieces)
+        programs[robot] = RobotStream(robot, pieces)
         placements[robot] = RobotPlacement(robot, side, facing, tuple(float(x) for x in start),  # type: ignore[arg-type]
                                            tuple(facings))
     for robot in idle_robots:  # parks off the part, on its own side, and keeps its word (the WAITs and
         # NOTIFYs of its empty chunks)
         seq = sequences[robot]
-        programs[robot] = Program.concat(robot, [_sync(robot, k, ev) for k, ev in _syncs(seq, deps, owner, robot,
-                                                                                        notify_after)])
+        programs[robot] = RobotStream(robot, [_sync(robot, k, ev) for k, ev in _syncs(seq, deps, owner, robot,
+                                                                                       notify_after)])
         idle = _idle_side(robot, list(sequences), seq, roles)
         f = ax if idle == "left" else -ax
         others = [o for r in sequences if r not in idle_robots
-                  for o in _program_occupants(programs[r], placements[r].facing, outlines[r])]
+                  for o in _stream_occupants(programs[r], store, placements[r].facing, outlines[r])]
         placements[robot] = RobotPlacement(robot, idle,  # type: ignore[arg-type]
                                            tuple(float(x) for x in f),
                                            _parking(others, material, f, outlines[robot], clearance))
@@ -518,36 +534,49 @@ def park(here: np.ndarray, facing: Sequence[float], occupants: Iterable[tuple[np
 
 
 class _PrintedPoints:
-    """Every XY point a chunk's paths go through (where its printer's nozzle is while it prints
-    it; the moves between them stay in their convex hull), made once per chunk on demand;
-    ``None`` for a chunk with nothing to print."""
+    """The XY points whose convex hull holds every point a chunk's paths go through (where its
+    printer's nozzle is while it prints it; the moves between them stay in that hull: only the
+    extremes of linear functions over them are used); ``None`` for a chunk with nothing to print."""
 
-    def __init__(self, layers: dict) -> None:
-        self.layers = layers
-        self.cache: dict[str, np.ndarray | None] = {}
+    def __init__(self, store: ChunkStore) -> None:
+        self.store = store
 
     def __call__(self, cid: str) -> np.ndarray | None:
-        if cid not in self.cache:
-            pts = [layer.points[:, :2] for _, layer in self.layers[cid] if len(layer)]
-            self.cache[cid] = np.concatenate(pts) if pts else None
-        return self.cache[cid]
+        s = self.store.summary(cid)
+        return None if s.first is None else s.hull
 
 
-def _program_occupants(program: Program, facing: Sequence[float], outline: Outline
-                       ) -> list[tuple[np.ndarray, np.ndarray, Outline]]:
+def _stream_occupants(stream: RobotStream, store: ChunkStore, facing: Sequence[float], outline: Outline
+                      ) -> list[tuple[np.ndarray, np.ndarray, Outline]]:
     """Every nozzle position of a whole program (its MOVEs' XY, the way in straight lines
-    between them), grouped by the facing in force (``facing`` at the start, then each of
-    :attr:`Program.turns`: the place of a turn counts in each facing it passes through)."""
-    mv = program.kind == MOVE
-    xy = program.xyz[:, :2]
-    out, k, g = [], 0, unit_xy(facing)
-    for i, deg in program.turns:
-        pts = xy[k:i][mv[k:i]]
-        at = xy[:i][mv[:i]][-1:]  # where it turns: the last position before the turn
-        out.append((np.vstack([pts, at]) if len(pts) or len(at) else pts, g, outline))
-        g, k = unit_deg(deg), i
-        out.append((at, g, outline))
-    out.append((xy[k:][mv[k:]], g, outline))
+    between them; a chunk's by the hull of its points and where the nozzle comes from), grouped
+    by the facing in force (``facing`` at the start, then each of the turns: the place of a turn
+    counts in each facing it passes through)."""
+    out: list[tuple[np.ndarray, np.ndarray, Outline]] = []
+    group: list[np.ndarray] = []
+    at = np.zeros((0, 2))  # the last position so far
+    g = unit_xy(facing)
+    for part in stream.parts:
+        if isinstance(part, ChunkPiece):
+            s = store.summary(part.chunk)
+            group += [s.hull] + ([np.asarray(part.entry, float)[None, :2]] if part.entry is not None else [])
+            if s.last is not None:
+                at = s.last[None, :2]
+            continue
+        mv = part.kind == MOVE
+        xy = part.xyz[:, :2]
+        k = 0
+        for i, deg in part.turns:
+            group.append(xy[k:i][mv[k:i]])
+            before = xy[:i][mv[:i]][-1:]
+            at = before if len(before) else at
+            out.append((np.vstack(group + [at]), g, outline))
+            g, k, group = unit_deg(deg), i, []
+            out.append((at, g, outline))
+        group.append(xy[k:][mv[k:]])
+        moved = xy[mv][-1:]
+        at = moved if len(moved) else at
+    out.append((np.vstack(group) if group else np.zeros((0, 2)), g, outline))
     return [o for o in out if len(o[0])]
 
 
@@ -605,14 +634,14 @@ def _distinct(here: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points[(points != prev).any(axis=1)]
 
 
-def _first_point(layers: dict, seq: Iterable[str]) -> np.ndarray | None:
+def _first_point(store: ChunkStore, seq: Iterable[str]) -> np.ndarray | None:
     """(3,) where the first of ``seq``'s chunks with anything to print starts."""
     for cid in seq:
-        for _, layer in layers[cid]:
-            if len(layer):
-                return quantize(np.r_[layer.points[0], layer.z])
+        first = store.summary(cid).first
+        if first is not None:
+            return first
     return None
 
 
 __all__ = ["BodySize", "MaterialIndex", "Outline", "RobotPlacement", "TurnRound", "chunk_facings", "clear_limit",
-           "facing_deg", "layer_pieces", "layer_program", "park", "robot_programs", "transition_height", "turn_round"]
+           "facing_deg", "layer_pieces", "layer_program", "park", "robot_programs", "robot_streams", "transition_height", "turn_round"]

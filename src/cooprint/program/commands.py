@@ -239,45 +239,69 @@ def _annotations(p: Program, i: int, prev: tuple) -> tuple[str, tuple]:
 _START = (-1, (-1, 0.0), (TRAVEL, 0.0))
 
 
-def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> None:
-    """Write ``program`` as ``.coop`` text (a header of comment lines first).
+class CoopWriter:
+    """Writes a robot's program as ``.coop`` text piece after piece (a header of comment lines
+    first), keeping the annotations in force and the turns due between pieces: the text is the
+    same however the program is cut into pieces. Runs of MOVEs with the same annotations are
+    formatted in one operation each."""
 
-    Runs of MOVEs with the same annotations are formatted in one operation each.
-    """
-    out.write(f"; {FORMAT} program for robot {comment_safe(program.robot)}\n")
-    for line in header:
-        out.write(f"; {comment_safe(line)}\n")
-    p = program
-    n = len(p)
-    turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
-    for i, deg in p.turns:
-        turns.setdefault(i, []).append(deg)
-    if n == 0:
-        out.write("".join(f";@facing {d!r}\n" for d in turns.get(0, ())))
-        return
-    meta_change = np.ones(n, dtype=bool)
-    meta_change[1:] = ((p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1]) | (p.height[1:] != p.height[:-1])
-                       | (p.role[1:] != p.role[:-1]) | (p.width[1:] != p.width[:-1]))
-    meta_change[[i for i in turns if i < n]] = True  # a turn starts a run of its own
-    not_move = p.kind != MOVE
-    # a run of MOVEs ends before a command that is not a move or whose annotations change
-    breaks = np.flatnonzero(meta_change | not_move | np.r_[False, not_move[:-1]])
-    bounds = np.r_[breaks, n]
-    xyz = p.xyz.ravel().tolist()
-    state = _START
-    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        text, state = _annotations(p, a, state)
-        out.write(text)
-        if a in turns:
-            out.write("".join(f";@facing {d!r}\n" for d in turns[a]))
-        k = int(p.kind[a])
-        if k == MOVE:
-            out.write("MOVE %.3f, %.3f, %.3f\n" * (b - a) % tuple(xyz[3 * a:3 * b]))
-        elif k in (TOOL_ON, TOOL_OFF):
-            out.write(KIND_NAMES[k] + "\n")
-        else:
-            out.write(f"{KIND_NAMES[k]} {', '.join(p.events[int(p.event[a])])}\n")
-    out.write("".join(f";@facing {d!r}\n" for d in turns.get(n, ())))
+    def __init__(self, out: TextIO, robot: str, header: Iterable[str] = ()):
+        self.out = out
+        out.write(f"; {FORMAT} program for robot {comment_safe(robot)}\n")
+        for line in header:
+            out.write(f"; {comment_safe(line)}\n")
+        self.state = _START
+        self.pending: list[float] = []  # turns due before the next command
+
+    def write(self, p: Program) -> None:
+        """Append one piece of the program."""
+        out = self.out
+        n = len(p)
+        turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
+        if self.pending:
+            turns[0], self.pending = self.pending, []
+        for i, deg in p.turns:
+            turns.setdefault(i, []).append(deg)
+        if n == 0:
+            self.pending = turns.get(0, [])
+            return
+        meta_change = np.ones(n, dtype=bool)
+        meta_change[1:] = ((p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1])
+                           | (p.height[1:] != p.height[:-1]) | (p.role[1:] != p.role[:-1])
+                           | (p.width[1:] != p.width[:-1]))
+        meta_change[[i for i in turns if i < n]] = True  # a turn starts a run of its own
+        not_move = p.kind != MOVE
+        # a run of MOVEs ends before a command that is not a move or whose annotations change
+        breaks = np.flatnonzero(meta_change | not_move | np.r_[False, not_move[:-1]])
+        bounds = np.r_[breaks, n]
+        xyz = p.xyz.ravel().tolist()
+        state = self.state
+        for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+            text, state = _annotations(p, a, state)
+            out.write(text)
+            if a in turns:
+                out.write("".join(f";@facing {d!r}\n" for d in turns[a]))
+            k = int(p.kind[a])
+            if k == MOVE:
+                out.write("MOVE %.3f, %.3f, %.3f\n" * (b - a) % tuple(xyz[3 * a:3 * b]))
+            elif k in (TOOL_ON, TOOL_OFF):
+                out.write(KIND_NAMES[k] + "\n")
+            else:
+                out.write(f"{KIND_NAMES[k]} {', '.join(p.events[int(p.event[a])])}\n")
+        self.state = state
+        self.pending = turns.get(n, [])
+
+    def close(self) -> None:
+        """The turns after the last command."""
+        self.out.write("".join(f";@facing {d!r}\n" for d in self.pending))
+        self.pending = []
+
+
+def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> None:
+    """Write ``program`` as ``.coop`` text (a header of comment lines first)."""
+    writer = CoopWriter(out, program.robot, header)
+    writer.write(program)
+    writer.close()
 
 
 def coop_text(program: Program, header: Iterable[str] = ()) -> str:
@@ -564,6 +588,6 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
                 pass
 
 
-__all__ = ["FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
+__all__ = ["FORMAT", "CoopWriter", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
            "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "coop_text", "quantize",
            "read_coop", "write_coop"]

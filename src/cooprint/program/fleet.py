@@ -63,8 +63,9 @@ import numpy as np
 from cooprint.config import RobotProfile
 from cooprint.errors import InfeasibleError
 from cooprint.geometry import unit_xy
-from cooprint.program.build import MaterialIndex, RobotPlacement, facing_deg, layer_program
+from cooprint.program.build import MaterialIndex, RobotPlacement, facing_deg
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, WAIT, Program, make_program, quantize
+from cooprint.program.stream import ChunkPiece, ChunkStore, RobotStream
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.scheduling.schedule import Schedule
 from cooprint.slicing.paths import LayerPaths
@@ -361,7 +362,8 @@ class Item:
     ended: bool = True  # a pose is not, until the robot moves on
     permanent: bool = False  # a robot's last pose
     chunk: str | None = None
-    program: Program | None = None
+    program: Program | ChunkPiece | None = None
+    end_at: np.ndarray | None = None  # a print: where its last move ends (None: it has none)
     escape: np.ndarray | None = None  # a pose at a print's end: its way out to the highway (3, NDIR)
     seq: int = -1  # index among the robot's items
     index: int = -1  # index among all items
@@ -410,21 +412,19 @@ class _Fleet:
     """The replay's state: every robot's items, jobs, where it stands and what it has left to do
     (:meth:`run` places the jobs, :meth:`programs` writes them out)."""
 
-    def __init__(self, schedule: Schedule, dag: ChunkDAG, layers: dict, material: MaterialIndex,
+    def __init__(self, schedule: Schedule, dag: ChunkDAG, store: ChunkStore, material: MaterialIndex,
                  profiles: Mapping[str, RobotProfile], clearance: float):
-        self.sched, self.dag, self.layers, self.material = schedule, dag, layers, material
+        self.sched, self.dag, self.store, self.material = schedule, dag, store, material
         self.clearance = float(clearance)
         self.robots = list(schedule.sequences)
         self.bodies = {r: Body.of(profiles[r]) for r in self.robots}
         self.idx = dag.index
         self.owner = {c: r for r, seq in schedule.sequences.items() for c in seq}
         self.pts, self.first = {}, {}
-        for cid in dag.ids:
-            pts = [layer.points[:, :2] for _, layer in layers.get(cid, ()) if len(layer)]
-            if pts:
-                self.pts[cid] = np.concatenate(pts)
-                _, l0 = next((i, la) for i, la in layers[cid] if len(la))
-                self.first[cid] = quantize(np.r_[l0.points[0], l0.z])
+        for cid in dag.ids:  # a chunk's printed points by their hull: only their extremes count
+            s = store.summaries.get(cid)
+            if s is not None and s.first is not None:
+                self.pts[cid], self.first[cid] = s.hull, s.first
         self.foot = {c: point_support(p) for c, p in self.pts.items()}
         boxes = {c: b for c, b in material.boxes.items() if len(b)}
         self.box = {c: np.r_[b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max(),
@@ -567,20 +567,17 @@ class _Fleet:
         it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.travel_speed  # duration, for now
         return it
 
-    def _pieces(self, r: str, cid: str) -> list[tuple[Program, np.ndarray, float]]:
+    def _pieces(self, r: str, cid: str) -> list[tuple[ChunkPiece, np.ndarray, float, int, np.ndarray | None]]:
         """Chunk ``cid``'s commands for robot ``r`` (every layer, from above its first point) cut
         into at most ``PIECES`` pieces of about as many moves, each cut right after a TOOL OFF
-        (a robot that waits between two pieces does so with its tool off): each piece's program,
-        the support of its nozzle positions (from where the piece before ends) and its nominal
-        time. Cached."""
-        key = (r, cid)
-        if key not in self._times:
-            parts, pos = [], np.full(3, np.nan)
-            for li, layer in self.layers.get(cid, ()):
-                piece, pos = layer_program(layer, pos, robot=r, index=li, chunk=cid)
-                parts.append(piece)
-            prog = Program.concat(r, parts)
-            b = self.bodies[r]
+        (a robot that waits between two pieces does so with its tool off): each piece, the
+        support of its nozzle positions (from where the piece before ends), its nominal time,
+        its length in commands and where its last move ends. Kept in the store for every robot
+        of the same speeds (the chunk's commands are read once)."""
+        b = self.bodies[r]
+        key = ("fleet-pieces", cid, b.print_speed, b.travel_speed)
+        if key not in self.store.memo:
+            prog = self.store.program(cid)
             mv = np.flatnonzero(prog.kind == MOVE)
             xyz = prog.xyz[mv]
             length = np.r_[0.0, np.linalg.norm(np.diff(xyz, axis=0), axis=1)]
@@ -597,12 +594,11 @@ class _Fleet:
             for c0, c1 in zip(cuts[:-1], cuts[1:]):
                 k0, k1 = np.searchsorted(mv, c0), np.searchsorted(mv, c1)
                 pts = xyz[max(k0 - 1, 0):max(k1, 1), :2]  # from where the piece before ends
-                sub = Program(r, prog.kind[c0:c1], prog.xyz[c0:c1], prog.role[c0:c1], prog.width[c0:c1],
-                              prog.layer[c0:c1], prog.height[c0:c1], prog.chunk[c0:c1], prog.event[c0:c1],
-                              prog.chunks)
-                out.append((sub, point_support(pts), float(dur[k0:k1].sum())))
-            self._times[key] = out
-        return self._times[key]
+                last = xyz[k1 - 1].copy() if k1 > k0 else None
+                out.append((ChunkPiece(cid, int(c0), int(c1)), point_support(pts), float(dur[k0:k1].sum()),
+                            int(c1 - c0), last))
+            self.store.memo[key] = out
+        return self.store.memo[key]  # type: ignore[return-value]
 
     def _prints(self, r: str, cid: str, here: np.ndarray, f: np.ndarray) -> tuple[list[Item], np.ndarray]:
         """The print items of chunk ``cid`` (its pieces: a robot away from a piece of another's
@@ -612,14 +608,13 @@ class _Fleet:
         pieces = self._pieces(r, cid)
         first = self.first[cid]
         items = []
-        for k, (prog, support, dur) in enumerate(pieces):
-            it = Item(r, "print", support[None] + rects, chunk=cid, program=prog)
+        for k, (piece, support, dur, _, end_at) in enumerate(pieces):
+            it = Item(r, "print", support[None] + rects, chunk=cid, program=piece, end_at=end_at)
             it.end = dur + (float(np.linalg.norm(np.asarray(here, float) - first)) / b.travel_speed if k == 0 else 0.0)
             items.append(it)
         items[-1].last = True
-        last = pieces[-1][0]
-        mv = np.flatnonzero(last.kind == MOVE)
-        return items, last.xyz[mv[-1]] if len(mv) else np.asarray(here, float)
+        end_at = pieces[-1][4]
+        return items, end_at if end_at is not None else np.asarray(here, float)
 
     # --- a job ---------------------------------------------------------------------------------
 
@@ -786,11 +781,15 @@ class _Fleet:
         pose.end = math.inf
         self._add(pose)
         self.pose[r] = pose
-        last = next((it for it in reversed(job.items) if it.program is not None and len(it.program)), None)
+        last = next((it for it in reversed(job.items) if it.program is not None and _length(it.program)), None)
         if last is not None:
-            mv = np.flatnonzero(last.program.kind == MOVE)
-            if len(mv):
-                self.here[r] = quantize(last.program.xyz[mv[-1]])
+            if isinstance(last.program, ChunkPiece):
+                if last.end_at is not None:
+                    self.here[r] = quantize(last.end_at)
+            else:
+                mv = np.flatnonzero(last.program.kind == MOVE)
+                if len(mv):
+                    self.here[r] = quantize(last.program.xyz[mv[-1]])
         self.facing[r] = job.facing
         self.jobs[r].append(job)
         self.at_home[r] = job.target is None or (job.stay and self.at_home[r])
@@ -839,7 +838,7 @@ class _Fleet:
 
     # --- the programs ----------------------------------------------------------------------------
 
-    def programs(self) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
+    def programs(self) -> tuple[dict[str, RobotStream], dict[str, RobotPlacement]]:
         # which waits to keep: per robot pair, only one beyond the last kept (transitive reduction)
         keep: dict[int, list[Item]] = {}  # item index -> the items it waits for
         needed: set[int] = set()
@@ -871,7 +870,7 @@ class _Fleet:
                     it.notify = f"{r}:{n}"
         programs, placements = {}, {}
         for r in self.robots:
-            pieces: list[Program] = []
+            pieces: list[Program | ChunkPiece] = []
             items = self.per_robot[r]
             for j in self.jobs[r]:
                 for k, it in enumerate(j.items):
@@ -884,7 +883,7 @@ class _Fleet:
                         pieces.append(it.program)
                     if it.notify:
                         pieces.append(_sync(r, NOTIFY, [it.notify]))
-            programs[r] = Program.concat(r, pieces)
+            programs[r] = RobotStream(r, pieces)
             xy, n = self.rings.spots[r]
             seq = self.sched.sequences[r]
             faces = {tuple(np.round(unit_xy(self.dag.facing[self.idx[c]]), 9)) for c in seq}
@@ -897,6 +896,14 @@ class _Fleet:
                                            (float(xy[0]), float(xy[1]), float(quantize(self.clearance))),
                                            tuple(facings))
         return programs, placements
+
+
+def _length(program: Program | ChunkPiece) -> int:
+    """Commands in a program or a chunk piece (whose end is known)."""
+    if isinstance(program, ChunkPiece):
+        assert program.stop is not None
+        return program.stop - program.start
+    return len(program)
 
 
 def _whole(job: Job) -> np.ndarray:
@@ -936,7 +943,20 @@ def _sync(robot: str, kind: int, events: list[str]) -> Program:
 def fleet_programs(schedule: Schedule, dag: ChunkDAG, layers: dict[str, list[tuple[int, LayerPaths]]],
                    material: MaterialIndex, profiles: Mapping[str, RobotProfile], clearance: float
                    ) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
-    """Every robot's program and placement for ``schedule`` (see the module doc).
+    """:func:`fleet_streams` of chunks sliced into ``layers`` (``{chunk id: [(layer index,
+    LayerPaths), ...]}`` in the object's layer grid), each robot's program made whole."""
+    store = ChunkStore()
+    for cid, chunk_layers in layers.items():
+        store.put(cid, chunk_layers)
+    streams, placements = fleet_streams(schedule, dag, store, material, profiles, clearance)
+    return {r: s.program(store) for r, s in streams.items()}, placements
+
+
+def fleet_streams(schedule: Schedule, dag: ChunkDAG, store: ChunkStore, material: MaterialIndex,
+                  profiles: Mapping[str, RobotProfile], clearance: float
+                  ) -> tuple[dict[str, RobotStream], dict[str, RobotPlacement]]:
+    """Every robot's program (as a stream of pieces: a chunk's commands stay in ``store``) and
+    placement for ``schedule`` (see the module doc).
 
     Parameters
     ----------
@@ -944,8 +964,8 @@ def fleet_programs(schedule: Schedule, dag: ChunkDAG, layers: dict[str, list[tup
         Who prints which chunk in which order (its times are not used: the replay makes its own).
     dag
         The chunks' facings and :meth:`~ChunkDAG.preds`.
-    layers
-        ``{chunk id: [(layer index, LayerPaths), ...]}`` in the object's layer grid.
+    store
+        The chunks' commands and summaries (:class:`~cooprint.program.stream.ChunkStore`).
     material
         The chunks' triangle boxes (travel heights).
     profiles
@@ -966,9 +986,9 @@ def fleet_programs(schedule: Schedule, dag: ChunkDAG, layers: dict[str, list[tup
             if not (np.isfinite(f).all() and np.hypot(*f[:2]) > 1e-9):
                 raise ValueError(f"fleet_programs: chunk {c} (robot {r}) has no facing ({list(f)}): the DAG must "
                                  "say which way its robot faces")
-    fleet = _Fleet(schedule, dag, layers, material, profiles, clearance)
+    fleet = _Fleet(schedule, dag, store, material, profiles, clearance)
     fleet.run()
     return fleet.programs()
 
 
-__all__ = ["FleetError", "fleet_programs", "parking"]
+__all__ = ["FleetError", "fleet_programs", "fleet_streams", "parking"]

@@ -70,13 +70,14 @@ class Feeds:
             return self.first_layer
         return self.perimeter if role in (PERIMETER_OUTER, PERIMETER_INNER) else self.infill
 
-    def speeds(self, p: Program) -> np.ndarray:
+    def speeds(self, p: Program, tool: bool = False) -> np.ndarray:
         """(n,) mm/s: the feed rate at which the G-code runs each command of ``p`` (MOVEs with the
         tool on as :meth:`extrude`, the others at travel speed): the time model of the written
-        G-code at constant speed."""
+        G-code at constant speed. ``tool``: whether the tool is on before ``p`` (a piece of a
+        program)."""
         perimeter = (p.role == PERIMETER_OUTER) | (p.role == PERIMETER_INNER)
         extrude = np.where(p.layer == 0, self.first_layer, np.where(perimeter, self.perimeter, self.infill))
-        return np.where(p.tool_on(), extrude, self.travel).astype(np.float64)
+        return np.where(p.tool_on(tool), extrude, self.travel).astype(np.float64)
 
 
 @dataclass(frozen=True)

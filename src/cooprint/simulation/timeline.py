@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable, Iterable
 
 from cooprint.geometry import unit_deg, unit_xy
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program
@@ -260,6 +260,41 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     return mv, p0, p1, on, length, dur
 
 
+def _resolve(syncs: dict[str, list[tuple[int, float, bool, tuple[str, ...]]]]):
+    """WAITs resolved against the NOTIFYs of all robots: ``syncs`` gives each robot's NOTIFY and
+    WAIT commands in order as ``(command index, time it gets there without waiting, is a
+    NOTIFY, events)``. Returns ``(announced {event: s}, pos {robot: syncs passed}, waited
+    {robot: s waited in all}, delay {robot: [(command index, s waited there)]}, waits, notifies)``;
+    a robot whose ``pos`` is short of its syncs is stuck at that WAIT."""
+    announced: dict[str, float] = {}
+    pos = {name: 0 for name in syncs}  # next sync command
+    waited = {name: 0.0 for name in syncs}  # total time spent waiting so far
+    delay: dict[str, list] = {name: [] for name in syncs}  # (command index, extra wait)
+    waits: dict[str, list] = {name: [] for name in syncs}
+    notifies: dict[str, list] = {name: [] for name in syncs}
+    progress = True
+    while progress:
+        progress = False
+        for name, sync in syncs.items():
+            while pos[name] < len(sync):
+                i, before, notify, events = sync[pos[name]]
+                t = before + waited[name]
+                if notify:
+                    for e in events:
+                        announced[e] = min(announced.get(e, np.inf), t)
+                    notifies[name].append((t, events[0]))
+                else:
+                    if not all(e in announced for e in events):
+                        break
+                    go = max([t] + [announced[e] for e in events])
+                    delay[name].append((i, go - t))
+                    waits[name].append((t, go, events))
+                    waited[name] += go - t
+                pos[name] += 1
+                progress = True
+    return announced, pos, waited, delay, waits, notifies
+
+
 def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
              limits: "MachineLimits | dict[str, MachineLimits] | None" = None
              ) -> tuple[dict[str, Timeline], list[Finding]]:
@@ -279,33 +314,9 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
         before = np.concatenate([[0.0], np.cumsum(cmd_dur)])  # time at each command, no waits
         sync = np.flatnonzero((kind == NOTIFY) | (kind == WAIT)).tolist()
         prep[r.name] = (r, p0, p1, on, length, dur, mv, before, sync)
-    announced: dict[str, float] = {}
-    pos = {name: 0 for name in prep}  # next sync command
-    waited = {name: 0.0 for name in prep}  # total time spent waiting so far
-    delay: dict[str, list] = {name: [] for name in prep}  # (command index, extra wait)
-    waits: dict[str, list] = {name: [] for name in prep}
-    notifies: dict[str, list] = {name: [] for name in prep}
-    progress = True
-    while progress:
-        progress = False
-        for name, (r, *_, before, sync) in prep.items():
-            while pos[name] < len(sync):
-                i = sync[pos[name]]
-                t = before[i] + waited[name]
-                events = r.program.events[r.program.event[i]]
-                if r.program.kind[i] == NOTIFY:
-                    for e in events:
-                        announced[e] = min(announced.get(e, np.inf), t)
-                    notifies[name].append((t, events[0]))
-                else:
-                    if not all(e in announced for e in events):
-                        break
-                    go = max([t] + [announced[e] for e in events])
-                    delay[name].append((i, go - t))
-                    waits[name].append((t, go, events))
-                    waited[name] += go - t
-                pos[name] += 1
-                progress = True
+    syncs = {name: [(i, float(before[i]), r.program.kind[i] == NOTIFY, r.program.events[r.program.event[i]])
+                    for i in sync] for name, (r, *_, before, sync) in prep.items()}
+    announced, pos, waited, delay, waits, notifies = _resolve(syncs)
     out, findings = {}, []
     for name, (r, p0, p1, on, length, dur, mv, before, sync) in prep.items():
         # the waits' delays so far before each command: of the WAITs above it (in program order)
@@ -318,9 +329,9 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
             prog = r.program
             missing = [e for e in prog.events[prog.event[i]] if e not in announced]
             t = float(before[i] + waited[name])
-            at = p1[keep - 1] if keep else (r.start if r.start is not None else np.zeros(3))
+            where = p1[keep - 1] if keep else (r.start if r.start is not None else np.zeros(3))
             chunk = _chunk_at(prog, i)
-            findings.append(Finding("deadlock", name, t, tuple(float(x) for x in at), chunk,
+            findings.append(Finding("deadlock", name, t, tuple(float(x) for x in where), chunk,
                                     f"WAIT {', '.join(prog.events[prog.event[i]])} (command {i + 1}) never ends: "
                                     f"{', '.join(missing)} is never announced by a robot that can still move"))
         t0 = before[mv[:keep]] + waited_before[np.searchsorted(at, mv[:keep], side="left")]
@@ -344,10 +355,99 @@ def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: flo
     return out
 
 
+@dataclass(frozen=True)
+class PieceRobot:
+    """A robot whose program comes piece by piece (a big plan's stream, issue 15): ``pieces()``
+    gives its :class:`Program` pieces in order, each time it is called; it starts at ``start``;
+    it moves at ``print_speed`` / ``travel_speed``, or at ``speed(piece, tool on before it)``
+    (mm/s per command: the G-code's feed rates, :meth:`Feeds.speeds`) when given."""
+
+    name: str
+    start: np.ndarray
+    pieces: Callable[[], Iterable[Program]]
+    print_speed: float
+    travel_speed: float
+    speed: Callable[[Program, bool], np.ndarray] | None = None
+
+
+@dataclass(frozen=True)
+class EventTimes:
+    """What :func:`event_times` finds: when each robot is done (:attr:`Timeline.end`) and how long
+    each of its WAITs lasts, s, in program order (``inf``: it never ends)."""
+
+    ends: dict[str, float]
+    waits: dict[str, list[float]]
+
+    @property
+    def makespan(self) -> float:
+        return max(self.ends.values(), default=0.0)
+
+
+def event_times(robots: list[PieceRobot]) -> EventTimes:
+    """The constant-speed times of :func:`schedule` for programs given piece by piece, one piece
+    in memory at a time: each robot's end and its WAITs' durations, the same numbers as
+    :func:`schedule` of the whole programs (the times add up in the same order)."""
+    from cooprint.simulation.kernels import move_table  # numba: on first use
+
+    syncs: dict[str, list] = {}
+    lasts: dict[str, list] = {}  # per robot: the last move before each sync, and the last of all
+    counts: dict[str, int] = {}
+    for r in robots:
+        t, offset, tool, n_waits = 0.0, 0, False, 0
+        pos = np.asarray(r.start, dtype=np.float64)
+        sync: list = []
+        last_before: list = []
+        last = None  # (command index, time at its start without waits, duration)
+        for piece in r.pieces():
+            n = len(piece)
+            if n == 0:
+                continue
+            kind = piece.kind
+            k = int(np.count_nonzero(kind == MOVE))
+            ends = np.empty((k + 1, 3))
+            mv, on, length = np.empty(k, np.int64), np.empty(k, bool), np.empty(k)
+            move_table(kind, piece.xyz, pos, True, mv, ends[:-1], ends[1:], on, length)
+            tool_on = piece.tool_on(tool)
+            on = tool_on[mv] & (length > 0)
+            v = np.where(on, r.print_speed, r.travel_speed) if r.speed is None else r.speed(piece, tool)[mv]
+            dur = length / v
+            cmd_dur = np.zeros(n)
+            cmd_dur[mv] = dur
+            before = np.cumsum(np.r_[t, cmd_dur])  # the whole program's running sum, continued
+            for j in np.flatnonzero((kind == NOTIFY) | (kind == WAIT)).tolist():
+                m = int(np.searchsorted(mv, j)) - 1
+                if m >= 0:
+                    last = (offset + int(mv[m]), float(before[mv[m]]), float(dur[m]))
+                sync.append((offset + j, float(before[j]), kind[j] == NOTIFY, piece.events[piece.event[j]]))
+                last_before.append(last)
+                n_waits += int(kind[j] == WAIT)
+            if k:
+                last = (offset + int(mv[-1]), float(before[mv[-1]]), float(dur[-1]))
+                pos = ends[-1].copy()
+            t, offset, tool = float(before[-1]), offset + n, bool(tool_on[-1])
+        syncs[r.name], lasts[r.name], counts[r.name] = sync, last_before + [last], n_waits
+    announced, pos_, waited, delay, waits, notifies = _resolve(syncs)
+    ends, durations = {}, {}
+    for name, sync in syncs.items():
+        at = [i for i, _ in delay[name]]
+        waited_before = np.concatenate([[0.0], np.cumsum([d for _, d in delay[name]])])
+        last = lasts[name][pos_[name]]  # stuck: the last move before the WAIT; else the last of all
+        out = [0.0]
+        if last is not None:
+            i, t0, d = last
+            out = [(t0 + waited_before[int(np.searchsorted(at, i, side="left"))]) + d]
+        out += [w[1] for w in waits[name]] + [n[0] for n in notifies[name]]
+        ends[name] = max(out)
+        got = [float(end - start) for start, end, _ in waits[name]]
+        durations[name] = got + [math.inf] * (counts[name] - len(got))
+    return EventTimes(ends, durations)
+
+
 def _chunk_at(program: Program, i: int) -> str | None:
     """The chunk of command ``i``, or of the next command that has one (a WAIT leads into it)."""
     after = np.flatnonzero(program.chunk[i:] >= 0)
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["COUNT_UNITS", "FacingSpan", "Finding", "SimRobot", "Timeline", "WARNING_KINDS", "move_durations", "schedule", "severity"]
+__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "SimRobot", "Timeline", "WARNING_KINDS",
+           "event_times", "move_durations", "schedule", "severity"]
