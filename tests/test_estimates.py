@@ -165,6 +165,10 @@ def test_simulate_draws_its_bars_when_forced_and_none_on_a_pipe(parts, tmp_path,
     err = ANSI.sub("", capsys.readouterr().err)
     for label in ("reading programs", "timelines", "checks"):
         assert re.search(label + r"\s+\S+\s+100%\s+[\d.]+ \w+/s .* eta ", err), label
+    assert main(["render", str(out), "--format", "gif", "--duration", "1", "--fps", "5",
+                 "--out", str(tmp_path / "a.gif")]) == 0
+    err = ANSI.sub("", capsys.readouterr().err)
+    assert re.search(r"animation frames\s+\S+\s+100%\s+[\d.]+ frames/s .* eta ", err), err[-2000:]
 
 
 def test_the_byte_meter_counts_what_is_written(tmp_path):

@@ -594,7 +594,8 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
     from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
     from cooprint.render.sim import frame_count, render_animation, render_gantt, render_snapshot
-    from cooprint.simulation import load_inputs, simulate as run_sim
+    from cooprint.jobs import read_with_progress
+    from cooprint.simulation import simulate as run_sim
 
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
@@ -608,8 +609,9 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     else:
         raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
-    inp = load_inputs(list(inputs), manifest)
-    result = run_sim(inp, checks=False)
+    with stage_progress(True) as progress:  # bars on a terminal only
+        inp = read_with_progress(list(inputs), manifest, None, progress)
+        result = run_sim(inp, checks=False, progress=progress)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
@@ -618,9 +620,11 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
     target = Path(out) if out is not None else _sim_folder(inputs, None) / name
     # a bundle's sim/ is made if missing; cooprint's earlier pictures there need no --force
-    with atomic_file(target, force, inputs=sources, create_parents=0 if out is not None else 1) as tmp:
+    with atomic_file(target, force, inputs=sources, create_parents=0 if out is not None else 1) as tmp, \
+            stage_progress(True) as progress:
         if fmt in ("mp4", "gif"):  # the temporary file keeps the suffix the encoder names its format from
-            render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup)
+            render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup,
+                             progress=lambda done, total: progress("frames", done, total))
         elif fmt == "gantt":
             render_gantt(result, tmp, critical=inp.critical_path, lower_bound=inp.lower_bound)
         else:

@@ -26,6 +26,7 @@ STAGES: dict[str, tuple[str, str]] = {
     "timelines": ("timelines", "robots"),
     "checks": ("checks", "checks"),
     "pictures": ("pictures", "pictures"),
+    "frames": ("animation frames", "frames"),
     "perturbed runs": ("perturbed runs", "runs"),
 }
 
