@@ -183,3 +183,11 @@ def test_the_byte_meter_counts_what_is_written(tmp_path):
     assert (tmp_path / "f.txt").stat().st_size == 28 == meter.done
     assert calls[0] == ("write", 0, 100) and calls[-1] == ("write", 28, 28)
     assert [c[1] for c in calls[1:-1]] == [12, 24]
+
+
+def test_describe_names_the_largest_robots_of_a_big_fleet():
+    est = JobEstimate({f"R{i}": i * 10_000_000 for i in range(1, 11)}, 5_000_000,
+                      {f"R{i}": i * 200_000 for i in range(1, 11)}, 3_200_000_000, 5400.0, 4)
+    assert est.bytes == 550_000_000 + 5_000_000
+    assert est.describe(robots_shown=3) == ("estimate: 555 MB of output (R10 100 MB, R9 90 MB, R8 80 MB, 7 more), "
+                                            "about 3.2 GB of memory, about 1.5 h on 4 cores")
