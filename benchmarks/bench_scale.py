@@ -76,7 +76,7 @@ def guarded(cmd: list[str], log_dir: Path, tag: str, timeout_s: float, limit_byt
             time.sleep(0.5)
             total = session_rss(proc.pid)
             top = max(top, total)
-            why = (f"more than {limit_bytes / 1e9:.0f} GB held" if total > limit_bytes else
+            why = (f"more than {limit_bytes / 1e9:g} GB held" if total > limit_bytes else
                    f"timed out after {timeout_s:.0f} s" if time.perf_counter() - t0 > timeout_s else None)
             if why:
                 stopped = why
