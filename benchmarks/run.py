@@ -23,11 +23,12 @@ from pathlib import Path
 import bench_chunking
 import bench_cooperative
 import bench_plans
+import bench_scale
 import bench_simulation
 import bench_slicing
 from harness import BenchContext, plural, resolve_meshes
 
-STAGES = [bench_chunking, bench_slicing, bench_simulation, bench_plans, bench_cooperative]
+STAGES = [bench_chunking, bench_slicing, bench_simulation, bench_plans, bench_cooperative, bench_scale]
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 WORK = REPO / "benchmarks" / "_work"

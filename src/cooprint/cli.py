@@ -25,35 +25,32 @@ from cooprint import __version__
 from cooprint.errors import UserError
 from cooprint.interrupts import blocked_sigint, check_interrupt, held_imports, interrupted, sticky_sigint
 
-STAGE_NAMES = {"load": "reading mesh", "cut": "cutting chunks", "write": "writing files",
-               "render": "drawing picture", "slice": "slicing layers", "program": "robot programs"}
-
-
 @contextmanager
-def stage_progress(enabled: bool) -> Iterator[Any]:
+def stage_progress(enabled: bool, console: Any = None) -> Iterator[Any]:
     """A ``progress(stage, done, total)`` callback drawing one bar per stage on stderr when it is
     a terminal (a log or a pipe gets no bars: a failed run's stderr is its one error line), or,
-    not ``enabled``, drawing nothing. Either way it raises a Ctrl-C that some code swallowed
+    not ``enabled``, drawing nothing. Each bar shows the stage's rate in its unit (layers/s,
+    chunks/s, MB/s; :mod:`cooprint.progress`) and the time left. ``console``: draw on this rich
+    Console instead (tests); ``COOPRINT_PROGRESS=1`` in the environment draws on stderr even when
+    it is not a terminal. Either way it raises a Ctrl-C that some code swallowed
     (:func:`cooprint.interrupts.check_interrupt`): the stages call it as they advance."""
-    if not enabled or not sys.stderr.isatty():
+    forced = os.environ.get("COOPRINT_PROGRESS", "") not in ("", "0")
+    if not enabled or (console is None and not forced and not sys.stderr.isatty()):
         yield lambda stage, done, total: check_interrupt()
         return
-    from rich.console import Console  # rich costs ~80 ms to import: only when bars are drawn
-    from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
+    from cooprint.progress import rich_bars
 
-    console = Console(stderr=True)
-    bars = Progress(TextColumn("{task.description:<16}"), BarColumn(), TaskProgressColumn(),
-                    TimeElapsedColumn(), console=console, transient=False)
+    if console is None:
+        from rich.console import Console  # rich costs ~80 ms to import: only when bars are drawn
+
+        console = Console(stderr=True, force_terminal=True if forced else None)
+    bars, draw = rich_bars(console)
     with blocked_sigint():  # its refresh thread starts with SIGINT blocked: Ctrl-C goes to the main thread
         bars.start()
     with bars:
-        tasks: dict[str, Any] = {}
-
         def update(stage: str, done: int, total: int) -> None:
             check_interrupt()
-            if stage not in tasks:
-                tasks[stage] = bars.add_task(STAGE_NAMES.get(stage, stage), total=max(total, 1))
-            bars.update(tasks[stage], completed=done, total=max(total, 1))
+            draw(stage, done, total)
 
         yield update
 
@@ -402,14 +399,16 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         raise UserError("--strict needs --simulate (it makes warnings of the plan's simulation fail it)")
 
     def make(mesh: str, settings: Any, out: str, robots: int, force: bool, picture: bool, progress: Any) -> Any:
-        return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress)
+        return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress,
+                       on_estimate=estimate_reporter(out, quiet))
 
     record = _plan(make, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
     if then_simulate:
         from cooprint.jobs import simulate_bundle
 
-        sim = simulate_bundle(out)
+        with stage_progress(not quiet) as progress:
+            sim = simulate_bundle(out, progress=progress)
         if not quiet:
             from cooprint.simulation import bound_line, findings_line
 
@@ -420,6 +419,19 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         _report_run(record, out, no_picture)
     if sim is not None:
         _judge(sim, strict, quiet, "its own simulation", Path(out) / "sim" / "summary.json")
+
+
+def estimate_reporter(out: str, quiet: bool) -> Any:
+    """``coop_job``'s ``on_estimate`` for ``cooprint run``: refuse the run when the estimated
+    output does not fit in the free space of OUT's file system (before slicing: a clear line, not
+    a full disk an hour later), then print the estimate on stderr unless ``quiet``."""
+    def report(estimate: Any) -> None:
+        from cooprint.io.estimate import check_room
+
+        check_room(out, estimate)
+        if not quiet:
+            click.echo(estimate.describe(), err=True)
+    return report
 
 
 def _idle_line(record: dict[str, Any]) -> None:
@@ -497,7 +509,8 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     import numpy as np
 
     from cooprint.io.bundle import atomic_file, check_file_destination, write_json
-    from cooprint.simulation import bound_line, findings_line, frames, load_inputs, simulate as run_sim, summary
+    from cooprint.jobs import read_with_progress
+    from cooprint.simulation import bound_line, findings_line, frames, simulate as run_sim, summary
     from cooprint.simulation.perturb import check_perturb_options, perturb_runs
 
     _need_inputs(inputs, manifest)
@@ -511,11 +524,11 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=2)
     target = targets[0]
     _heap_malloc()
-    inp = load_inputs(list(inputs), manifest, _settings(config, {}) if config else None)
-    result = run_sim(inp, accel=accel)
     perturbed = None
-    if monte_carlo:
-        with stage_progress(not quiet) as progress:  # a bar on a terminal; Ctrl-C between runs
+    with stage_progress(not quiet) as progress:  # bars on a terminal; Ctrl-C between runs
+        inp = read_with_progress(list(inputs), manifest, _settings(config, {}) if config else None, progress)
+        result = run_sim(inp, accel=accel, progress=progress)
+        if monte_carlo:
             perturbed = perturb_runs(inp, *monte_carlo, accel=accel,
                                      progress=lambda done, total: progress("perturbed runs", done, total))
     record = summary(result, perturbed)
@@ -588,7 +601,8 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
     from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
     from cooprint.render.sim import frame_count, render_animation, render_gantt, render_snapshot
-    from cooprint.simulation import load_inputs, simulate as run_sim
+    from cooprint.jobs import read_with_progress
+    from cooprint.simulation import simulate as run_sim
 
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
@@ -602,8 +616,9 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     else:
         raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
-    inp = load_inputs(list(inputs), manifest)
-    result = run_sim(inp, checks=False)
+    with stage_progress(True) as progress:  # bars on a terminal only
+        inp = read_with_progress(list(inputs), manifest, None, progress)
+        result = run_sim(inp, checks=False, progress=progress)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
@@ -612,9 +627,11 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
     target = Path(out) if out is not None else _sim_folder(inputs, None) / name
     # a bundle's sim/ is made if missing; cooprint's earlier pictures there need no --force
-    with atomic_file(target, force, inputs=sources, create_parents=0 if out is not None else 1) as tmp:
+    with atomic_file(target, force, inputs=sources, create_parents=0 if out is not None else 1) as tmp, \
+            stage_progress(True) as progress:
         if fmt in ("mp4", "gif"):  # the temporary file keeps the suffix the encoder names its format from
-            render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup)
+            render_animation(result, tmp, fps=fps, duration=duration, speedup=speedup,
+                             progress=lambda done, total: progress("frames", done, total))
         elif fmt == "gantt":
             render_gantt(result, tmp, critical=inp.critical_path, lower_bound=inp.lower_bound)
         else:

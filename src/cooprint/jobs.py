@@ -26,6 +26,7 @@ from cooprint.io.place import Placement, place
 from cooprint.scheduling import Assignment, Schedule
 
 if TYPE_CHECKING:
+    from cooprint.io.estimate import JobEstimate
     from cooprint.scheduling import ChunkDAG
     from cooprint.slicing import SlicedModel
 
@@ -92,12 +93,14 @@ def chunk_job(mesh: str | Path | Solid, settings: JobSettings | None = None, rob
 
 def _load_with_progress(mesh: str | Path | Solid, settings: JobSettings,
                         progress: Progress | None) -> tuple[Solid, Placement]:
-    """:func:`load_placed` on the floor, as the ``load`` stage of the progress bars."""
+    """:func:`load_placed` on the floor, as the ``load`` stage of the progress bars (in bytes of
+    the file: the bar shows MB/s)."""
+    size = os.path.getsize(mesh) if not isinstance(mesh, Solid) and os.path.isfile(mesh) else 1
     if progress:
-        progress("load", 0, 1)
+        progress("load", 0, size)
     solid, placement = load_placed(mesh, settings)
     if progress:
-        progress("load", 1, 1)
+        progress("load", size, size)
     return solid, placement
 
 
@@ -121,11 +124,15 @@ def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, rob
             warn(f"chunking.top_width = {chunks.plan.top_width:g} mm is narrower than the two printheads "
                  f"(2 x robot.nozzle_depth = {safe:g} mm): the robots printing the centre chunk's two neighbours "
                  "may meet near its top (the simulator's robots-collide says whether they do)")
+    if progress:
+        progress("schedule", 0, len(chunks.chunks))
     dag = chunk_dag(chunks, settings, work_from_volume(chunks, settings.robot, settings.slicing))
     quick = settings
     if preliminary and settings.scheduling.strategy == "exact":
         quick = replace(settings, scheduling=replace(settings.scheduling, strategy="list"))
     sched = make_schedule_for(dag, chunks, quick, robots)
+    if progress:
+        progress("schedule", len(chunks.chunks), len(chunks.chunks))
     return ChunkJob(solid, settings, chunks, sched, placement, dag)
 
 
@@ -271,14 +278,16 @@ def write_chunk_bundle(job: ChunkJob, out: str | Path, force: bool = False, pict
     """Write ``job.json``, ``chunks/<id>.stl`` and (``picture``) ``chunks.png`` into ``out``,
     atomically; with ``force`` an existing bundle's own files are replaced and the rest kept
     (:func:`cooprint.io.bundle.atomic_dir`). Returns the job record written to ``job.json``."""
+    from cooprint.progress import ByteMeter
+
     out = Path(out)
     with atomic_dir(out, force, inputs=_input_paths(job.solid)) as tmp:
         (tmp / "chunks").mkdir()
-        n = len(job.chunks.chunks)
-        for i, c in enumerate(job.chunks.chunks):
+        meter = ByteMeter(progress, sum(stl_bytes(c.faces) for c in job.chunks.chunks))
+        for c in job.chunks.chunks:
             write_stl(tmp / "chunks" / f"{c.id}.stl", c.vertices, c.faces, name=c.id)
-            if progress:
-                progress("write", i + 1, n)
+            meter.add(stl_bytes(c.faces))
+        meter.finish()
         record = job_record(job)
         if picture:
             from cooprint.render.chunks import render_chunks
@@ -291,6 +300,11 @@ def write_chunk_bundle(job: ChunkJob, out: str | Path, force: bool = False, pict
                 progress("render", 1, 1)
         write_json(tmp / "job.json", record)
     return record
+
+
+def stl_bytes(faces: np.ndarray) -> int:
+    """Size of a binary STL of ``faces``: 80-byte header, count, 50 bytes a triangle."""
+    return 84 + 50 * len(faces)
 
 
 def _input_paths(solid: Solid) -> tuple[str, ...]:
@@ -443,7 +457,8 @@ class CoopJob:
 
 
 def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robots: int = 2,
-             progress: Progress | None = None, executor: Any = None, spool: str | Path | None = None) -> CoopJob:
+             progress: Progress | None = None, executor: Any = None, spool: str | Path | None = None,
+             on_estimate: "Callable[[JobEstimate], None] | None" = None) -> CoopJob:
     """Chunk, assign, slice every chunk in the object's layer grid, and make each robot's
     command stream (transitions, NOTIFY / WAIT).
 
@@ -457,7 +472,12 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
         chunk is written there as soon as it is sliced and let go, so that memory holds the
         chunks in flight, not the job (``cooprint run``). None: everything in memory, the
         layers kept too (:attr:`CoopJob.layers`).
+    on_estimate
+        Called with the run's :class:`~cooprint.io.estimate.JobEstimate` (output size, memory,
+        time) after chunking, before the heavy work (the CLI prints it and checks the free disk
+        space against it; it may raise to stop the run).
     """
+    from cooprint.io.estimate import estimate_job
     from cooprint.program.build import BodySize, MaterialIndex, robot_streams
     from cooprint.program.stream import ChunkStore
     from cooprint.scheduling.graph import ends_from_layers, work_from_layers
@@ -470,6 +490,8 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     s = settings.slicing
     base = float(chunked.solid.bounds[0, 2])
     # estimate: the output's size, the memory and the time, before the heavy work (issue 15 item 5)
+    if on_estimate:
+        on_estimate(estimate_job(chunked.chunks, settings, chunked.assignment.sequences))
     store = ChunkStore(spool)
     layers: dict[str, list] | None = {} if spool is None else None
     work: dict[str, float] = {}
@@ -486,8 +508,9 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
             layers[cid] = chunk_layers
         del chunk_layers
     del solids
+    n_chunks = len(chunked.chunks.chunks)
     if progress:
-        progress("program", 0, 1)
+        progress("program", 0, n_chunks)
     chunked = _rescheduled(chunked, work, ends, robots)
     material = MaterialIndex.of(chunked.chunks.chunks, margin=max(s.layer_height, s.first_layer_height))
     if chunked.assignment.strategy == "seed":
@@ -500,7 +523,7 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     else:
         chunked, streams, placements = _fleet_plan(chunked, store, material, robots)
     if progress:
-        progress("program", 1, 1)
+        progress("program", n_chunks, n_chunks)
     return CoopJob(chunked, store, streams, placements, layers)
 
 
@@ -644,9 +667,11 @@ def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Pr
     """Write the bundle's files into the (new, empty) folder ``tmp``: each robot's ``.coop`` and
     G-code written as its stream's pieces come (one chunk's commands in memory at a time).
     Returns the job record."""
+    from cooprint.io.estimate import CALIBRATION
     from cooprint.program.commands import CoopWriter
     from cooprint.program.gcode import Feeds, Heating, write_gcode
     from cooprint.program.stream import ChunkPiece, ProgramStats
+    from cooprint.progress import ByteMeter
     from cooprint.simulation.timeline import event_times
 
     settings = job.chunked.settings
@@ -657,14 +682,13 @@ def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Pr
     waits = event_times(piece_robots(job.streams, job.placements, settings, job.store, feeds.speeds)).waits
     (tmp / "chunks").mkdir()
     (tmp / "robots").mkdir()
-    n = len(job.chunked.chunks.chunks)
-    total = n + sum(_stream_commands(st, job.store) for st in job.streams.values())
-    done = 0
+    # the write bar counts bytes (MB/s): the STLs' exact size, the programs' expected
+    per_command = CALIBRATION.coop_bytes + CALIBRATION.gcode_bytes
+    meter = ByteMeter(progress, sum(stl_bytes(c.faces) for c in job.chunked.chunks.chunks)
+                      + int(per_command * sum(_stream_commands(st, job.store) for st in job.streams.values())))
     for c in job.chunked.chunks.chunks:
         write_stl(tmp / "chunks" / f"{c.id}.stl", c.vertices, c.faces, name=c.id)
-        done += 1
-        if progress:
-            progress("write", done, total)
+        meter.add(stl_bytes(c.faces))
     name = Path(job.chunked.solid.report.path).name
     stats = {}
     for robot, stream in job.streams.items():
@@ -679,29 +703,30 @@ def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Pr
         counted = ProgramStats()
         with open(tmp / "robots" / f"{robot}.coop", "w", encoding="utf-8") as coop, \
                 open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as gcode:
-            writer = CoopWriter(coop, robot, header)
+            writer = CoopWriter(meter.wrap(coop), robot, header)
 
             def pieces() -> Iterator[Any]:
-                nonlocal done
                 for piece in stream.programs(job.store):
                     writer.write(piece)
                     counted.add(piece)
-                    done += len(piece)
-                    if progress:
-                        progress("write", done, total)
                     yield piece
 
-            write_gcode(gcode, pieces(), s, feeds, f"{name}, robot {robot}", notes=header[:2], home=False,
+            write_gcode(meter.wrap(gcode), pieces(), s, feeds, f"{name}, robot {robot}", notes=header[:2], home=False,
                         heating=Heating.of_robot(settings.robot, s, settings.program.heater_idle_limit_s,
                                                  waits[robot]))
             writer.close()
         stats[robot] = counted.to_dict(s.filament_diameter)
+    meter.finish()
     record = coop_record(job, stats)
     if picture:
         from cooprint.render.chunks import render_chunks
 
+        if progress:
+            progress("render", 0, 1)
         render_chunks(job.chunked.chunks, tmp / "chunks.png", schedule=job.chunked.assignment)  # by robot
         record["picture"] = "chunks.png"
+        if progress:
+            progress("render", 1, 1)
     write_json(tmp / "job.json", record)
     return record
 
@@ -739,7 +764,7 @@ SPOOL = ".spool"
 
 def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, robots: int = 2, *,
             force: bool = False, picture: bool = True, progress: Progress | None = None,
-            executor: Any = None) -> dict[str, Any]:
+            executor: Any = None, on_estimate: "Callable[[JobEstimate], None] | None" = None) -> dict[str, Any]:
     """Plan and write a cooperative job, streamed (issue 15): each chunk's commands are spooled
     into the bundle's temporary folder as soon as it is sliced, and each robot's files are
     written piece by piece from there, so that memory holds the chunks in flight, not the job.
@@ -749,30 +774,58 @@ def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, ro
 
     inputs = (str(mesh),) if not isinstance(mesh, Solid) and os.path.exists(mesh) else ()
     with atomic_dir(Path(out), force, inputs=inputs) as tmp:
-        job = coop_job(mesh, settings, robots, progress, executor, spool=tmp / SPOOL)
+        job = coop_job(mesh, settings, robots, progress, executor, spool=tmp / SPOOL, on_estimate=on_estimate)
         record = write_coop_files(job, tmp, picture, progress)
         shutil.rmtree(tmp / SPOOL)
     return record
 
 
-def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False) -> dict[str, Any]:
+def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False,
+                    progress: Progress | None = None) -> dict[str, Any]:
     """Simulate the bundle in ``out`` (written by :func:`run`) and write ``out/sim/``:
     ``summary.json``, ``gantt.png``, ``snapshot.png`` (at ``snapshot_at`` s, default half the
     makespan) and, with ``animation``, ``animation.mp4`` (20 s at 24 frames/s); returns the
-    summary. cooprint's earlier derived outputs in ``sim/`` are replaced, other files kept."""
+    summary. cooprint's earlier derived outputs in ``sim/`` are replaced, other files kept.
+    ``progress``: the stages ``read`` (bytes of the programs), ``timelines``, ``checks`` and
+    ``pictures``."""
     from cooprint.io.bundle import check_sim_folder
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
-    from cooprint.simulation import load_inputs, simulate, summary
+    from cooprint.simulation import simulate, summary
 
     out = Path(out)
     check_sim_folder(out / "sim")  # before the work, not after
-    inp = load_inputs([str(out)])
-    result = simulate(inp)
+    inp = read_with_progress([str(out)], None, None, progress)
+    result = simulate(inp, progress=progress)
     record = summary(result)
+    pictures = 3 if animation else 2
     with atomic_dir(out / "sim", force=True, sim=True) as tmp:
         write_json(tmp / "summary.json", record)
+        if progress:
+            progress("pictures", 0, pictures)
         render_gantt(result, tmp / "gantt.png", critical=inp.critical_path, lower_bound=inp.lower_bound)
+        if progress:
+            progress("pictures", 1, pictures)
         render_snapshot(result, result.makespan / 2 if snapshot_at is None else snapshot_at, tmp / "snapshot.png")
+        if progress:
+            progress("pictures", 2, pictures)
         if animation:
             render_animation(result, tmp / "animation.mp4", fps=24, duration=20)
+            if progress:
+                progress("pictures", 3, pictures)
     return record
+
+
+def read_with_progress(inputs: list[str], manifest: str | None, settings: JobSettings | None,
+                       progress: Progress | None) -> Any:
+    """:func:`cooprint.simulation.load_inputs` as the ``read`` stage of the progress bars, in
+    bytes of the programs (:func:`cooprint.progress.program_bytes`)."""
+    from cooprint.progress import program_bytes
+    from cooprint.simulation import load_inputs
+
+    size = program_bytes(inputs) if progress else 0
+    if progress:
+        progress("read", 0, size)
+    inp = load_inputs(inputs, manifest, settings)
+    if progress:
+        progress("read", size, size)
+    return inp

@@ -10,7 +10,7 @@ import os
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from PIL import Image, ImageDraw
@@ -261,10 +261,12 @@ class Mp4Encoder:
 
 def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, duration: float | None = None,
                      speedup: float | None = None, size: tuple[int, int] = (1280, 720),
-                     azimuth_deg: float = -35.0, elevation_deg: float = 30.0) -> Path:
+                     azimuth_deg: float = -35.0, elevation_deg: float = 30.0,
+                     progress: "Callable[[int, int], None] | None" = None) -> Path:
     """MP4 (``.mp4``, through imageio-ffmpeg) or GIF (``.gif``, through Pillow) of the plan in
     time: each frame draws only the material laid down since the one before onto a kept canvas,
-    then the robots, the clock and the progress bars on a copy (seed Fig. 15-16)."""
+    then the robots, the clock and the progress bars on a copy (seed Fig. 15-16).
+    ``progress(frames done, frames)`` after each frame."""
     path = Path(path)
     gif = path.suffix.lower() == ".gif"
     if gif:
@@ -279,7 +281,9 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
     if not gif:
         writer = Mp4Encoder(path, size, fps)
     try:
-        for t in times.tolist():
+        for n_done, t in enumerate(times.tolist()):
+            if progress:
+                progress(n_done, len(times))
             partial = []
             for i, r in enumerate(result.robots):
                 tl = result.timelines[r.name]
@@ -302,6 +306,8 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
         if writer is not None:
             writer.close()
             writer = None
+        if progress:
+            progress(len(times), len(times))
     finally:
         if writer is not None:  # an error or a Ctrl-C while drawing: ffmpeg stops, the file is removed
             writer.abort()

@@ -9,9 +9,10 @@ every move in time and resolves NOTIFY / WAIT (deadlocks found from the commands
 from __future__ import annotations
 
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -54,16 +55,18 @@ class SimResult:
         return max((tl.end for tl in self.timelines.values()), default=0.0)
 
 
-def simulate(inp: SimInput, checks: bool = True, accel: bool = False) -> SimResult:
+def simulate(inp: SimInput, checks: bool = True, accel: bool = False,
+             progress: Callable[[str, int, int], None] | None = None) -> SimResult:
     """Put every robot's program in time and check the plan.
 
     ``accel``: moves accelerate and decelerate (trapezoids joined at jerk-limited corner speeds,
     :mod:`.kinematics`) with the input's machine limits (G-code: PrusaSlicer's) or the robot
     profile's ``acceleration`` and ``jerk``; otherwise each move takes length / speed. A bundle
     whose job.json states the scheduler's lower bound is held to it (:func:`bound_findings`).
+    ``progress(stage, done, total)``: the ``timelines`` (robots) and the ``checks`` as they end.
     """
     chunks = read_chunk_meshes(inp) if checks else None  # a bundle's part, read (and refused) before the work
-    result = play(inp, inp.fleet(), accel, checks=checks, chunks=chunks)
+    result = play(inp, inp.fleet(), accel, checks=checks, chunks=chunks, progress=progress)
     if checks and inp.estimate is not None and inp.estimate.lower_bound_s is not None and not accel:
         found = bound_findings(result, inp.estimate.lower_bound_s)
         findings = sorted(result.findings + found, key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
@@ -78,7 +81,8 @@ TIME_INVARIANT = ("below-floor", "outside-part")
 
 
 def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: bool = True,
-         chunks: dict | None = None, invariant: bool = True) -> SimResult:
+         chunks: dict | None = None, invariant: bool = True,
+         progress: Callable[[str, int, int], None] | None = None) -> SimResult:
     """:func:`simulate`'s work for ``robots`` (``inp``'s fleet, or the same robots at other
     speeds: :mod:`.perturb`): their timelines and, with ``checks``, every check that applies
     (``chunks``: the bundle's chunk meshes, read once by the caller; ``None``: no outside-part
@@ -87,7 +91,11 @@ def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: boo
     p = inp.profile
     limits = ({r.name: inp.limits or MachineLimits.planar(r.profile.acceleration, r.profile.jerk) for r in robots}
               if accel else None)
+    if progress:
+        progress("timelines", 0, len(robots))
     timelines, findings = schedule(robots, p.print_speed, p.travel_speed, limits)
+    if progress:
+        progress("timelines", len(robots), len(robots))
     checked = ["deadlock"]
     if checks:
         if inp.deps is not None:  # a bundle: the order its chunks depend on is known
@@ -110,7 +118,7 @@ def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: boo
             laid.append(lambda: outside_part(robots, timelines, material, chunks, inp.robot_chunks or {},
                                              inp.slicing.extrusion_width))
             checked.append("outside-part")
-        findings += _concurrently([outline, laid])
+        findings += _concurrently(_counted([outline, laid], progress))
     findings.sort(key=lambda f: (KINDS.index(f.kind), f.time, f.robot))
     return SimResult(robots, timelines, findings, p, inp.slicing, inp.source, accel,
                      tuple(k for k in KINDS if k in checked), inp.notes, inp.placed, inp.estimate)
@@ -139,6 +147,28 @@ def bound_findings(result: SimResult, lower_bound: float) -> list[Finding]:
     return [Finding("below-lower-bound", last.name, span, where, None,
                     f"the simulated makespan {span:.1f} s is {1 - span / lower_bound:.2%} below the scheduler's lower "
                     f"bound {lower_bound:.1f} s (job.json schedule.lower_bound_s): the bound or the plan is wrong")]
+
+
+def _counted(groups: list[list], progress: Callable[[str, int, int], None] | None) -> list[list]:
+    """``groups`` of checks, each reporting ``progress("checks", checks done, checks)`` when it
+    ends (from whichever thread ran it)."""
+    if progress is None:
+        return groups
+    total = sum(len(g) for g in groups)
+    done = [0]
+    lock = threading.Lock()
+    progress("checks", 0, total)
+
+    def counted(check: Callable[[], list[Finding]]) -> Callable[[], list[Finding]]:
+        def run() -> list[Finding]:
+            found = check()
+            with lock:
+                done[0] += 1
+                progress("checks", done[0], total)
+            return found
+        return run
+
+    return [[counted(c) for c in g] for g in groups]
 
 
 def _concurrently(groups: list[list]) -> list[Finding]:
