@@ -480,7 +480,7 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     from cooprint.io.estimate import estimate_job
     from cooprint.program.build import BodySize, MaterialIndex, robot_streams
     from cooprint.program.stream import ChunkStore
-    from cooprint.scheduling.graph import ends_from_layers, work_from_layers
+    from cooprint.scheduling.graph import work_from_program
     from cooprint.slicing import slice_chunks
 
     settings = settings or load_settings()
@@ -501,12 +501,14 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     for cid, chunk_layers in slice_chunks(solids, s, base, slice_progress, executor):
         # what the later stages need of a chunk, while its layers are here: its work and ends
         # (the schedule again), its commands (the store) and their summary
-        work |= work_from_layers({cid: chunk_layers}, settings.robot, s)
-        ends |= ends_from_layers({cid: chunk_layers})
-        store.put(cid, chunk_layers)
+        canon = store.put(cid, chunk_layers)
+        work[cid] = work_from_program(canon, settings.robot, s)
+        first, last = store.summary(cid).first, store.summary(cid).last
+        if first is not None and last is not None:
+            ends[cid] = (first, last)
         if layers is not None:
             layers[cid] = chunk_layers
-        del chunk_layers
+        del chunk_layers, canon
     del solids
     n_chunks = len(chunked.chunks.chunks)
     if progress:

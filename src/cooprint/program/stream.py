@@ -87,15 +87,23 @@ def entered(canon: Program, entry: np.ndarray | None) -> Program:
     return Program(canon.robot, **cols, chunks=canon.chunks, events=canon.events, turns=())
 
 
-def summarize(layers: Sequence[tuple[int, LayerPaths]], canon: Program) -> ChunkSummary:
-    """The :class:`ChunkSummary` of a chunk's layers and canonical program."""
+def chunk_ends(layers: Sequence[tuple[int, LayerPaths]]) -> tuple[np.ndarray, np.ndarray] | None:
+    """Where the nozzle starts printing a chunk (its first non-empty layer's first point) and
+    where it ends (its last layer's last point), on the 1 µm grid; None: nothing to print."""
     full = [layer for _, layer in layers if len(layer)]
     if not full:
+        return None
+    return quantize(np.r_[full[0].points[0], full[0].z]), quantize(np.r_[full[-1].points[-1], full[-1].z])
+
+
+def summarize(layers: Sequence[tuple[int, LayerPaths]], canon: Program) -> ChunkSummary:
+    """The :class:`ChunkSummary` of a chunk's layers and canonical program."""
+    ends = chunk_ends(layers)
+    if ends is None:
         return ChunkSummary(None, None, np.zeros((0, 2)), 0, len(canon))
-    first = quantize(np.r_[full[0].points[0], full[0].z])
-    last = quantize(np.r_[full[-1].points[-1], full[-1].z])
+    full = [layer for _, layer in layers if len(layer)]
     pts = np.concatenate([layer.points[:, :2] for layer in full])
-    return ChunkSummary(first, last, hull_points(pts), len(full), len(canon))
+    return ChunkSummary(ends[0], ends[1], hull_points(pts), len(full), len(canon))
 
 
 def hull_points(pts: np.ndarray) -> np.ndarray:
@@ -108,7 +116,8 @@ def hull_points(pts: np.ndarray) -> np.ndarray:
     order = np.lexsort((pts[:, 1], pts[:, 0]))
     sorted_pts = np.ascontiguousarray(pts[order])
     keep = np.r_[True, (np.diff(sorted_pts, axis=0) != 0).any(axis=1)]
-    return _chain(np.ascontiguousarray(sorted_pts[keep]))
+    distinct = np.ascontiguousarray(sorted_pts[keep])
+    return distinct if len(distinct) < 3 else _chain(distinct)
 
 
 @numba.njit(cache=True)
@@ -148,10 +157,10 @@ class ChunkStore:
         #: what other stages computed of a chunk's program and keep (e.g. the fleet's pieces)
         self.memo: dict[tuple, object] = {}
 
-    def put(self, cid: str, layers: Sequence[tuple[int, LayerPaths]]) -> ChunkSummary:
-        """Make and keep chunk ``cid``'s canonical program from its layers."""
+    def put(self, cid: str, layers: Sequence[tuple[int, LayerPaths]]) -> Program:
+        """Make and keep chunk ``cid``'s canonical program from its layers; returns it."""
         canon = canonical_program(cid, layers)
-        self.summaries[cid] = summary = summarize(layers, canon)
+        self.summaries[cid] = summarize(layers, canon)
         if self.folder is None:
             self._mem[cid] = canon
         else:
@@ -161,7 +170,7 @@ class ChunkStore:
                     np.save(fh, getattr(canon, f), allow_pickle=False)
             self._files[cid] = path
             self._last = (cid, canon)
-        return summary
+        return canon
 
     def __contains__(self, cid: object) -> bool:
         return cid in self.summaries
@@ -290,5 +299,5 @@ class ProgramStats:
                 "notify": self.notify, "wait": self.wait}
 
 
-__all__ = ["ChunkPiece", "ChunkStore", "ChunkSummary", "ProgramStats", "Programs", "RobotStream", "canonical_program", "entered",
+__all__ = ["ChunkPiece", "ChunkStore", "chunk_ends", "ChunkSummary", "ProgramStats", "Programs", "RobotStream", "canonical_program", "entered",
            "hull_points", "summarize"]

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Mapping, Sequence
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
@@ -40,6 +40,9 @@ from cooprint.errors import UserError
 from cooprint.geometry import unit_xy
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.slicing.paths import LayerPaths
+
+if TYPE_CHECKING:
+    from cooprint.program.commands import Program
 
 #: Work of a chunk with nothing to print, s: positive, so that every chunk is a real job.
 MIN_WORK = 1e-3
@@ -457,72 +460,66 @@ def _unprintable(ids: tuple[str, ...], preds: list[list[int]], both: list[list[i
 # -- work estimates --------------------------------------------------------------------------
 
 
-def _layer_moves(layers: Sequence[tuple[int, LayerPaths]]):
-    """Yield each non-empty layer's program piece (:func:`layer_program`) of one chunk, the
-    nozzle starting at the chunk's first point, and where each piece starts."""
-    from cooprint.program.build import layer_program
-    from cooprint.program.commands import quantize
-
-    here = None
-    for li, layer in layers:
-        if not len(layer):
-            continue
-        if here is None:
-            here = quantize(np.r_[layer.points[0], layer.z])
-        piece, nxt = layer_program(layer, here, index=li)
-        yield piece, here
-        here = nxt
-
-
 def work_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]], robot: RobotProfile,
                      slicing: SlicingSettings, *, gcode: bool = False) -> dict[str, float]:
-    """``{chunk id: s}``: the constant-speed time of each chunk's layer moves, from its first
-    printed point to its last, as the robot programs make them
-    (:func:`cooprint.program.build.layer_program`).
+    """``{chunk id: s}``: :func:`work_from_program` of each chunk's commands (its layers through
+    :func:`cooprint.program.build.layer_program`)."""
+    from cooprint.program.stream import canonical_program
+
+    return {cid: work_from_program(canonical_program(cid, chunk_layers), robot, slicing, gcode=gcode)
+            for cid, chunk_layers in layers.items()}
+
+
+def work_from_program(canon: "Program", robot: RobotProfile, slicing: SlicingSettings, *,
+                      gcode: bool = False) -> float:
+    """The constant-speed time of a chunk's layer moves, s, from its first printed point to its
+    last, as the robot programs make them: ``canon`` is the chunk's canonical program
+    (:func:`cooprint.program.stream.canonical_program`), timed layer by layer from its first
+    point on (the way to that point is travel between chunks, :meth:`ChunkDAG.travel`, not work).
 
     The times are the simulator's for a ``cooprint run`` plan
     (:func:`cooprint.simulation.timeline.move_durations` on a ``.coop`` robot): length over the
     profile's ``print_speed`` for a move that deposits (tool on, length > 0), over its
     ``travel_speed`` for any other. With ``gcode`` they are the written G-code's instead
     (:meth:`Feeds.of_robot`: the first layer at ``min(slicing.first_layer_speed,
-    print_speed)``). The way into the chunk and out of it are travel between chunks
-    (:meth:`ChunkDAG.travel`), not work.
+    print_speed)``).
     """
-    from cooprint.program.commands import MOVE
+    from cooprint.program.commands import COLUMNS, MOVE, Program
     from cooprint.program.gcode import Feeds
 
+    if len(canon) == 0:
+        return 0.0
     feeds = Feeds.of_robot(robot, slicing)
-    out = {}
-    for cid, chunk_layers in layers.items():
-        total = 0.0
-        for piece, here in _layer_moves(chunk_layers):
-            mv = piece.kind == MOVE
-            xyz = piece.xyz[mv]
-            p0 = np.vstack([here[None], xyz[:-1]])
-            length = np.linalg.norm(xyz - p0, axis=1)
-            if gcode:
-                speed = feeds.speeds(piece)[mv]
-            else:
-                speed = np.where(piece.tool_on()[mv] & (length > 0), robot.print_speed, robot.travel_speed)
-            total += float((length / speed).sum())
-        out[cid] = total
-    return out
+    # each layer's commands; the first one's first move (to the chunk's first point, from
+    # nowhere) is the way in
+    cuts = np.r_[1, np.flatnonzero(np.diff(canon.layer) != 0) + 1, len(canon)]
+    here = canon.xyz[0]
+    total = 0.0
+    for a, b in zip(cuts[:-1].tolist(), cuts[1:].tolist()):
+        piece = Program("", *(getattr(canon, f)[a:b] for f in COLUMNS))
+        mv = piece.kind == MOVE
+        xyz = piece.xyz[mv]
+        p0 = np.vstack([here[None], xyz[:-1]])
+        length = np.linalg.norm(xyz - p0, axis=1)
+        if gcode:
+            speed = feeds.speeds(piece)[mv]
+        else:
+            speed = np.where(piece.tool_on()[mv] & (length > 0), robot.print_speed, robot.travel_speed)
+        total += float((length / speed).sum())
+        if len(xyz):
+            here = xyz[-1]
+    return total
 
 
 def ends_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]]
                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{chunk id: (first xyz, last xyz)}``: where the nozzle starts printing each chunk (its
     first layer's first point) and where it ends (its last layer's last point), on the 1 µm
-    grid of the programs; chunks with nothing to print are left out."""
-    from cooprint.program.commands import quantize
+    grid of the programs (:func:`cooprint.program.stream.chunk_ends`); chunks with nothing to
+    print are left out."""
+    from cooprint.program.stream import chunk_ends
 
-    out = {}
-    for cid, chunk_layers in layers.items():
-        full = [layer for _, layer in chunk_layers if len(layer)]
-        if full:
-            first, last = full[0], full[-1]
-            out[cid] = (quantize(np.r_[first.points[0], first.z]), quantize(np.r_[last.points[-1], last.z]))
-    return out
+    return {cid: e for cid, chunk_layers in layers.items() if (e := chunk_ends(chunk_layers)) is not None}
 
 
 #: :func:`work_from_volume`'s factor: the time of the sliced layers (:func:`work_from_layers`)
