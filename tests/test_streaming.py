@@ -206,7 +206,7 @@ def test_event_times_are_schedule_times():
     def cut(p):
         offs = np.flatnonzero(p.kind == TOOL_OFF) + 1
         cuts = np.unique(np.r_[0, rng.choice(offs, min(len(offs), 9), replace=False) if len(offs) else [], len(p)])
-        return [_slice(p, int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
+        return [p.part(int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
 
     pieces = {r: cut(p) for r, p in job.programs.items()}
     got = event_times([PieceRobot(r, np.asarray(job.placements[r].start, float), (lambda r=r: pieces[r]),
@@ -215,15 +215,6 @@ def test_event_times_are_schedule_times():
         assert got.ends[r] == tl.end
         assert got.waits[r] == [w[1] - w[0] for w in tl.waits]
     assert any(got.waits[r] for r in got.waits)  # the plan has WAITs to time
-
-
-def _slice(p: Program, a: int, b: int) -> Program:
-    """Commands ``a .. b`` of ``p`` as a piece of its own (its events renumbered)."""
-    ev = p.event[a:b]
-    events = tuple(p.events[e] for e in ev[ev >= 0])
-    renum = np.where(ev >= 0, np.cumsum(ev >= 0) - 1, -1).astype(np.int32)
-    return Program(p.robot, p.kind[a:b], p.xyz[a:b], p.role[a:b], p.width[a:b], p.layer[a:b], p.height[a:b],
-                   p.chunk[a:b], renum, p.chunks, events)
 
 
 def test_store_reads_back_what_it_spooled(tmp_path):

@@ -592,10 +592,11 @@ def piece_robots(programs: Mapping[str, Any], placements: dict[str, Any], settin
     """The robots of a plan for :func:`cooprint.simulation.timeline.event_times`: each program
     (or stream, read from ``store``) from its placement's start, at the job's robot speeds or
     at ``speed(piece, tool)``."""
+    from cooprint.program.stream import PIECE_COMMANDS
     from cooprint.simulation.timeline import PieceRobot
 
     def pieces(p: Any) -> Callable[[], Iterable[Any]]:
-        return (lambda: [p]) if store is None else (lambda: p.programs(store))
+        return (lambda: [p]) if store is None else (lambda: p.programs(store, PIECE_COMMANDS))
 
     robot = settings.robot
     return [PieceRobot(r, np.asarray(placements[r].start, float), pieces(p), robot.print_speed, robot.travel_speed,

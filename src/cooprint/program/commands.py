@@ -191,6 +191,17 @@ class Program:
         return Program(robot, *(np.concatenate(cols[f]) for f in cols), chunks=tuple(chunks),
                        events=tuple(events), turns=tuple(turns))
 
+    def part(self, a: int, b: int) -> "Program":
+        """Commands ``a .. b`` as a program of their own (events renumbered, turns before them
+        kept): ``Program.concat`` of consecutive parts is the program again."""
+        ev = self.event[a:b]
+        sync = ev >= 0
+        events = tuple(self.events[e] for e in ev[sync])
+        event = np.where(sync, np.cumsum(sync) - 1, -1).astype(np.int32)
+        turns = tuple((i - a, d) for i, d in self.turns if a <= i < b or (i == b == len(self)))
+        return Program(self.robot, self.kind[a:b], self.xyz[a:b], self.role[a:b], self.width[a:b], self.layer[a:b],
+                       self.height[a:b], self.chunk[a:b], event, self.chunks, events, turns)
+
 
 def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *, role=TRAVEL, width=0.0,
                  layer=-1, height=0.0, chunk=-1, chunks: tuple[str, ...] = (),

@@ -29,6 +29,12 @@ from cooprint.program.commands import COLUMNS, MOVE, Program, quantize
 from cooprint.slicing.paths import LayerPaths
 
 
+#: The most commands a consumer of a stream takes at once (:meth:`RobotStream.programs`): a
+#: beam's chunk holds two million; a writer's text or a timing's arrays for 262,144 commands
+#: are tens of megabytes.
+PIECE_COMMANDS = 1 << 18
+
+
 @dataclass(frozen=True)
 class ChunkSummary:
     """What the later stages need of a sliced chunk without its paths.
@@ -198,8 +204,7 @@ class ChunkStore:
         prog = entered(self.program(piece.chunk), None if piece.entry is None else np.asarray(piece.entry))
         if piece.start == 0 and piece.stop is None:
             return prog
-        stop = len(prog) if piece.stop is None else piece.stop
-        return Program(prog.robot, *(getattr(prog, f)[piece.start:stop] for f in COLUMNS), chunks=prog.chunks)
+        return prog.part(piece.start, len(prog) if piece.stop is None else piece.stop)
 
     def nbytes(self) -> int:
         """Bytes of the programs on disk (0 in memory)."""
@@ -224,10 +229,20 @@ class RobotStream:
     robot: str
     parts: list
 
-    def programs(self, store: ChunkStore) -> Iterator[Program]:
-        """Each part's commands, in order (a chunk piece read from the store)."""
+    def programs(self, store: ChunkStore, most: int | None = None) -> Iterator[Program]:
+        """Each part's commands, in order (a chunk piece read from the store); with ``most``, a
+        chunk piece longer than that in parts of at most ``most`` commands (what a consumer
+        makes of each piece, e.g. a writer's text, stays that small)."""
         for part in self.parts:
-            yield store.piece(part) if isinstance(part, ChunkPiece) else part
+            if not isinstance(part, ChunkPiece):
+                yield part
+                continue
+            prog = store.piece(part)
+            if most is None or len(prog) <= most:
+                yield prog
+                continue
+            for a in range(0, len(prog), most):
+                yield prog.part(a, min(a + most, len(prog)))
 
     def program(self, store: ChunkStore) -> Program:
         """The whole program in memory (for small jobs and tests)."""
@@ -299,5 +314,5 @@ class ProgramStats:
                 "notify": self.notify, "wait": self.wait}
 
 
-__all__ = ["ChunkPiece", "ChunkStore", "chunk_ends", "ChunkSummary", "ProgramStats", "Programs", "RobotStream", "canonical_program", "entered",
+__all__ = ["PIECE_COMMANDS", "ChunkPiece", "ChunkStore", "chunk_ends", "ChunkSummary", "ProgramStats", "Programs", "RobotStream", "canonical_program", "entered",
            "hull_points", "summarize"]
