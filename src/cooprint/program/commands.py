@@ -192,6 +192,23 @@ class Program:
                        events=tuple(events), turns=tuple(turns))
 
 
+def program_rows(p: Program, a: int, b: int, last: bool | None = None) -> Program:
+    """Commands ``a`` to ``b - 1`` of ``p`` as a program piece: the turns before them (and,
+    if ``last``, by default when ``b`` is the end, those after the last command), the events
+    they name renumbered from 0, the chunk table kept. Splitting a program at any points and writing the pieces in
+    order writes the whole program (:class:`CoopWriter`, :class:`~.gcode.GcodeWriter`)."""
+    n = len(p)
+    a, b = max(0, min(a, n)), max(0, min(b, n))
+    ev = p.event[a:b]
+    used = ev[ev >= 0]
+    first = int(used[0]) if len(used) else 0
+    events = p.events[first:int(used[-1]) + 1] if len(used) else ()
+    last = b == n if last is None else last
+    turns = tuple((i - a, d) for i, d in p.turns if a <= i < b or (last and i == n and b == n))
+    return Program(p.robot, p.kind[a:b], p.xyz[a:b], p.role[a:b], p.width[a:b], p.layer[a:b], p.height[a:b],
+                   p.chunk[a:b], np.where(ev >= 0, ev - first, -1).astype(np.int32), p.chunks, events, turns)
+
+
 def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *, role=TRAVEL, width=0.0,
                  layer=-1, height=0.0, chunk=-1, chunks: tuple[str, ...] = (),
                  events: tuple[tuple[str, ...], ...] = (), turns: tuple[tuple[int, float], ...] = ()) -> Program:

@@ -29,19 +29,18 @@ from __future__ import annotations
 import io
 import math
 from dataclasses import dataclass
-from typing import Iterable, TextIO
+from typing import BinaryIO, Iterable, TextIO
 
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.program.commands import MOVE, NOTIFY, TOOL_ON, WAIT, Program
+from cooprint.program.commands import MOVE, NOTIFY, TOOL_ON, WAIT, Program, program_rows
+from cooprint.program.numtext import Table, Templates, assemble
 from cooprint.program.comment import comment_safe
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, extrusion_area
 
 ROLE_TYPES = {PERIMETER_OUTER: "WALL-OUTER", PERIMETER_INNER: "WALL-INNER", SKIN: "SKIN", INFILL: "FILL",
               TRAVEL: "TRAVEL"}
-_G1 = "G1 X%.3f Y%.3f E%.5f\n"
-_G1Z = "G1 X%.3f Y%.3f Z%.3f E%.5f\n"
 
 
 @dataclass(frozen=True)
@@ -142,11 +141,52 @@ def end_code(bed: bool = True) -> str:
     return "\n".join(["; end", "M400", "M104 S0", *(["M140 S0"] if bed else []), "M84", ""])
 
 
-class GcodeWriter:
-    """Writes programs, piece after piece, keeping the state between them (position, tool,
-    retraction, current layer and role). ``filament`` is the length extruded so far, mm."""
+def _last_before(mask: np.ndarray) -> np.ndarray:
+    """(n + 1,) the index of the last ``True`` of ``mask`` strictly before each index 0..n (-1:
+    none): the command that last set a state, for the state in force at each command."""
+    idx = np.where(mask, np.arange(len(mask)), -1)
+    return np.r_[-1, np.maximum.accumulate(idx)] if len(idx) else np.array([-1])
 
-    def __init__(self, out: TextIO, s: SlicingSettings, feeds: Feeds, heating: Heating | None = None):
+
+def _exact_units(e: np.ndarray) -> int:
+    """The exact sum of finite doubles, as an integer in units of 2**-1126 (every double is a
+    whole number of those): a sum that does not depend on how the values were split into
+    pieces, which a float sum does (in its last bits)."""
+    if not len(e):
+        return 0
+    m, ex = np.frexp(np.asarray(e, dtype=np.float64))
+    mant = (m * 2.0**53).astype(np.int64)  # exact: e = mant * 2**(ex - 53)
+    shift = ex.astype(np.int64) + 1073  # e = mant * 2**(shift - 1126), shift >= 0
+    order = np.argsort(shift, kind="stable")
+    shift, mant = shift[order], mant[order]
+    starts = np.flatnonzero(np.r_[True, shift[1:] != shift[:-1]])
+    hi = np.add.reduceat(mant >> 26, starts)  # each < 2**27: no int64 sum of them overflows
+    lo = np.add.reduceat(mant & ((1 << 26) - 1), starts)
+    return sum(((int(h) << 26) + int(lo_)) << int(sh) for h, lo_, sh in zip(hi, lo, shift[starts]))
+
+
+class GcodeWriter:
+    """Writes a program piece after piece, the bytes the same for any split of it into pieces
+    (``cooprint run`` streams each robot's program: a chunk's commands, a travel leg, a WAIT).
+
+    Some lines depend on what comes after them: a run of extruding moves is written with Z on
+    every line if any of its moves climbs; a travel retracts if its whole run of travel moves
+    (which NOTIFY, WAIT and TOOL commands do not end) is at least ``retract_before_travel``
+    long; a layer's ``;Z:`` names the height of its next move. What such a decision still waits
+    for is held back (the last extrusion run, an undecided travel run, a ``;LAYER:`` with no
+    move yet) and written with a later piece or by :meth:`flush`; everything else is written at
+    once. The state between pieces (position, tool, heat, retraction, current layer and role,
+    the last command) is kept here. ``filament`` is the length extruded so far, mm (an exact
+    sum: the same for any split).
+
+    Text is made by :mod:`.numtext` (all lines of a block of commands in one compiled pass) and
+    written in blocks of at most ``BLOCK`` commands; ``out`` is a text or a binary file.
+    """
+
+    #: Commands formatted at once (bounds the text buffer: about 40 bytes a command).
+    BLOCK = 1 << 17
+
+    def __init__(self, out: TextIO | BinaryIO, s: SlicingSettings, feeds: Feeds, heating: Heating | None = None):
         self.out, self.s, self.feeds, self.heating = out, s, feeds, heating
         self.hot = heating is None  # a printer heated its nozzle in the start code
         self.waits = 0  # WAITs written so far
@@ -156,124 +196,211 @@ class GcodeWriter:
         self.retracted = False
         self.where: tuple = (None, None)  # (chunk id, layer) last announced
         self.role: int | None = None  # role of the extrusion in progress (None after a travel)
-        self.filament = 0.0
+        self._units = 0  # filament so far, in units of 2**-1126 mm
         f = s.retract_speed * 60
         self.retract = f"G1 E{-s.retract_length:.5f} F{f:.0f}\n" if s.retract_length > 0 else ""
         self.unretract = f"G1 E{s.retract_length:.5f} F{f:.0f}\n" if s.retract_length > 0 else ""
         self.travel_f = f"F{feeds.travel * 60:.0f}"
+        self._templates = Templates(["G1 X%.3f Y%.3f E%.5f\n", "G1 X%.3f Y%.3f Z%.3f E%.5f\n",
+                                     f"G0 X%.3f Y%.3f Z%.3f {self.travel_f}\n"], [(0, 1, 3), (0, 1, 2, 3), (0, 1, 2)])
+        self._text = isinstance(out, io.TextIOBase)
+        self._tail: Program | None = None  # commands (and turns) not written yet
+        self._prev: tuple | None = None  # (chunk id, layer, extruding, role) of the last command written
+        self._last_move_off = False  # the last move written was a travel ...
+        self._run_long = False  # ... of a run already known to be long enough to retract
+
+    @property
+    def filament(self) -> float:
+        return self._units / (1 << 1126)
 
     def write(self, p: Program) -> None:
-        """Append one program piece.
-
-        Lengths and E values are computed for the whole piece at once; each run of extruding
-        moves (one role, layer and chunk) is then one ``%`` format, other commands a line each.
-        """
+        """Append one program piece (written at once but for what later pieces decide)."""
         n = len(p)
-        if n == 0:
-            for _, deg in p.turns:  # a piece that is only a turn
-                self._turn([deg])
-            return
-        kind, xyz = p.kind, p.xyz
+        for a in range(0, max(n, 1), self.BLOCK):
+            block = program_rows(p, a, min(a + self.BLOCK, n))
+            self._emit(block if self._tail is None else Program.concat(p.robot, [self._tail, block]), final=False)
+
+    def flush(self) -> None:
+        """Write what is held back: the end of the program."""
+        if self._tail is not None:
+            self._emit(self._tail, final=True)
+
+    def _put(self, data: bytes) -> None:
+        if data:
+            self.out.write(data.decode("ascii") if self._text else data)
+
+    def _emit(self, p: Program, final: bool) -> None:
+        """Write the commands of ``p`` whose text is decided (all of them if ``final``), keep
+        the rest as the tail. ``p`` starts where the last write stopped."""
+        self._tail = None
+        n = len(p)
+        kind, xyz, role, layer, chunk = p.kind, p.xyz, p.role.astype(np.int64), p.layer, p.chunk
+        heating, s = self.heating, self.s
         on = p.tool_on(self.tool)
-        mv = np.flatnonzero(kind == MOVE)
+        is_mv = kind == MOVE
+        mv = np.flatnonzero(is_mv)
         prev = np.empty((len(mv), 3))
-        if len(mv):  # a piece may hold no move at all (only dwells or turns)
+        if len(mv):
             prev[1:] = xyz[mv[:-1]]
             prev[0] = self.pos if self.pos is not None else np.nan
         length = np.linalg.norm(xyz[mv] - prev, axis=1)  # NaN for a first move from nowhere
         extr = on[mv] & (length > 0)
         e = np.zeros(len(mv))
         e[extr] = extrusion_area(p.width[mv[extr]], p.height[mv[extr]]) * length[extr] / self.fil_area
-        self.filament += float(e.sum())
         ext_cmd = np.zeros(n, dtype=bool)
         ext_cmd[mv[extr]] = True
-        xye = np.column_stack([xyz[mv, :2], e]).ravel().tolist()
-        row_of = np.full(n, -1)
-        row_of[mv] = np.arange(len(mv))
         zmove = np.zeros(n, dtype=bool)
         zmove[mv] = xyz[mv, 2] != prev[:, 2]
-        # length of each run of travel moves, for the retraction decision
-        off_mv = ~on[mv]
-        run_id = np.cumsum(np.r_[True, off_mv[1:] != off_mv[:-1]]) if len(mv) else np.zeros(0, np.int64)
-        run_len = np.bincount(run_id, weights=np.where(off_mv, np.nan_to_num(length), 0.0))[run_id]
-        # runs: a new one wherever a command does not continue the extrusion before it
-        moved = np.r_[True, (p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1])]
-        cont = np.r_[False, ext_cmd[1:] & ext_cmd[:-1] & (p.role[1:] == p.role[:-1])] & ~moved
+        row_of = np.full(n, -1)
+        row_of[mv] = np.arange(len(mv))
+        go = np.zeros(n, dtype=bool)  # travel lines: a MOVE that does not extrude and goes somewhere
+        go[mv] = ~extr & ~(length <= 0)
+        names = [*p.chunks, None]  # chunk -1: between chunks
+        # a new extrusion run wherever a command does not continue the one before it
+        moved = np.ones(n, dtype=bool)
+        moved[1:] = (chunk[1:] != chunk[:-1]) | (layer[1:] != layer[:-1])
+        cont = np.zeros(n, dtype=bool)
+        cont[1:] = ext_cmd[1:] & ext_cmd[:-1] & (role[1:] == role[:-1])
+        if n and self._prev is not None:
+            moved[0] = (names[chunk[0]], int(layer[0])) != self._prev[:2]
+            cont[0] = bool(ext_cmd[0]) and self._prev[2] and int(role[0]) == self._prev[3]
+        cont &= ~moved
         turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
         for t, deg in p.turns:
             turns.setdefault(t, []).append(deg)
         cont[[t for t in turns if t < n]] = False
-        starts = np.flatnonzero(~cont).tolist() + [n]
-        out, s = self.out, self.s
-        for i, j in zip(starts[:-1], starts[1:]):
-            if i in turns:
-                self._turn(turns[i])
-            if moved[i] and p.layer[i] >= 0:
-                where = (p.chunks[p.chunk[i]] if p.chunk[i] >= 0 else None, int(p.layer[i]))
-                if where != self.where:
-                    self._announce(where, xyz, kind, i)
-            k = int(kind[i])
-            if ext_cmd[i]:
-                role = int(p.role[i])
-                if role != self.role:
-                    out.write(f";TYPE:{ROLE_TYPES[role]}\n")
-                    self.role = role
-                out.write(f"G1 F{self.feeds.extrude(role, int(p.layer[i])) * 60:.0f}\n")
-                r0, r1 = int(row_of[i]), int(row_of[j - 1]) + 1
-                if zmove[i:j].any():
-                    out.write(_G1Z * (j - i) % tuple(np.column_stack([xyz[mv[r0:r1]], e[r0:r1]]).ravel().tolist()))
-                else:
-                    out.write(_G1 * (j - i) % tuple(xye[3 * r0:3 * r1]))
-            elif k == MOVE:
-                r = int(row_of[i])
-                if length[r] > 0 and not on[i] and self.retract and not self.retracted and self.hot \
-                        and run_len[r] >= s.retract_before_travel:  # (firmware refuses cold E moves)
-                    out.write(self.retract)
-                    self.retracted = True
-                if not length[r] <= 0:  # a travel, or the first move (from nowhere): go there
-                    out.write(f"G0 X{xyz[i, 0]:.3f} Y{xyz[i, 1]:.3f} Z{xyz[i, 2]:.3f} {self.travel_f}\n")
-                    self.role = None
-            elif k == TOOL_ON:
-                if not self.hot:
-                    t = self.heating.nozzle  # type: ignore[union-attr]
-                    out.write(f"M104 S{t:g}\nM109 S{t:g} ; heat before extruding\n")
-                    self.hot = True
-                if self.retracted:
-                    out.write(self.unretract)
-                    self.retracted = False
-            elif k in (NOTIFY, WAIT):
+        seg = np.flatnonzero(~cont)  # segment starts: a run of extruding moves, or one command
+        # travel runs (consecutive moves with the tool off; other commands do not end them), for
+        # the retraction: a run continuing from the last piece counts as long if it was
+        off = ~on[mv]
+        new_run = np.r_[True, off[1:] != off[:-1]] if len(mv) else np.zeros(0, bool)
+        run_id = np.cumsum(new_run) - 1
+        run_sum = np.bincount(run_id, weights=np.where(off, np.nan_to_num(length), 0.0)) if len(mv) else np.zeros(0)
+        continuing = len(mv) > 0 and self.pos is not None and self._last_move_off and bool(off[0])
+        if continuing and self._run_long:
+            run_sum[0] = np.inf
+        run_len = run_sum[run_id]
+        nxt = np.minimum.accumulate(np.where(is_mv, np.arange(n), n)[::-1])[::-1] if n else np.zeros(0, np.int64)
+        announce = np.flatnonzero(moved & (layer >= 0))  # segment starts that may name a new layer
+        # how far the text is decided
+        c = n
+        if not final:
+            if n and ext_cmd[-1]:
+                c = min(c, int(seg[-1]))  # the last extrusion run may go on
+            if self.retract and len(mv) and off[-1] and run_sum[-1] < s.retract_before_travel:
+                c = min(c, int(mv[np.flatnonzero(new_run)[-1]]))  # the last travel run may grow long
+            lonely = announce[nxt[announce] >= n]
+            if len(lonely):
+                c = min(c, int(lonely[0]))  # a layer whose first move is still to come
+        # the state in force at each command (set by the last command that changes it)
+        wait = kind == WAIT
+        long_wait = np.zeros(n, dtype=bool)
+        if heating is not None and wait.any():
+            k0 = self.waits
+            long_wait[wait] = [heating.wait_is_long(k0 + k) for k in range(int(wait.sum()))]
+        tool_on = kind == TOOL_ON
+        padded = np.r_[kind, 255]  # (index n: no command sets a state there)
+        lb = _last_before(tool_on | long_wait)
+        hot = np.where(lb >= 0, padded[lb] == TOOL_ON, self.hot)
+        travel_retract = np.zeros(n, dtype=bool)
+        if self.retract:
+            travel_retract[mv] = off & (length > 0) & (run_len >= s.retract_before_travel)
+            travel_retract &= hot[:-1]
+        wait_retract = long_wait & hot[:-1] & bool(self.retract)
+        lb = _last_before(travel_retract | wait_retract | tool_on)
+        retracted = np.where(lb >= 0, padded[lb] != TOOL_ON, self.retracted)
+        starts = ext_cmd & ~cont
+        lb = _last_before(starts | go)
+        last_role = np.where(lb < 0, -1 if self.role is None else self.role,
+                             np.where(np.r_[go, False][lb], -1, np.r_[role, -1][lb]))
+        # the operations, command by command: turns, layer, ;TYPE, feed, text, the numeric line
+        table = Table()
+        slots: list[tuple[np.ndarray, np.ndarray]] = []  # (commands, op) in slot order
+        if turns:
+            at = [t for t in sorted(turns) if t < c]
+            slots.append((np.array(at, np.int64), np.array([table.id("".join(
+                f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[t])) for t in at], np.int64)))
+        ann_at, ann_op = [], []
+        for i in announce[announce < c].tolist():
+            where = (names[chunk[i]], int(layer[i]))
+            if where != self.where:
+                text = f";CHUNK:{where[0]}\n" if where[0] != self.where[0] and where[0] is not None else ""
+                text += f";LAYER:{where[1]}" + (f"\n;Z:{xyz[nxt[i], 2]:.3f}" if nxt[i] < n else "") + "\n"
+                ann_at.append(i)
+                ann_op.append(table.id(text))
+                self.where = where
+        slots.append((np.array(ann_at, np.int64), np.array(ann_op, np.int64)))
+        st = np.flatnonzero(starts[:c])
+        if len(st):
+            ty = role[st] != last_role[st]
+            type_ids = {r: table.id(f";TYPE:{ROLE_TYPES[r]}\n") for r in np.unique(role[st[ty]]).tolist()}
+            slots.append((st[ty], np.array([type_ids[r] for r in role[st[ty]].tolist()], np.int64)))
+            key = role[st] * 2 + (layer[st] == 0)
+            feed_ids = {k: table.id(f"G1 F{self.feeds.extrude(k // 2, 0 if k % 2 else 1) * 60:.0f}\n")
+                        for k in np.unique(key).tolist()}
+            slots.append((st, np.array([feed_ids[k] for k in key.tolist()], np.int64)))
+        text_at = [np.flatnonzero(travel_retract[:c] & ~retracted[:c])]
+        text_op = [np.full(len(text_at[0]), table.id(self.retract), np.int64)]
+        ons = np.flatnonzero(tool_on[:c])
+        if len(ons):
+            heat = ""
+            if heating is not None:
+                heat = f"M104 S{heating.nozzle:g}\nM109 S{heating.nozzle:g} ; heat before extruding\n"
+            combos = [table.id(h + u) for h in ("", heat) for u in ("", self.unretract)]
+            text_at.append(ons)  # (an empty text writes nothing)
+            text_op.append(np.array(combos, np.int64)[(~hot[ons]).astype(np.int64) * 2 + retracted[ons]])
+        sync = np.flatnonzero(((kind == NOTIFY) | wait)[:c])
+        if len(sync):
+            idle = f"M104 S0 ; idle: a wait longer than {heating.idle_limit:g} s\n" if heating is not None else ""
+            ops = []
+            for i in sync.tolist():
                 ev = ", ".join(p.events[int(p.event[i])])
-                word, code = ("NOTIFY", "M118") if k == NOTIFY else ("WAIT", "M0")
-                out.write(f"; {word} {ev}\nM400\n")
-                if k == WAIT and self.heating is not None:
-                    if self.hot and self.heating.wait_is_long(self.waits):
-                        if self.retract and not self.retracted:  # no ooze while it cools and heats again
-                            out.write(self.retract)
-                            self.retracted = True
-                        out.write(f"M104 S0 ; idle: a wait longer than {self.heating.idle_limit:g} s\n")
-                        self.hot = False
-                    self.waits += 1
-                out.write(f"{code} {word} {ev}\n")
-        if n in turns:
-            self._turn(turns[n])
-        self.tool = bool(on[-1])
-        if len(mv):
-            self.pos = xyz[mv[-1]]
-
-    def _turn(self, facings: list[float]) -> None:
-        """Host lines of a turn: the printer finishes its moves and stops; the host turns the
-        robot (through each facing in order) and resumes it."""
-        for deg in facings:
-            self.out.write(f"; FACING {deg:.3f}\nM400\nM0 FACING {deg:.3f}\n")
-
-    def _announce(self, where: tuple, xyz: np.ndarray, kind: np.ndarray, i: int) -> None:
-        chunk, layer = where
-        if chunk != self.where[0] and chunk is not None:
-            self.out.write(f";CHUNK:{chunk}\n")
-        nxt = i + int(np.argmax(kind[i:] == MOVE)) if (kind[i:] == MOVE).any() else None
-        z = f"\n;Z:{xyz[nxt, 2]:.3f}" if nxt is not None else ""
-        self.out.write(f";LAYER:{layer}{z}\n")
-        self.where = where
+                word, code = ("NOTIFY", "M118") if kind[i] == NOTIFY else ("WAIT", "M0")
+                text = f"; {word} {ev}\nM400\n"
+                if long_wait[i] and hot[i]:
+                    text += (self.retract if not retracted[i] else "") + idle
+                ops.append(table.id(text + f"{code} {word} {ev}\n"))
+            text_at.append(sync)
+            text_op.append(np.array(ops, np.int64))
+        order = np.argsort(np.concatenate(text_at), kind="stable")  # a command has one kind of text
+        slots.append((np.concatenate(text_at)[order], np.concatenate(text_op)[order]))
+        # numeric lines: a whole extrusion run with Z if any of its moves climbs
+        seg_id = np.cumsum(~cont) - 1
+        zany = np.logical_or.reduceat(zmove, seg)[seg_id] if n else zmove
+        num = np.flatnonzero((ext_cmd | go)[:c])
+        slots.append((num, np.where(go[num], -3, np.where(zany[num], -2, -1)).astype(np.int64)))
+        # lay the slots out command by command
+        count = np.zeros(c, np.int64)
+        for at, _ in slots:
+            count[at] += 1  # (a command at most once a slot)
+        pos = np.cumsum(count) - count
+        op = np.empty(int(count.sum()), np.int64)
+        row = np.zeros(len(op), np.int64)
+        for at, ops in slots:
+            op[pos[at]] = ops
+            row[pos[at]] = row_of[at] if len(at) and ops[0] < 0 else 0
+            pos[at] += 1
+        values = np.column_stack([xyz[mv], e])
+        text = assemble(op, row, table, self._templates, values, (3, 3, 3, 5))
+        if final and n in turns:
+            text += "".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[n]).encode()
+        self._put(text)
+        # the state after command c - 1
+        done = int(np.searchsorted(mv, c))  # moves written
+        self._units += _exact_units(e[:done])
+        if c > 0:
+            self._prev = (names[chunk[c - 1]], int(layer[c - 1]), bool(ext_cmd[c - 1]), int(role[c - 1]))
+            self.tool = bool(on[c - 1])
+        if done:
+            self.pos = xyz[mv[done - 1]].copy()
+            self._last_move_off = bool(off[done - 1])
+            self._run_long = bool(run_sum[run_id[done - 1]] >= s.retract_before_travel)
+        self.hot, self.retracted = bool(hot[c]), bool(retracted[c])
+        self.role = None if last_role[c] < 0 else int(last_role[c])
+        if heating is not None:
+            self.waits += int(wait[:c].sum())
+        if not final and (c < n or any(t >= c for t in turns)):
+            self._tail = program_rows(p, c, n)
 
 
 def write_gcode(out: TextIO, pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds, name: str,
@@ -284,6 +411,7 @@ def write_gcode(out: TextIO, pieces: Iterable[Program], s: SlicingSettings, feed
     w = GcodeWriter(out, s, feeds, heating)
     for piece in pieces:
         w.write(piece)
+    w.flush()
     out.write(end_code(heating is None or heating.bed is not None))
     out.write(f"; filament used [mm] = {w.filament:.2f}\n")
     return w.filament
