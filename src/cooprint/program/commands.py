@@ -47,7 +47,7 @@ import mmap
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, TextIO
+from typing import BinaryIO, Iterable, TextIO
 
 import numpy as np
 
@@ -56,6 +56,7 @@ from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
 from cooprint.io.files import regular_file
 from cooprint.program.comment import comment_safe
+from cooprint.program.numtext import Table, Templates, assemble
 
 #: Command kinds.
 MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT = range(5)
@@ -239,62 +240,137 @@ def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *,
 # writing
 
 
-def _annotations(p: Program, i: int, prev: tuple) -> tuple[str, tuple]:
-    """The annotation lines before command ``i`` (those whose value differs from ``prev``)."""
-    c, la, h, r, w = int(p.chunk[i]), int(p.layer[i]), float(p.height[i]), int(p.role[i]), float(p.width[i])
-    out = []
-    if c != prev[0]:
-        out.append(f";@chunk {p.chunks[c] if c >= 0 else '-'}\n")
-    if (la, h) != prev[1]:
-        out.append(f";@layer {la} {h!r}\n" if la >= 0 else ";@layer -\n")
-    if (r, w) != prev[2]:
-        out.append(f";@path {ROLE_WORDS[r]} {w!r}\n")
-    return "".join(out), (c, (la, h), (r, w))
+#: State before the first command: what the parser assumes until an annotation says otherwise
+#: (chunk id, None between chunks; layer and height; role and width).
+_START = (None, (-1, 0.0), (TRAVEL, 0.0))
 
 
-#: State before the first command: what the parser assumes until an annotation says otherwise.
-_START = (-1, (-1, 0.0), (TRAVEL, 0.0))
+def _changes(cols: list[np.ndarray], before: tuple) -> np.ndarray:
+    """(n,) bool: the commands where any of ``cols`` differs from the command before (the
+    first compared with ``before``, the values of the last command of the previous piece)."""
+    n = len(cols[0])
+    out = np.zeros(n, dtype=bool)
+    for col, b in zip(cols, before):
+        out[1:] |= col[1:] != col[:-1]
+        out[0] |= bool(col[0] != b)
+    return out
 
 
-def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> None:
-    """Write ``program`` as ``.coop`` text (a header of comment lines first).
+def _keyed(table, a: np.ndarray, b: np.ndarray, text) -> np.ndarray:
+    """The table ids of ``text(x, y)`` for the pairs of ``a`` and ``b``, each distinct pair
+    formatted once."""
+    if not len(a):
+        return np.zeros(0, np.int64)
+    def unique(x):  # floats by their bits: -0.0 is written as such
+        bits = x.dtype.kind == "f"
+        u, inv = np.unique(x.astype(np.float64).view(np.int64) if bits else x, return_inverse=True)
+        return (u.view(np.float64) if bits else u), inv.ravel()
 
-    Runs of MOVEs with the same annotations are formatted in one operation each.
+    ua, ia = unique(a)
+    ub, ib = unique(b)
+    key = ia.astype(np.int64) * len(ub) + ib
+    uk, ik = np.unique(key, return_inverse=True)
+    ids = np.array([table.id(text(ua[k // len(ub)].item(), ub[k % len(ub)].item())) for k in uk.tolist()], np.int64)
+    return ids[ik.ravel()]
+
+
+class CoopWriter:
+    """Writes a robot's ``.coop`` file piece by piece: the same bytes for any split of the
+    program into pieces (``cooprint run`` streams it: a chunk's commands, a travel leg, a
+    WAIT).
+
+    An annotation is written where its value differs from the command before, across pieces
+    too; a turn is written after the annotations of the command it precedes, so turns after a
+    piece's last command are held until the next command (or :meth:`close`). Text is made by
+    :mod:`.numtext`, all lines of a block of at most ``BLOCK`` commands in one compiled pass;
+    ``out`` is a text or a binary file. :meth:`close` ends the program (the file is the
+    caller's to close).
     """
-    out.write(f"; {FORMAT} program for robot {comment_safe(program.robot)}\n")
-    for line in header:
-        out.write(f"; {comment_safe(line)}\n")
-    p = program
-    n = len(p)
-    turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
-    for i, deg in p.turns:
-        turns.setdefault(i, []).append(deg)
-    if n == 0:
-        out.write("".join(f";@facing {d!r}\n" for d in turns.get(0, ())))
-        return
-    meta_change = np.ones(n, dtype=bool)
-    meta_change[1:] = ((p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1]) | (p.height[1:] != p.height[:-1])
-                       | (p.role[1:] != p.role[:-1]) | (p.width[1:] != p.width[:-1]))
-    meta_change[[i for i in turns if i < n]] = True  # a turn starts a run of its own
-    not_move = p.kind != MOVE
-    # a run of MOVEs ends before a command that is not a move or whose annotations change
-    breaks = np.flatnonzero(meta_change | not_move | np.r_[False, not_move[:-1]])
-    bounds = np.r_[breaks, n]
-    xyz = p.xyz.ravel().tolist()
-    state = _START
-    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        text, state = _annotations(p, a, state)
-        out.write(text)
-        if a in turns:
-            out.write("".join(f";@facing {d!r}\n" for d in turns[a]))
-        k = int(p.kind[a])
-        if k == MOVE:
-            out.write("MOVE %.3f, %.3f, %.3f\n" * (b - a) % tuple(xyz[3 * a:3 * b]))
-        elif k in (TOOL_ON, TOOL_OFF):
-            out.write(KIND_NAMES[k] + "\n")
-        else:
-            out.write(f"{KIND_NAMES[k]} {', '.join(p.events[int(p.event[a])])}\n")
-    out.write("".join(f";@facing {d!r}\n" for d in turns.get(n, ())))
+
+    BLOCK = 1 << 17
+
+    def __init__(self, out: TextIO | BinaryIO, robot: str, header: Iterable[str] = ()):
+        self.out = out
+        self._text = isinstance(out, io.TextIOBase)
+        self._state = _START
+        self._held: list[float] = []  # facings turned to after the last command written
+        self._templates = Templates(["MOVE %.3f, %.3f, %.3f\n"])
+        self._put((f"; {FORMAT} program for robot {comment_safe(robot)}\n"
+                   + "".join(f"; {comment_safe(line)}\n" for line in header)).encode("utf-8"))
+
+    def _put(self, data: bytes) -> None:
+        if data:
+            self.out.write(data.decode("utf-8") if self._text else data)
+
+    def write(self, piece: Program) -> None:
+        n = len(piece)
+        for a in range(0, max(n, 1), self.BLOCK):
+            self._write(program_rows(piece, a, min(a + self.BLOCK, n)))
+
+    def close(self) -> None:
+        """Write the turns after the last command."""
+        self._put("".join(f";@facing {d!r}\n" for d in self._held).encode())
+        self._held = []
+
+    def _write(self, p: Program) -> None:
+        n = len(p)
+        turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
+        for i, deg in p.turns:
+            turns.setdefault(i, []).append(deg)
+        if n == 0:
+            self._held += turns.get(0, [])
+            return
+        if self._held:
+            turns[0] = self._held + turns.get(0, [])
+        self._held = turns.pop(n, [])
+        names = [*p.chunks, None]
+        chunk_names = np.array(names, dtype=object)[p.chunk]
+        chunk = _changes([p.chunk], (-1,))
+        chunk[0] = names[p.chunk[0]] != self._state[0]
+        layer = _changes([p.layer, p.height], self._state[1])
+        path = _changes([p.role, p.width], self._state[2])
+        table = Table()
+        slots: list[tuple[np.ndarray, np.ndarray]] = []  # (commands, op), slot by slot in order
+        at = np.flatnonzero(chunk)
+        chunk_ids = np.array([table.id(f";@chunk {c if c is not None else '-'}\n") for c in names], np.int64)
+        slots.append((at, chunk_ids[p.chunk[at]]))
+        at = np.flatnonzero(layer)
+        slots.append((at, _keyed(table, p.layer[at], p.height[at],
+                                 lambda la, h: f";@layer {la} {h!r}\n" if la >= 0 else ";@layer -\n")))
+        at = np.flatnonzero(path)
+        slots.append((at, _keyed(table, p.role[at], p.width[at], lambda r, w: f";@path {ROLE_WORDS[r]} {w!r}\n")))
+        at = np.array(sorted(turns), np.int64)
+        slots.append((at, np.array([table.id("".join(f";@facing {d!r}\n" for d in turns[i])) for i in at.tolist()],
+                                   np.int64)))
+        kind = p.kind
+        op = np.full(n, -1, np.int64)  # MOVE: the numeric template
+        op[kind == TOOL_ON] = table.id("TOOL ON\n")
+        op[kind == TOOL_OFF] = table.id("TOOL OFF\n")
+        sync = np.flatnonzero(p.event >= 0)
+        op[sync] = [table.id(f"{KIND_NAMES[kind[i]]} {', '.join(p.events[p.event[i]])}\n") for i in sync.tolist()]
+        slots.append((np.arange(n), op))
+        count = np.zeros(n, np.int64)
+        for at, _ in slots:
+            count[at] += 1
+        pos = np.cumsum(count) - count
+        ops = np.empty(int(count.sum()), np.int64)
+        rows = np.zeros(len(ops), np.int64)
+        for at, o in slots:
+            ops[pos[at]] = o
+            rows[pos[at]] = at
+            pos[at] += 1
+        self._put(assemble(ops, rows, table, self._templates, p.xyz, (3, 3, 3)))
+        last = n - 1
+        self._state = (chunk_names[last], (int(p.layer[last]), float(p.height[last])),
+                       (int(p.role[last]), float(p.width[last])))
+
+
+def write_coop(out: TextIO | BinaryIO, program: Program, header: Iterable[str] = ()) -> None:
+    """Write ``program`` as ``.coop`` text (a header of comment lines first): a
+    :class:`CoopWriter` given the whole program."""
+    w = CoopWriter(out, program.robot, header)
+    w.write(program)
+    w.close()
 
 
 def coop_text(program: Program, header: Iterable[str] = ()) -> str:
@@ -581,6 +657,6 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
                 pass
 
 
-__all__ = ["FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
-           "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "coop_text", "quantize",
+__all__ = ["CoopWriter", "FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
+           "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "program_rows", "coop_text", "quantize",
            "read_coop", "write_coop"]

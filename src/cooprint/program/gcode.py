@@ -403,18 +403,42 @@ class GcodeWriter:
             self._tail = program_rows(p, c, n)
 
 
-def write_gcode(out: TextIO, pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds, name: str,
+def _put_text(out: TextIO | BinaryIO, text: str) -> None:
+    out.write(text if isinstance(out, io.TextIOBase) else text.encode("ascii"))
+
+
+def write_gcode(out: TextIO | BinaryIO, pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds, name: str,
                 notes: Iterable[str] = (), home: bool = True, heating: Heating | None = None) -> float:
     """Start code, the pieces, end code and the filament total; returns filament used, mm.
-    ``heating`` is a mobile robot's (heat on demand, its own bed or none); ``None`` a printer's."""
-    out.write(start_code(s, name, notes, home, heating))
-    w = GcodeWriter(out, s, feeds, heating)
+    ``heating`` is a mobile robot's (heat on demand, its own bed or none); ``None`` a printer's.
+    ``out`` is a text or a binary file (binary is faster)."""
+    w = GcodeFile(out, s, feeds, name, notes, home, heating)
     for piece in pieces:
         w.write(piece)
-    w.flush()
-    out.write(end_code(heating is None or heating.bed is not None))
-    out.write(f"; filament used [mm] = {w.filament:.2f}\n")
-    return w.filament
+    return w.close()
+
+
+class GcodeFile:
+    """A whole G-code file written piece by piece: the start code at once, :meth:`write` for
+    each program piece (any split gives the same bytes), :meth:`close` for the end code and the
+    filament total (it returns the filament used, mm; the file itself is the caller's to
+    close)."""
+
+    def __init__(self, out: TextIO | BinaryIO, s: SlicingSettings, feeds: Feeds, name: str,
+                 notes: Iterable[str] = (), home: bool = True, heating: Heating | None = None):
+        self.out, self.heating = out, heating
+        _put_text(out, start_code(s, name, notes, home, heating))
+        self.writer = GcodeWriter(out, s, feeds, heating)
+
+    def write(self, piece: Program) -> None:
+        self.writer.write(piece)
+
+    def close(self) -> float:
+        w = self.writer
+        w.flush()
+        _put_text(self.out, end_code(self.heating is None or self.heating.bed is not None))
+        _put_text(self.out, f"; filament used [mm] = {w.filament:.2f}\n")
+        return w.filament
 
 
 def gcode_text(pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds | None = None,
@@ -425,4 +449,4 @@ def gcode_text(pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds | Non
     return buf.getvalue()
 
 
-__all__ = ["Feeds", "GcodeWriter", "Heating", "end_code", "gcode_text", "start_code", "write_gcode"]
+__all__ = ["Feeds", "GcodeFile", "GcodeWriter", "Heating", "end_code", "gcode_text", "start_code", "write_gcode"]
