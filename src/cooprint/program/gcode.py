@@ -333,22 +333,22 @@ class GcodeWriter:
         st = np.flatnonzero(starts[:c])
         if len(st):
             ty = role[st] != last_role[st]
-            type_ids = {r: table.id(f";TYPE:{ROLE_TYPES[r]}\n") for r in np.unique(role[st[ty]]).tolist()}
-            slots.append((st[ty], np.array([type_ids[r] for r in role[st[ty]].tolist()], np.int64)))
-            key = role[st] * 2 + (layer[st] == 0)
-            feed_ids = {k: table.id(f"G1 F{self.feeds.extrude(k // 2, 0 if k % 2 else 1) * 60:.0f}\n")
-                        for k in np.unique(key).tolist()}
-            slots.append((st, np.array([feed_ids[k] for k in key.tolist()], np.int64)))
-        text_at = [np.flatnonzero(travel_retract[:c] & ~retracted[:c])]
-        text_op = [np.full(len(text_at[0]), table.id(self.retract), np.int64)]
+            type_lut = np.array([table.id(f";TYPE:{ROLE_TYPES[r]}\n") if r in ROLE_TYPES else -1
+                                 for r in range(int(role[st].max()) + 1)], np.int64)
+            slots.append((st[ty], type_lut[role[st[ty]]]))
+            key = role[st] * 2 + (layer[st] == 0)  # the feed rate: by role, and on the first layer
+            feed_lut = np.array([table.id(f"G1 F{self.feeds.extrude(k // 2, 0 if k % 2 else 1) * 60:.0f}\n")
+                                 for k in range(int(key.max()) + 1)], np.int64)
+            slots.append((st, feed_lut[key]))
+        text = np.full(c, -1, np.int64)  # a command's own text: a travel's retraction, TOOL ON's, a sync's
+        text[travel_retract[:c] & ~retracted[:c]] = table.id(self.retract)
         ons = np.flatnonzero(tool_on[:c])
         if len(ons):
             heat = ""
             if heating is not None:
                 heat = f"M104 S{heating.nozzle:g}\nM109 S{heating.nozzle:g} ; heat before extruding\n"
             combos = [table.id(h + u) for h in ("", heat) for u in ("", self.unretract)]
-            text_at.append(ons)  # (an empty text writes nothing)
-            text_op.append(np.array(combos, np.int64)[(~hot[ons]).astype(np.int64) * 2 + retracted[ons]])
+            text[ons] = np.array(combos, np.int64)[(~hot[ons]).astype(np.int64) * 2 + retracted[ons]]
         sync = np.flatnonzero(((kind == NOTIFY) | wait)[:c])
         if len(sync):
             idle = f"M104 S0 ; idle: a wait longer than {heating.idle_limit:g} s\n" if heating is not None else ""
@@ -356,14 +356,13 @@ class GcodeWriter:
             for i in sync.tolist():
                 ev = ", ".join(p.events[int(p.event[i])])
                 word, code = ("NOTIFY", "M118") if kind[i] == NOTIFY else ("WAIT", "M0")
-                text = f"; {word} {ev}\nM400\n"
+                line = f"; {word} {ev}\nM400\n"
                 if long_wait[i] and hot[i]:
-                    text += (self.retract if not retracted[i] else "") + idle
-                ops.append(table.id(text + f"{code} {word} {ev}\n"))
-            text_at.append(sync)
-            text_op.append(np.array(ops, np.int64))
-        order = np.argsort(np.concatenate(text_at), kind="stable")  # a command has one kind of text
-        slots.append((np.concatenate(text_at)[order], np.concatenate(text_op)[order]))
+                    line += (self.retract if not retracted[i] else "") + idle
+                ops.append(table.id(line + f"{code} {word} {ev}\n"))
+            text[sync] = ops
+        at = np.flatnonzero(text >= 0)
+        slots.append((at, text[at]))
         # numeric lines: a whole extrusion run with Z if any of its moves climbs
         seg_id = np.cumsum(~cont) - 1
         zany = np.logical_or.reduceat(zmove, seg)[seg_id] if n else zmove
@@ -381,10 +380,10 @@ class GcodeWriter:
             row[pos[at]] = row_of[at] if len(at) and ops[0] < 0 else 0
             pos[at] += 1
         values = np.column_stack([xyz[mv], e])
-        text = assemble(op, row, table, self._templates, values, (3, 3, 3, 5))
+        data = assemble(op, row, table, self._templates, values, (3, 3, 3, 5))
         if final and n in turns:
-            text += "".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[n]).encode()
-        self._put(text)
+            data += "".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[n]).encode()
+        self._put(data)
         # the state after command c - 1
         done = int(np.searchsorted(mv, c))  # moves written
         self._units += _exact_units(e[:done])

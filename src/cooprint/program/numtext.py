@@ -12,8 +12,7 @@ even) to N decimals and keeps the sign of a negative value that rounds to zero (
 :func:`fixed` turns each value into that rounded magnitude as an integer (``rint(|v| * 10**N)``,
 exact unless ``|v| * 10**N`` lies within 1e-6 of a half, where the product's rounding error
 could decide, or is beyond 1e9) and its sign bit; the few values outside that safe range are
-formatted by ``%`` itself and read back. A template holding a non-finite value is not taken
-(:class:`NotFixed`): the caller formats with ``%``.
+formatted by ``%`` itself and read back; NaN and infinities are written as ``%`` writes them.
 """
 
 from __future__ import annotations
@@ -28,48 +27,53 @@ _FIELD = re.compile(r"%\.(\d)f")
 #: Beyond this, ``|v| * 10**N`` is not known to within 1e-6 of its rounding (doubles there are
 #: 2**-23 apart) and the value is formatted by ``%``.
 _SAFE = 1e9
-_POW10 = 10 ** np.arange(19, dtype=np.int64)
-
-
-class NotFixed(ValueError):
-    """A value that a fixed-point field cannot hold (NaN, infinite)."""
+#: Beyond this a rounded magnitude does not fit 64 bits: :func:`assemble` takes the slow path.
+_HUGE = 9e18
 
 
 @numba.njit(cache=True, nogil=True)
 def _round(v, scale):
-    """Per value: ``rint(|v| * scale)``, the sign bit, and whether that rounding is not sure."""
+    """Per value: ``rint(|v| * scale)``, the sign bit, and a code: 0 that rounding is sure, 1
+    not sure (``%`` decides), 2 NaN, 3 infinite."""
     n = len(v)
-    mag = np.empty(n, np.int64)
+    mag = np.zeros(n, np.int64)
     neg = np.empty(n, np.bool_)
-    unsure = np.zeros(n, np.bool_)
+    code = np.zeros(n, np.int8)
     for i in range(n):
         x = v[i]
         neg[i] = np.signbit(x)
-        a = abs(x) * scale
-        if not a < _SAFE:  # also NaN
-            unsure[i] = True
-            mag[i] = 0
+        if np.isnan(x):
+            code[i] = 2
             continue
-        f = np.floor(a)
+        if np.isinf(x):
+            code[i] = 3
+            continue
+        a = abs(x) * scale
+        if not a < _SAFE:
+            code[i] = 1
+            continue
         mag[i] = np.int64(np.rint(a))
-        if abs(a - f - 0.5) < 1e-6:
-            unsure[i] = True
-    return mag, neg, unsure
+        if abs(a - np.floor(a) - 0.5) < 1e-6:
+            code[i] = 1
+    return mag, neg, code
 
 
-def fixed(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(magnitude, negative)``: ``'%.{decimals}f' % v`` is ``'-' * negative`` followed by
-    ``magnitude`` with a point before its last ``decimals`` digits (at least one digit before
-    the point), for every ``v`` of ``values``."""
+def fixed(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(magnitude, negative, special)``: ``'%.{decimals}f' % v`` is ``'-' * negative``
+    followed by ``magnitude`` with a point before its last ``decimals`` digits (at least one
+    digit before the point), for every ``v`` of ``values``; ``special`` is 2 for NaN (``nan``,
+    no sign) and 3 for an infinity (``inf``, signed), else 0."""
     v = np.ascontiguousarray(values, dtype=np.float64)
-    k, neg, unsure = _round(v, float(10 ** decimals))
-    if unsure.any():
-        idx = np.flatnonzero(unsure)
-        if not np.isfinite(v[idx]).all():
-            raise NotFixed("a value that is not finite")
+    k, neg, code = _round(v, float(10 ** decimals))
+    unsure = np.flatnonzero(code == 1)
+    if len(unsure) and np.abs(v[unsure]).max() * 10.0 ** decimals >= _HUGE:
+        raise OverflowError("a value too large for a 64-bit fixed-point number")
+    if len(unsure):
         fmt = f"%.{decimals}f"
-        k[idx] = [int((fmt % x).replace(".", "")) for x in np.abs(v[idx]).tolist()]
-    return k, neg
+        k[unsure] = [int((fmt % x).replace(".", "")) for x in np.abs(v[unsure]).tolist()]
+        code[unsure] = 0
+    neg &= code != 2  # '%' writes NaN without a sign
+    return k, neg, code
 
 
 class Templates:
@@ -78,6 +82,7 @@ class Templates:
 
     def __init__(self, templates: Sequence[str], columns: Sequence[Sequence[int]] | None = None):
         lit: list[bytes] = []
+        self.text = list(templates)
         nfield = max(len(_FIELD.findall(t)) for t in templates)
         self.count = np.zeros(len(templates), np.int64)
         self.decimals = np.zeros((len(templates), max(nfield, 1)), np.int64)
@@ -98,10 +103,13 @@ class Templates:
                 at += len(lit[-1])
             self.lit_at[t, len(fields) + 1] = at
         self.lit = np.frombuffer(b"".join(lit) or b"\0", np.uint8)
+        #: the columns each template reads (padded with its first)
+        self.used = np.array([[self.column[t, min(f, max(int(self.count[t]) - 1, 0))] for f in range(self.column.shape[1])]
+                              for t in range(len(templates))], np.int64)
 
 
 @numba.njit(cache=True, nogil=True)
-def _assemble(op, row, tab, tab_at, lit, lit_at, count, decimals, column, mag, neg, pow10):
+def _assemble(op, row, tab, tab_at, lit, lit_at, count, decimals, column, mag, neg, special):
     """One pass into a buffer of the largest size the operations can take (a number at most 19
     digits, a sign and a point), cut to what was written."""
     bound = 0
@@ -137,6 +145,11 @@ def _assemble(op, row, tab, tab_at, lit, lit_at, count, decimals, column, mag, n
             if neg[r, c]:
                 buf[w] = 45  # '-'
                 w += 1
+            if special[r, c] != 0:  # nan, inf
+                for ch in (110, 97, 110) if special[r, c] == 2 else (105, 110, 102):
+                    buf[w] = ch
+                    w += 1
+                continue
             # digits from the last: d decimals, the point, then at least one digit
             n = 0
             for _ in range(d):
@@ -180,6 +193,20 @@ class Table:
         return np.frombuffer(b"".join(data) or b"\0", np.uint8), at
 
 
+def _assemble_slow(op, row, table: Table, templates: Templates, values: np.ndarray) -> bytes:
+    """:func:`assemble` by ``%``, operation by operation."""
+    strings = list(table.ids)
+    out = []
+    for o, r in zip(op.tolist(), row.tolist()):
+        if o >= 0:
+            out.append(strings[o])
+        else:
+            t = -1 - o
+            cols = templates.column[t, :templates.count[t]].tolist()
+            out.append(templates.text[t] % tuple(values[r, cols].tolist()))
+    return "".join(out).encode("utf-8")
+
+
 def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates, values: np.ndarray,
              decimals: Sequence[int]) -> bytes:
     """The text of operations ``op`` in order: ``op >= 0`` is string ``op`` of ``table``;
@@ -187,21 +214,20 @@ def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates
     (column ``j`` formatted with ``decimals[j]``). Byte for byte what ``%`` would write."""
     values = np.asarray(values, dtype=np.float64)
     values = values.reshape(len(values), -1) if values.ndim < 2 else values
-    numeric = op < 0
     mag = np.zeros(values.shape, np.int64)
     neg = np.zeros(values.shape, bool)
-    if numeric.any():
-        tmpl = -1 - op[numeric]
-        rows = row[numeric]
-        for t in np.unique(tmpl).tolist():
-            for f in range(int(templates.count[t])):
-                j = int(templates.column[t, f])
-                r = rows[tmpl == t]  # only the values written (others may be NaN)
-                mag[r, j], neg[r, j] = fixed(values[r, j], decimals[j])
+    special = np.zeros(values.shape, np.int8)
+    used = op < 0
+    if used.any():
+        try:
+            for j in np.unique(templates.used[np.unique(-1 - op[used])]).tolist():
+                mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], decimals[j])
+        except OverflowError:  # a number of more than 18 digits: no writer makes one; '%' writes it
+            return _assemble_slow(op, row, table, templates, values)
     tab, tab_at = table.arrays()
     return _assemble(np.ascontiguousarray(op, np.int64), np.ascontiguousarray(row, np.int64), tab, tab_at,
                      templates.lit, templates.lit_at, templates.count, templates.decimals, templates.column,
-                     mag, neg, _POW10).tobytes()
+                     mag, neg, special).tobytes()
 
 
-__all__ = ["NotFixed", "Table", "Templates", "assemble", "fixed"]
+__all__ = ["Table", "Templates", "assemble", "fixed"]
