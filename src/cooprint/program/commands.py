@@ -56,7 +56,7 @@ from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
 from cooprint.io.files import regular_file
 from cooprint.program.comment import comment_safe
-from cooprint.program.numtext import Table, Templates, assemble
+from cooprint.program.numtext import NONE, Table, Templates, assemble
 
 #: Command kinds.
 MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT = range(5)
@@ -298,9 +298,9 @@ class CoopWriter:
         self._put((f"; {FORMAT} program for robot {comment_safe(robot)}\n"
                    + "".join(f"; {comment_safe(line)}\n" for line in header)).encode("utf-8"))
 
-    def _put(self, data: bytes) -> None:
-        if data:
-            self.out.write(data.decode("utf-8") if self._text else data)
+    def _put(self, data: np.ndarray | bytes) -> None:
+        if len(data):
+            self.out.write(bytes(data).decode("utf-8") if self._text else memoryview(data))
 
     def write(self, piece: Program) -> None:
         n = len(piece)
@@ -330,36 +330,25 @@ class CoopWriter:
         layer = _changes([p.layer, p.height], self._state[1])
         path = _changes([p.role, p.width], self._state[2])
         table = Table()
-        slots: list[tuple[np.ndarray, np.ndarray]] = []  # (commands, op), slot by slot in order
+        ops = np.full((n, 5), NONE, np.int64)  # per command: ;@chunk, ;@layer, ;@path, ;@facing, the command
         at = np.flatnonzero(chunk)
         chunk_ids = np.array([table.id(f";@chunk {c if c is not None else '-'}\n") for c in names], np.int64)
-        slots.append((at, chunk_ids[p.chunk[at]]))
+        ops[at, 0] = chunk_ids[p.chunk[at]]
         at = np.flatnonzero(layer)
-        slots.append((at, _keyed(table, p.layer[at], p.height[at],
-                                 lambda la, h: f";@layer {la} {h!r}\n" if la >= 0 else ";@layer -\n")))
+        ops[at, 1] = _keyed(table, p.layer[at], p.height[at],
+                            lambda la, h: f";@layer {la} {h!r}\n" if la >= 0 else ";@layer -\n")
         at = np.flatnonzero(path)
-        slots.append((at, _keyed(table, p.role[at], p.width[at], lambda r, w: f";@path {ROLE_WORDS[r]} {w!r}\n")))
-        at = np.array(sorted(turns), np.int64)
-        slots.append((at, np.array([table.id("".join(f";@facing {d!r}\n" for d in turns[i])) for i in at.tolist()],
-                                   np.int64)))
+        ops[at, 2] = _keyed(table, p.role[at], p.width[at], lambda r, w: f";@path {ROLE_WORDS[r]} {w!r}\n")
+        for i, facings in turns.items():
+            ops[i, 3] = table.id("".join(f";@facing {d!r}\n" for d in facings))
         kind = p.kind
-        op = np.full(n, -1, np.int64)  # MOVE: the numeric template
-        op[kind == TOOL_ON] = table.id("TOOL ON\n")
-        op[kind == TOOL_OFF] = table.id("TOOL OFF\n")
+        cmd = ops[:, 4]
+        cmd[kind == MOVE] = -1  # the numeric template
+        cmd[kind == TOOL_ON] = table.id("TOOL ON\n")
+        cmd[kind == TOOL_OFF] = table.id("TOOL OFF\n")
         sync = np.flatnonzero(p.event >= 0)
-        op[sync] = [table.id(f"{KIND_NAMES[kind[i]]} {', '.join(p.events[p.event[i]])}\n") for i in sync.tolist()]
-        slots.append((np.arange(n), op))
-        count = np.zeros(n, np.int64)
-        for at, _ in slots:
-            count[at] += 1
-        pos = np.cumsum(count) - count
-        ops = np.empty(int(count.sum()), np.int64)
-        rows = np.zeros(len(ops), np.int64)
-        for at, o in slots:
-            ops[pos[at]] = o
-            rows[pos[at]] = at
-            pos[at] += 1
-        self._put(assemble(ops, rows, table, self._templates, p.xyz, (3, 3, 3)))
+        cmd[sync] = [table.id(f"{KIND_NAMES[kind[i]]} {', '.join(p.events[p.event[i]])}\n") for i in sync.tolist()]
+        self._put(assemble(ops, np.arange(n), table, self._templates, p.xyz, (3, 3, 3)))
         last = n - 1
         self._state = (chunk_names[last], (int(p.layer[last]), float(p.height[last])),
                        (int(p.role[last]), float(p.width[last])))

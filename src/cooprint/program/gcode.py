@@ -35,7 +35,7 @@ import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_ON, WAIT, Program, program_rows
-from cooprint.program.numtext import Table, Templates, assemble
+from cooprint.program.numtext import NONE, Table, Templates, assemble
 from cooprint.program.comment import comment_safe
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, extrusion_area
 
@@ -154,15 +154,16 @@ def _exact_units(e: np.ndarray) -> int:
     pieces, which a float sum does (in its last bits)."""
     if not len(e):
         return 0
-    m, ex = np.frexp(np.asarray(e, dtype=np.float64))
+    e = np.asarray(e, dtype=np.float64)
+    m, ex = np.frexp(e[e != 0])
     mant = (m * 2.0**53).astype(np.int64)  # exact: e = mant * 2**(ex - 53)
-    shift = ex.astype(np.int64) + 1073  # e = mant * 2**(shift - 1126), shift >= 0
-    order = np.argsort(shift, kind="stable")
-    shift, mant = shift[order], mant[order]
-    starts = np.flatnonzero(np.r_[True, shift[1:] != shift[:-1]])
-    hi = np.add.reduceat(mant >> 26, starts)  # each < 2**27: no int64 sum of them overflows
-    lo = np.add.reduceat(mant & ((1 << 26) - 1), starts)
-    return sum(((int(h) << 26) + int(lo_)) << int(sh) for h, lo_, sh in zip(hi, lo, shift[starts]))
+    shift, group = np.unique(ex.astype(np.int64) + 1073, return_inverse=True)  # e = mant * 2**(shift - 1126)
+    total = 0
+    for a in range(0, len(mant), 1 << 26):  # float sums of at most 2**26 numbers below 2**27: exact
+        hi = np.bincount(group[a:a + (1 << 26)], weights=mant[a:a + (1 << 26)] >> 26, minlength=len(shift))
+        lo = np.bincount(group[a:a + (1 << 26)], weights=mant[a:a + (1 << 26)] & ((1 << 26) - 1), minlength=len(shift))
+        total += sum(((int(h) << 26) + int(lo_)) << int(sh) for h, lo_, sh in zip(hi, lo, shift))
+    return total
 
 
 class GcodeWriter:
@@ -225,9 +226,9 @@ class GcodeWriter:
         if self._tail is not None:
             self._emit(self._tail, final=True)
 
-    def _put(self, data: bytes) -> None:
-        if data:
-            self.out.write(data.decode("ascii") if self._text else data)
+    def _put(self, data: np.ndarray | bytes) -> None:
+        if len(data):
+            self.out.write(bytes(data).decode("ascii") if self._text else memoryview(data))
 
     def _emit(self, p: Program, final: bool) -> None:
         """Write the commands of ``p`` whose text is decided (all of them if ``final``), keep
@@ -239,18 +240,20 @@ class GcodeWriter:
         on = p.tool_on(self.tool)
         is_mv = kind == MOVE
         mv = np.flatnonzero(is_mv)
+        at_mv = xyz[mv]
         prev = np.empty((len(mv), 3))
         if len(mv):
-            prev[1:] = xyz[mv[:-1]]
+            prev[1:] = at_mv[:-1]
             prev[0] = self.pos if self.pos is not None else np.nan
-        length = np.linalg.norm(xyz[mv] - prev, axis=1)  # NaN for a first move from nowhere
+        sq = (at_mv - prev) ** 2
+        length = np.sqrt(sq[:, 0] + sq[:, 1] + sq[:, 2])  # NaN for a first move from nowhere (np.linalg.norm's sum)
         extr = on[mv] & (length > 0)
         e = np.zeros(len(mv))
         e[extr] = extrusion_area(p.width[mv[extr]], p.height[mv[extr]]) * length[extr] / self.fil_area
         ext_cmd = np.zeros(n, dtype=bool)
         ext_cmd[mv[extr]] = True
         zmove = np.zeros(n, dtype=bool)
-        zmove[mv] = xyz[mv, 2] != prev[:, 2]
+        zmove[mv] = at_mv[:, 2] != prev[:, 2]
         row_of = np.full(n, -1)
         row_of[mv] = np.arange(len(mv))
         go = np.zeros(n, dtype=bool)  # travel lines: a MOVE that does not extrude and goes somewhere
@@ -315,11 +318,10 @@ class GcodeWriter:
                              np.where(np.r_[go, False][lb], -1, np.r_[role, -1][lb]))
         # the operations, command by command: turns, layer, ;TYPE, feed, text, the numeric line
         table = Table()
-        slots: list[tuple[np.ndarray, np.ndarray]] = []  # (commands, op) in slot order
-        if turns:
-            at = [t for t in sorted(turns) if t < c]
-            slots.append((np.array(at, np.int64), np.array([table.id("".join(
-                f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[t])) for t in at], np.int64)))
+        ops = np.full((c, 6), NONE, np.int64)  # per command: turns, layer, ;TYPE, feed, text, numeric line
+        for t in sorted(turns):
+            if t < c:
+                ops[t, 0] = table.id("".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[t]))
         ann_at, ann_op = [], []
         for i in announce[announce < c].tolist():
             where = (names[chunk[i]], int(layer[i]))
@@ -329,18 +331,18 @@ class GcodeWriter:
                 ann_at.append(i)
                 ann_op.append(table.id(text))
                 self.where = where
-        slots.append((np.array(ann_at, np.int64), np.array(ann_op, np.int64)))
+        ops[ann_at, 1] = ann_op
         st = np.flatnonzero(starts[:c])
         if len(st):
             ty = role[st] != last_role[st]
             type_lut = np.array([table.id(f";TYPE:{ROLE_TYPES[r]}\n") if r in ROLE_TYPES else -1
                                  for r in range(int(role[st].max()) + 1)], np.int64)
-            slots.append((st[ty], type_lut[role[st[ty]]]))
+            ops[st[ty], 2] = type_lut[role[st[ty]]]
             key = role[st] * 2 + (layer[st] == 0)  # the feed rate: by role, and on the first layer
             feed_lut = np.array([table.id(f"G1 F{self.feeds.extrude(k // 2, 0 if k % 2 else 1) * 60:.0f}\n")
                                  for k in range(int(key.max()) + 1)], np.int64)
-            slots.append((st, feed_lut[key]))
-        text = np.full(c, -1, np.int64)  # a command's own text: a travel's retraction, TOOL ON's, a sync's
+            ops[st, 3] = feed_lut[key]
+        text = ops[:, 4]  # a command's own text: a travel's retraction, TOOL ON's, a sync's
         text[travel_retract[:c] & ~retracted[:c]] = table.id(self.retract)
         ons = np.flatnonzero(tool_on[:c])
         if len(ons):
@@ -352,38 +354,26 @@ class GcodeWriter:
         sync = np.flatnonzero(((kind == NOTIFY) | wait)[:c])
         if len(sync):
             idle = f"M104 S0 ; idle: a wait longer than {heating.idle_limit:g} s\n" if heating is not None else ""
-            ops = []
+            lines = []
             for i in sync.tolist():
                 ev = ", ".join(p.events[int(p.event[i])])
                 word, code = ("NOTIFY", "M118") if kind[i] == NOTIFY else ("WAIT", "M0")
                 line = f"; {word} {ev}\nM400\n"
                 if long_wait[i] and hot[i]:
                     line += (self.retract if not retracted[i] else "") + idle
-                ops.append(table.id(line + f"{code} {word} {ev}\n"))
-            text[sync] = ops
-        at = np.flatnonzero(text >= 0)
-        slots.append((at, text[at]))
+                lines.append(table.id(line + f"{code} {word} {ev}\n"))
+            text[sync] = lines
         # numeric lines: a whole extrusion run with Z if any of its moves climbs
         seg_id = np.cumsum(~cont) - 1
         zany = np.logical_or.reduceat(zmove, seg)[seg_id] if n else zmove
         num = np.flatnonzero((ext_cmd | go)[:c])
-        slots.append((num, np.where(go[num], -3, np.where(zany[num], -2, -1)).astype(np.int64)))
-        # lay the slots out command by command
-        count = np.zeros(c, np.int64)
-        for at, _ in slots:
-            count[at] += 1  # (a command at most once a slot)
-        pos = np.cumsum(count) - count
-        op = np.empty(int(count.sum()), np.int64)
-        row = np.zeros(len(op), np.int64)
-        for at, ops in slots:
-            op[pos[at]] = ops
-            row[pos[at]] = row_of[at] if len(at) and ops[0] < 0 else 0
-            pos[at] += 1
-        values = np.column_stack([xyz[mv], e])
-        data = assemble(op, row, table, self._templates, values, (3, 3, 3, 5))
+        ops[num, 5] = np.where(go[num], -3, np.where(zany[num], -2, -1))
+        values = np.empty((len(mv), 4))
+        values[:, :3] = at_mv
+        values[:, 3] = e
+        self._put(assemble(ops, row_of[:c], table, self._templates, values, (3, 3, 3, 5)))
         if final and n in turns:
-            data += "".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[n]).encode()
-        self._put(data)
+            self._put("".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[n]).encode())
         # the state after command c - 1
         done = int(np.searchsorted(mv, c))  # moves written
         self._units += _exact_units(e[:done])

@@ -108,67 +108,76 @@ class Templates:
                               for t in range(len(templates))], np.int64)
 
 
+#: An empty slot of an operation matrix.
+NONE = -(1 << 62)
+
+
 @numba.njit(cache=True, nogil=True)
 def _assemble(op, row, tab, tab_at, lit, lit_at, count, decimals, column, mag, neg, special):
-    """One pass into a buffer of the largest size the operations can take (a number at most 19
-    digits, a sign and a point), cut to what was written."""
+    """One pass over the operation matrix (row by row, slot by slot) into a buffer of the
+    largest size the operations can take (a number at most 19 digits, a sign and a point),
+    cut to what was written."""
     bound = 0
-    for i in range(len(op)):
-        o = op[i]
-        if o >= 0:
-            bound += tab_at[o + 1] - tab_at[o]
-        else:
-            t = -1 - o
-            bound += lit_at[t, count[t] + 1] - lit_at[t, 0] + 21 * count[t]
+    for i in range(op.shape[0]):
+        for k in range(op.shape[1]):
+            o = op[i, k]
+            if o >= 0:
+                bound += tab_at[o + 1] - tab_at[o]
+            elif o != NONE:
+                t = -1 - o
+                bound += lit_at[t, count[t] + 1] - lit_at[t, 0] + 21 * count[t]
     buf = np.empty(bound, np.uint8)
     digits = np.empty(24, np.uint8)
     w = 0
-    for i in range(len(op)):
-        o = op[i]
-        if o >= 0:
-            for j in range(tab_at[o], tab_at[o + 1]):
-                buf[w] = tab[j]
-                w += 1
-            continue
-        t = -1 - o
-        r = row[i]
-        nf = count[t]
-        for f in range(nf + 1):
-            for j in range(lit_at[t, f], lit_at[t, f + 1]):
-                buf[w] = lit[j]
-                w += 1
-            if f == nf:
-                break
-            c = column[t, f]
-            d = decimals[t, f]
-            m = np.uint64(mag[r, c])
-            if neg[r, c]:
-                buf[w] = 45  # '-'
-                w += 1
-            if special[r, c] != 0:  # nan, inf
-                for ch in (110, 97, 110) if special[r, c] == 2 else (105, 110, 102):
-                    buf[w] = ch
+    for i in range(op.shape[0]):
+        for k in range(op.shape[1]):
+            o = op[i, k]
+            if o == NONE:
+                continue
+            if o >= 0:
+                for j in range(tab_at[o], tab_at[o + 1]):
+                    buf[w] = tab[j]
                     w += 1
                 continue
-            # digits from the last: d decimals, the point, then at least one digit
-            n = 0
-            for _ in range(d):
+            t = -1 - o
+            r = row[i]
+            nf = count[t]
+            for f in range(nf + 1):
+                for j in range(lit_at[t, f], lit_at[t, f + 1]):
+                    buf[w] = lit[j]
+                    w += 1
+                if f == nf:
+                    break
+                c = column[t, f]
+                d = decimals[t, f]
+                m = np.uint64(mag[r, c])
+                if neg[r, c]:
+                    buf[w] = 45  # '-'
+                    w += 1
+                if special[r, c] != 0:  # nan, inf
+                    for ch in (110, 97, 110) if special[r, c] == 2 else (105, 110, 102):
+                        buf[w] = ch
+                        w += 1
+                    continue
+                # digits from the last: d decimals, the point, then at least one digit
+                n = 0
+                for _ in range(d):
+                    digits[n] = 48 + m % np.uint64(10)
+                    m //= np.uint64(10)
+                    n += 1
+                if d > 0:
+                    digits[n] = 46  # '.'
+                    n += 1
                 digits[n] = 48 + m % np.uint64(10)
                 m //= np.uint64(10)
                 n += 1
-            if d > 0:
-                digits[n] = 46  # '.'
-                n += 1
-            digits[n] = 48 + m % np.uint64(10)
-            m //= np.uint64(10)
-            n += 1
-            while m > 0:
-                digits[n] = 48 + m % np.uint64(10)
-                m //= np.uint64(10)
-                n += 1
-            for j in range(n - 1, -1, -1):
-                buf[w] = digits[j]
-                w += 1
+                while m > 0:
+                    digits[n] = 48 + m % np.uint64(10)
+                    m //= np.uint64(10)
+                    n += 1
+                for j in range(n - 1, -1, -1):
+                    buf[w] = digits[j]
+                    w += 1
     return buf[:w]
 
 
@@ -193,41 +202,47 @@ class Table:
         return np.frombuffer(b"".join(data) or b"\0", np.uint8), at
 
 
-def _assemble_slow(op, row, table: Table, templates: Templates, values: np.ndarray) -> bytes:
+def _assemble_slow(op, row, table: Table, templates: Templates, values: np.ndarray) -> np.ndarray:
     """:func:`assemble` by ``%``, operation by operation."""
     strings = list(table.ids)
     out = []
-    for o, r in zip(op.tolist(), row.tolist()):
-        if o >= 0:
-            out.append(strings[o])
-        else:
-            t = -1 - o
-            cols = templates.column[t, :templates.count[t]].tolist()
-            out.append(templates.text[t] % tuple(values[r, cols].tolist()))
-    return "".join(out).encode("utf-8")
+    for ops, r in zip(op.tolist(), row.tolist()):
+        for o in ops:
+            if o == NONE:
+                continue
+            if o >= 0:
+                out.append(strings[o])
+            else:
+                t = -1 - o
+                cols = templates.column[t, :templates.count[t]].tolist()
+                out.append(templates.text[t] % tuple(values[r, cols].tolist()))
+    return np.frombuffer("".join(out).encode("utf-8"), np.uint8)
 
 
 def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates, values: np.ndarray,
-             decimals: Sequence[int]) -> bytes:
-    """The text of operations ``op`` in order: ``op >= 0`` is string ``op`` of ``table``;
-    ``op < 0`` is template ``-1 - op`` of ``templates`` filled from row ``row`` of ``values``
-    (column ``j`` formatted with ``decimals[j]``). Byte for byte what ``%`` would write."""
+             decimals: Sequence[int]) -> np.ndarray:
+    """The text (UTF-8 bytes as a uint8 array: a file writes it without a copy) of the
+    operations ``op``, an (n, k) matrix read row by row (or an (n,) vector): ``op >= 0`` is
+    string ``op`` of ``table``; ``NONE`` nothing; another ``op < 0`` is template ``-1 - op``
+    of ``templates`` filled from row ``row[i]`` of ``values`` (column ``j`` formatted with
+    ``decimals[j]``). Byte for byte what ``%`` would write."""
+    op = np.asarray(op, np.int64)
+    op = np.ascontiguousarray(op if op.ndim == 2 else op.reshape(-1, 1))
     values = np.asarray(values, dtype=np.float64)
     values = values.reshape(len(values), -1) if values.ndim < 2 else values
     mag = np.zeros(values.shape, np.int64)
     neg = np.zeros(values.shape, bool)
     special = np.zeros(values.shape, np.int8)
-    used = op < 0
-    if used.any():
+    numeric = op[(op < 0) & (op != NONE)]
+    if len(numeric):
         try:
-            for j in np.unique(templates.used[np.unique(-1 - op[used])]).tolist():
+            for j in np.unique(templates.used[np.unique(-1 - numeric)]).tolist():
                 mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], decimals[j])
         except OverflowError:  # a number of more than 18 digits: no writer makes one; '%' writes it
             return _assemble_slow(op, row, table, templates, values)
     tab, tab_at = table.arrays()
-    return _assemble(np.ascontiguousarray(op, np.int64), np.ascontiguousarray(row, np.int64), tab, tab_at,
-                     templates.lit, templates.lit_at, templates.count, templates.decimals, templates.column,
-                     mag, neg, special).tobytes()
+    return _assemble(op, np.ascontiguousarray(row, np.int64), tab, tab_at, templates.lit, templates.lit_at,
+                     templates.count, templates.decimals, templates.column, mag, neg, special)
 
 
-__all__ = ["Table", "Templates", "assemble", "fixed"]
+__all__ = ["NONE", "Table", "Templates", "assemble", "fixed"]
