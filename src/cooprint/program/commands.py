@@ -330,7 +330,7 @@ class CoopWriter:
         layer = _changes([p.layer, p.height], self._state[1])
         path = _changes([p.role, p.width], self._state[2])
         table = Table()
-        ops = np.full((n, 5), NONE, np.int64)  # per command: ;@chunk, ;@layer, ;@path, ;@facing, the command
+        ops = np.full((n, 5), NONE, np.int32)  # per command: ;@chunk, ;@layer, ;@path, ;@facing, the command
         at = np.flatnonzero(chunk)
         chunk_ids = np.array([table.id(f";@chunk {c if c is not None else '-'}\n") for c in names], np.int64)
         ops[at, 0] = chunk_ids[p.chunk[at]]

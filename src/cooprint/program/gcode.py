@@ -157,12 +157,17 @@ def _exact_units(e: np.ndarray) -> int:
     e = np.asarray(e, dtype=np.float64)
     m, ex = np.frexp(e[e != 0])
     mant = (m * 2.0**53).astype(np.int64)  # exact: e = mant * 2**(ex - 53)
-    shift, group = np.unique(ex.astype(np.int64) + 1073, return_inverse=True)  # e = mant * 2**(shift - 1126)
+    if not len(mant):
+        return 0
+    group = ex.astype(np.int64) + 1073  # e = mant * 2**(group - 1126), group >= 0
+    low = int(group.min())
+    group -= low
     total = 0
     for a in range(0, len(mant), 1 << 26):  # float sums of at most 2**26 numbers below 2**27: exact
-        hi = np.bincount(group[a:a + (1 << 26)], weights=mant[a:a + (1 << 26)] >> 26, minlength=len(shift))
-        lo = np.bincount(group[a:a + (1 << 26)], weights=mant[a:a + (1 << 26)] & ((1 << 26) - 1), minlength=len(shift))
-        total += sum(((int(h) << 26) + int(lo_)) << int(sh) for h, lo_, sh in zip(hi, lo, shift))
+        g, part = group[a:a + (1 << 26)], mant[a:a + (1 << 26)]
+        hi = np.bincount(g, weights=part >> 26)
+        lo = np.bincount(g, weights=part & ((1 << 26) - 1))
+        total += sum(((int(h) << 26) + int(lo_)) << (low + k) for k, (h, lo_) in enumerate(zip(hi.tolist(), lo.tolist())))
     return total
 
 
@@ -283,8 +288,8 @@ class GcodeWriter:
         if continuing and self._run_long:
             run_sum[0] = np.inf
         run_len = run_sum[run_id]
-        nxt = np.minimum.accumulate(np.where(is_mv, np.arange(n), n)[::-1])[::-1] if n else np.zeros(0, np.int64)
         announce = np.flatnonzero(moved & (layer >= 0))  # segment starts that may name a new layer
+        nxt = np.r_[mv, n][np.searchsorted(mv, announce)]  # the next move at or after each
         # how far the text is decided
         c = n
         if not final:
@@ -292,7 +297,7 @@ class GcodeWriter:
                 c = min(c, int(seg[-1]))  # the last extrusion run may go on
             if self.retract and len(mv) and off[-1] and run_sum[-1] < s.retract_before_travel:
                 c = min(c, int(mv[np.flatnonzero(new_run)[-1]]))  # the last travel run may grow long
-            lonely = announce[nxt[announce] >= n]
+            lonely = announce[nxt >= n]
             if len(lonely):
                 c = min(c, int(lonely[0]))  # a layer whose first move is still to come
         # the state in force at each command (set by the last command that changes it)
@@ -318,16 +323,16 @@ class GcodeWriter:
                              np.where(np.r_[go, False][lb], -1, np.r_[role, -1][lb]))
         # the operations, command by command: turns, layer, ;TYPE, feed, text, the numeric line
         table = Table()
-        ops = np.full((c, 6), NONE, np.int64)  # per command: turns, layer, ;TYPE, feed, text, numeric line
+        ops = np.full((c, 6), NONE, np.int32)  # per command: turns, layer, ;TYPE, feed, text, numeric line
         for t in sorted(turns):
             if t < c:
                 ops[t, 0] = table.id("".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[t]))
         ann_at, ann_op = [], []
-        for i in announce[announce < c].tolist():
+        for i, z in zip(announce[announce < c].tolist(), nxt.tolist()):
             where = (names[chunk[i]], int(layer[i]))
             if where != self.where:
                 text = f";CHUNK:{where[0]}\n" if where[0] != self.where[0] and where[0] is not None else ""
-                text += f";LAYER:{where[1]}" + (f"\n;Z:{xyz[nxt[i], 2]:.3f}" if nxt[i] < n else "") + "\n"
+                text += f";LAYER:{where[1]}" + (f"\n;Z:{xyz[z, 2]:.3f}" if z < n else "") + "\n"
                 ann_at.append(i)
                 ann_op.append(table.id(text))
                 self.where = where

@@ -109,7 +109,7 @@ class Templates:
 
 
 #: An empty slot of an operation matrix.
-NONE = -(1 << 62)
+NONE = -(1 << 30)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -226,8 +226,8 @@ def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates
     string ``op`` of ``table``; ``NONE`` nothing; another ``op < 0`` is template ``-1 - op``
     of ``templates`` filled from row ``row[i]`` of ``values`` (column ``j`` formatted with
     ``decimals[j]``). Byte for byte what ``%`` would write."""
-    op = np.asarray(op, np.int64)
-    op = np.ascontiguousarray(op if op.ndim == 2 else op.reshape(-1, 1))
+    op = np.asarray(op)
+    op = np.ascontiguousarray(op if op.ndim == 2 else op.reshape(-1, 1), np.int32)
     values = np.asarray(values, dtype=np.float64)
     values = values.reshape(len(values), -1) if values.ndim < 2 else values
     mag = np.zeros(values.shape, np.int64)
@@ -236,7 +236,9 @@ def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates
     numeric = op[(op < 0) & (op != NONE)]
     if len(numeric):
         try:
-            for j in np.unique(templates.used[np.unique(-1 - numeric)]).tolist():
+            present = np.zeros(len(templates.used), bool)
+            present[-1 - numeric] = True
+            for j in np.unique(templates.used[present]).tolist():
                 mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], decimals[j])
         except OverflowError:  # a number of more than 18 digits: no writer makes one; '%' writes it
             return _assemble_slow(op, row, table, templates, values)
