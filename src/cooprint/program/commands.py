@@ -348,7 +348,7 @@ class CoopWriter:
         cmd[kind == TOOL_OFF] = table.id("TOOL OFF\n")
         sync = np.flatnonzero(p.event >= 0)
         cmd[sync] = [table.id(f"{KIND_NAMES[kind[i]]} {', '.join(p.events[p.event[i]])}\n") for i in sync.tolist()]
-        self._put(assemble(ops, np.arange(n), table, self._templates, p.xyz, (3, 3, 3)))
+        self._put(assemble(ops, np.arange(n), table, self._templates, p.xyz))
         last = n - 1
         self._state = (chunk_names[last], (int(p.layer[last]), float(p.height[last])),
                        (int(p.role[last]), float(p.width[last])))

@@ -376,7 +376,7 @@ class GcodeWriter:
         values = np.empty((len(mv), 4))
         values[:, :3] = at_mv
         values[:, 3] = e
-        self._put(assemble(ops, row_of[:c], table, self._templates, values, (3, 3, 3, 5)))
+        self._put(assemble(ops, row_of[:c], table, self._templates, values))
         if final and n in turns:
             self._put("".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[n]).encode())
         # the state after command c - 1

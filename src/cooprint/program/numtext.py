@@ -102,6 +102,13 @@ class Templates:
                 lit.append(piece.encode("ascii"))
                 at += len(lit[-1])
             self.lit_at[t, len(fields) + 1] = at
+        #: the decimals of each column read (one count a column: its digits are made once)
+        self.column_decimals: dict[int, int] = {}
+        for t in range(len(templates)):
+            for f in range(int(self.count[t])):
+                c, d = int(self.column[t, f]), int(self.decimals[t, f])
+                if self.column_decimals.setdefault(c, d) != d:
+                    raise ValueError(f"column {c} written with {self.column_decimals[c]} and with {d} decimals")
         self.lit = np.frombuffer(b"".join(lit) or b"\0", np.uint8)
         #: the columns each template reads (padded with its first)
         self.used = np.array([[self.column[t, min(f, max(int(self.count[t]) - 1, 0))] for f in range(self.column.shape[1])]
@@ -219,13 +226,12 @@ def _assemble_slow(op, row, table: Table, templates: Templates, values: np.ndarr
     return np.frombuffer("".join(out).encode("utf-8"), np.uint8)
 
 
-def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates, values: np.ndarray,
-             decimals: Sequence[int]) -> np.ndarray:
+def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates, values: np.ndarray) -> np.ndarray:
     """The text (UTF-8 bytes as a uint8 array: a file writes it without a copy) of the
     operations ``op``, an (n, k) matrix read row by row (or an (n,) vector): ``op >= 0`` is
     string ``op`` of ``table``; ``NONE`` nothing; another ``op < 0`` is template ``-1 - op``
-    of ``templates`` filled from row ``row[i]`` of ``values`` (column ``j`` formatted with
-    ``decimals[j]``). Byte for byte what ``%`` would write."""
+    of ``templates`` filled from row ``row[i]`` of ``values``. Byte for byte what ``%`` would
+    write."""
     op = np.asarray(op)
     op = np.ascontiguousarray(op if op.ndim == 2 else op.reshape(-1, 1), np.int32)
     values = np.asarray(values, dtype=np.float64)
@@ -239,7 +245,7 @@ def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates
             present = np.zeros(len(templates.used), bool)
             present[-1 - numeric] = True
             for j in np.unique(templates.used[present]).tolist():
-                mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], decimals[j])
+                mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], templates.column_decimals[j])
         except OverflowError:  # a number of more than 18 digits: no writer makes one; '%' writes it
             return _assemble_slow(op, row, table, templates, values)
     tab, tab_at = table.arrays()
