@@ -385,19 +385,26 @@ def strict_option(command: Any) -> Any:
               help="Then simulate the plan: OUT/sim/summary.json, gantt.png and snapshot.png; exit 1 if the "
                    "simulation finds errors.")
 @strict_option
+@click.option("--compress", is_flag=True,
+              help="Write the robots' programs gzip-compressed: OUT/robots/<robot>.coop.gz and .gcode.gz "
+                   "(simulate and render read them as they are).")
 def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: dict[str, Any], force: bool,
-            no_picture: bool, quiet: bool, then_simulate: bool, strict: bool) -> None:
+            no_picture: bool, quiet: bool, then_simulate: bool, strict: bool, compress: bool) -> None:
     """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
 
     Chunks, assigns, slices every chunk and writes OUT/job.json, OUT/chunks/<id>.stl,
-    OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically.
-    With --simulate, a plan whose own simulation finds errors is reported INVALID (exit 1).
+    OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically
+    (with --compress, .coop.gz and .gcode.gz). With --simulate, a plan whose own simulation
+    finds errors is reported INVALID (exit 1).
     """
     from cooprint.jobs import coop_job, write_coop_bundle
 
     if strict and not then_simulate:  # --strict judges a simulation: without one it would be ignored
         raise UserError("--strict needs --simulate (it makes warnings of the plan's simulation fail it)")
-    record = _plan(coop_job, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
+    from functools import partial
+
+    write = partial(write_coop_bundle, compress=compress)
+    record = _plan(coop_job, write, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
     if then_simulate:
         from cooprint.jobs import simulate_bundle

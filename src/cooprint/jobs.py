@@ -19,7 +19,7 @@ from cooprint.chunking import ChunkSet
 from cooprint.chunking.planes import safe_top_width
 from cooprint.config import JobSettings, SlicingSettings, load_settings
 from cooprint.errors import UserError, warn
-from cooprint.io.bundle import atomic_dir, write_json, write_stl
+from cooprint.io.bundle import atomic_dir, open_output, program_files, write_json, write_stl
 from cooprint.io.mesh import Solid, load_mesh
 from cooprint.io.place import Placement, place
 from cooprint.scheduling import Assignment, Schedule
@@ -555,10 +555,11 @@ def program_stats(program: Any, s: SlicingSettings) -> dict[str, Any]:
             "notify": int((program.kind == NOTIFY).sum()), "wait": int((program.kind == WAIT).sum())}
 
 
-def coop_record(job: CoopJob) -> dict[str, Any]:
+def coop_record(job: CoopJob, compress: bool = False) -> dict[str, Any]:
     """``job.json`` of a cooperative run: the chunk record, robots with their placement, their
     whole profile (so that the bundle says each robot's speeds and geometry itself; a mixed fleet
-    gives each its own) and program statistics, and the synchronisation events."""
+    gives each its own) and program statistics, and the synchronisation events. ``compress``:
+    the programs are ``.coop.gz`` and ``.gcode.gz`` files."""
     from dataclasses import asdict
 
     from cooprint.program.commands import NOTIFY
@@ -569,8 +570,7 @@ def coop_record(job: CoopJob) -> dict[str, Any]:
         name = r["name"]
         r["profile"] = asdict(job.chunked.settings.robot)
         r.update(job.placements[name].to_dict())
-        r["program"] = f"robots/{name}.coop"
-        r["gcode"] = f"robots/{name}.gcode"
+        r["program"], r["gcode"] = program_files(name, compress)
         r["stats"] = program_stats(job.programs[name], s)
     for row in record["chunks"]:
         row["layers"] = sum(1 for _, layer in job.layers[row["id"]] if len(layer))
@@ -582,9 +582,10 @@ def coop_record(job: CoopJob) -> dict[str, Any]:
 
 
 def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, picture: bool = True,
-                      progress: Progress | None = None) -> dict[str, Any]:
+                      progress: Progress | None = None, *, compress: bool = False) -> dict[str, Any]:
     """Write the whole bundle (job.json, chunks/, robots/<name>.coop and .gcode, chunks.png)
-    atomically; returns the job record."""
+    atomically; returns the job record. ``compress``: the programs gzip-compressed
+    (``robots/<name>.coop.gz`` and ``.gcode.gz``)."""
     from cooprint.program.commands import write_coop
     from cooprint.program.gcode import Feeds, Heating, write_gcode
     from cooprint.simulation.timeline import SimRobot, wait_estimates
@@ -614,18 +615,19 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
                       f"start {place.start[0]:.3f}, {place.start[1]:.3f}, {place.start[2]:.3f}{turns}",
                       "annotations: ;@chunk ID, ;@layer INDEX HEIGHT, ;@path ROLE WIDTH"
                       + (", ;@facing DEGREES" if program.turns else "") + " (docs/program.md)"]
-            with open(tmp / "robots" / f"{robot}.coop", "w", encoding="utf-8") as fh:
+            coop_file, gcode_file = program_files(robot, compress)
+            with open_output(tmp / coop_file, compress) as fh:
                 write_coop(fh, program, header)
             if progress:
                 progress("write", n + 2 * k + 1, n + 2 * len(job.programs))
-            with open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as fh:
+            with open_output(tmp / gcode_file, compress) as fh:
                 write_gcode(fh, [program], s, feeds, f"{name}, robot {robot}",
                             notes=header[:2], home=False,
                             heating=Heating.of_robot(settings.robot, s, settings.program.heater_idle_limit_s,
                                                      waits[robot]))
             if progress:
                 progress("write", n + 2 * k + 2, n + 2 * len(job.programs))
-        record = coop_record(job)
+        record = coop_record(job, compress)
         if picture:
             from cooprint.render.chunks import render_chunks
 
@@ -637,14 +639,14 @@ def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, pictur
 
 def run(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
         overrides: dict[str, Any] | None = None, robots: int = 2, force: bool = False,
-        picture: bool = True, progress: Progress | None = None) -> dict[str, Any]:
+        picture: bool = True, progress: Progress | None = None, compress: bool = False) -> dict[str, Any]:
     """Python twin of ``cooprint run``: the whole cooperative pipeline; returns the job record
     written to ``out/job.json``."""
     from cooprint.io.bundle import check_destination
 
     check_destination(Path(out), force, inputs=(mesh, *config))
     job = coop_job(mesh, load_settings(*config, overrides=overrides), robots, progress)
-    return write_coop_bundle(job, out, force, picture, progress)
+    return write_coop_bundle(job, out, force, picture, progress, compress=compress)
 
 
 def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False) -> dict[str, Any]:

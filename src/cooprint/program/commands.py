@@ -622,8 +622,11 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:
-    """Read a ``.coop`` file; the robot's name defaults to the file's stem. The file is mapped,
-    not copied: its pages stay the page cache's."""
+    """Read a ``.coop`` file, plain or gzip-compressed (``A.coop.gz``); the robot's name
+    defaults to the file's stem (``A``). A plain file is mapped, not copied: its pages stay the
+    page cache's; a compressed one is read and decompressed."""
+    from cooprint.io.bundle import GZIP_MAGIC, plain_name, read_output
+
     p = Path(path)
     regular_file(p, "command file", ProgramError)  # a FIFO would block the read for ever
     try:
@@ -632,12 +635,16 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
                 data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
             except (OSError, ValueError):  # empty, or not a regular file (a pipe): read it
                 data = f.read()
+        if bytes(data[:2]) == GZIP_MAGIC:
+            if isinstance(data, mmap.mmap):
+                data.close()
+            data = read_output(p, ProgramError)
     except FileNotFoundError:
         raise ProgramError(f"{p}: no such command file") from None
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read ({exc})") from None
     try:
-        return parse_coop(data, robot or p.stem, str(p))
+        return parse_coop(data, robot or plain_name(p).stem, str(p))
     finally:
         if isinstance(data, mmap.mmap):
             try:
