@@ -66,7 +66,7 @@ def fixed(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarray, np
     v = np.ascontiguousarray(values, dtype=np.float64)
     k, neg, code = _round(v, float(10 ** decimals))
     unsure = np.flatnonzero(code == 1)
-    if len(unsure) and np.abs(v[unsure]).max() * 10.0 ** decimals >= _HUGE:
+    if len(unsure) and np.abs(v[unsure]).max() >= _HUGE / 10.0 ** decimals:
         raise OverflowError("a value too large for a 64-bit fixed-point number")
     if len(unsure):
         fmt = f"%.{decimals}f"
@@ -239,15 +239,11 @@ def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates
     mag = np.zeros(values.shape, np.int64)
     neg = np.zeros(values.shape, bool)
     special = np.zeros(values.shape, np.int8)
-    numeric = op[(op < 0) & (op != NONE)]
-    if len(numeric):
-        try:
-            present = np.zeros(len(templates.used), bool)
-            present[-1 - numeric] = True
-            for j in np.unique(templates.used[present]).tolist():
-                mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], templates.column_decimals[j])
-        except OverflowError:  # a number of more than 18 digits: no writer makes one; '%' writes it
-            return _assemble_slow(op, row, table, templates, values)
+    try:  # every column a template reads (a row no line writes may hold anything, NaN too)
+        for j, d in templates.column_decimals.items():
+            mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], d)
+    except OverflowError:  # a number of more than 18 digits: no writer makes one; '%' writes it
+        return _assemble_slow(op, row, table, templates, values)
     tab, tab_at = table.arrays()
     return _assemble(op, np.ascontiguousarray(row, np.int64), tab, tab_at, templates.lit, templates.lit_at,
                      templates.count, templates.decimals, templates.column, mag, neg, special)
