@@ -31,6 +31,7 @@ import math
 from dataclasses import dataclass
 from typing import BinaryIO, Iterable, TextIO
 
+import numba
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
@@ -141,11 +142,34 @@ def end_code(bed: bool = True) -> str:
     return "\n".join(["; end", "M400", "M104 S0", *(["M140 S0"] if bed else []), "M84", ""])
 
 
-def _last_before(mask: np.ndarray) -> np.ndarray:
-    """(n + 1,) the index of the last ``True`` of ``mask`` strictly before each index 0..n (-1:
-    none): the command that last set a state, for the state in force at each command."""
-    idx = np.where(mask, np.arange(len(mask)), -1)
-    return np.r_[-1, np.maximum.accumulate(idx)] if len(idx) else np.array([-1])
+@numba.njit(cache=True, nogil=True)
+def _states(kind, long_wait, travel_pre, starts, go, role, hot0, retracted0, role0, can_retract):
+    """The state in force before each command 0..n (n: after the last), each set by the last
+    command that changes it: the nozzle is hot (TOOL ON heats it, a long WAIT cools it); the
+    filament is retracted (by a travel that retracts, ``travel_pre`` and hot, or a long WAIT
+    while hot; TOOL ON pushes it back); the role of the extrusion in progress (set where an
+    extrusion run starts, -1 after a travel line)."""
+    n = len(kind)
+    hot = np.empty(n + 1, np.bool_)
+    retracted = np.empty(n + 1, np.bool_)
+    last_role = np.empty(n + 1, np.int64)
+    h, r, lr = hot0, retracted0, role0
+    for i in range(n):
+        hot[i], retracted[i], last_role[i] = h, r, lr
+        if kind[i] == TOOL_ON:
+            h, r = True, False
+        elif long_wait[i]:
+            if h and can_retract:
+                r = True
+            h = False
+        elif travel_pre[i] and h:
+            r = True
+        if starts[i]:
+            lr = role[i]
+        elif go[i]:
+            lr = -1
+    hot[n], retracted[n], last_role[n] = h, r, lr
+    return hot, retracted, last_role
 
 
 def _exact_units(e: np.ndarray) -> int:
@@ -253,8 +277,8 @@ class GcodeWriter:
         sq = (at_mv - prev) ** 2
         length = np.sqrt(sq[:, 0] + sq[:, 1] + sq[:, 2])  # NaN for a first move from nowhere (np.linalg.norm's sum)
         extr = on[mv] & (length > 0)
-        e = np.zeros(len(mv))
-        e[extr] = extrusion_area(p.width[mv[extr]], p.height[mv[extr]]) * length[extr] / self.fil_area
+        with np.errstate(invalid="ignore"):  # (the first move from nowhere: no length)
+            e = np.where(extr, extrusion_area(p.width[mv], p.height[mv]) * length / self.fil_area, 0.0)
         ext_cmd = np.zeros(n, dtype=bool)
         ext_cmd[mv[extr]] = True
         zmove = np.zeros(n, dtype=bool)
@@ -307,20 +331,13 @@ class GcodeWriter:
             k0 = self.waits
             long_wait[wait] = [heating.wait_is_long(k0 + k) for k in range(int(wait.sum()))]
         tool_on = kind == TOOL_ON
-        padded = np.r_[kind, 255]  # (index n: no command sets a state there)
-        lb = _last_before(tool_on | long_wait)
-        hot = np.where(lb >= 0, padded[lb] == TOOL_ON, self.hot)
-        travel_retract = np.zeros(n, dtype=bool)
+        travel_pre = np.zeros(n, dtype=bool)  # a travel that retracts if the nozzle is hot
         if self.retract:
-            travel_retract[mv] = off & (length > 0) & (run_len >= s.retract_before_travel)
-            travel_retract &= hot[:-1]
-        wait_retract = long_wait & hot[:-1] & bool(self.retract)
-        lb = _last_before(travel_retract | wait_retract | tool_on)
-        retracted = np.where(lb >= 0, padded[lb] != TOOL_ON, self.retracted)
+            travel_pre[mv] = off & (length > 0) & (run_len >= s.retract_before_travel)
         starts = ext_cmd & ~cont
-        lb = _last_before(starts | go)
-        last_role = np.where(lb < 0, -1 if self.role is None else self.role,
-                             np.where(np.r_[go, False][lb], -1, np.r_[role, -1][lb]))
+        hot, retracted, last_role = _states(kind, long_wait, travel_pre, starts, go, role, self.hot, self.retracted,
+                                            -1 if self.role is None else self.role, bool(self.retract))
+        travel_retract = travel_pre & hot[:-1]
         # the operations, command by command: turns, layer, ;TYPE, feed, text, the numeric line
         table = Table()
         ops = np.full((c, 6), NONE, np.int32)  # per command: turns, layer, ;TYPE, feed, text, numeric line
