@@ -36,12 +36,14 @@ import gzip
 import json
 import math
 import os
-import zlib
+import queue
 import re
 import shutil
 import stat
 import sys
 import tempfile
+import threading
+import zlib
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
@@ -470,23 +472,66 @@ def _named(exc: OSError, path: str | Path) -> OSError:
 class OutputFile:
     """A binary output file, gzip-compressed (deterministically: no name, mtime 0) when
     ``compress``; written in large blocks. An OS error while writing or closing it names the
-    file (:func:`output_error` turns it into one line)."""
+    file (:func:`output_error` turns it into one line).
+
+    Compression runs on a thread of its own (zlib lets go of the interpreter while it works):
+    the writer formats the next block while the last one is compressed. Blocks are handed over
+    as copies, at most ``QUEUE`` waiting; an error of the thread is raised by the next
+    :meth:`write` or by :meth:`close`.
+    """
+
+    QUEUE = 4
 
     def __init__(self, path: str | Path, compress: bool = False):
         self.path = Path(path)
         self._raw = _open_raw(self.path, "wb", buffering=1 << 20)
         self._gz = gzip.GzipFile(filename="", mode="wb", fileobj=self._raw, compresslevel=GZIP_LEVEL,
                                  mtime=0) if compress else None
+        self._error: BaseException | None = None
+        self._queue: queue.Queue | None = None
+        if compress:
+            self._queue = queue.Queue(self.QUEUE)
+            self._thread = threading.Thread(target=self._compress, name="cooprint-gzip", daemon=True)
+            self._thread.start()
+
+    def _compress(self) -> None:
+        assert self._queue is not None and self._gz is not None
+        while True:
+            block = self._queue.get()
+            if block is None:
+                return
+            if self._error is None:  # after an error the rest is dropped (the writer stops at the next write)
+                try:
+                    self._gz.write(block)
+                except BaseException as exc:
+                    self._error = exc
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            exc, self._error = self._error, None
+            if isinstance(exc, OSError):
+                raise _named(exc, self.path) from None
+            raise exc
 
     def write(self, data) -> int:
+        if self._queue is not None:
+            self._raise()
+            block = bytes(data)
+            self._queue.put(block)
+            return len(block)
         try:
-            return (self._gz or self._raw).write(data)
+            return self._raw.write(data)
         except OSError as exc:
             raise _named(exc, self.path) from None
 
     def close(self) -> None:
         try:
             try:
+                if self._queue is not None:
+                    self._queue.put(None)
+                    self._thread.join()
+                    self._queue = None
+                    self._raise()
                 if self._gz is not None:
                     self._gz.close()  # the last compressed block and the trailer
             finally:
