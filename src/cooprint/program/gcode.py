@@ -1,7 +1,9 @@
 """Marlin-flavour G-code from a command stream (a writer only: no geometry decisions here).
 
 The same :class:`~cooprint.program.commands.Program` that a robot's ``.coop`` file holds is
-written here, piece by piece as it arrives (``cooprint slice`` streams one layer at a time):
+written here, piece by piece as it arrives (``cooprint slice`` streams one layer at a time,
+``cooprint run`` a robot's program chunk by chunk); any split of a program into pieces gives the
+bytes of the whole (:class:`GcodeWriter`):
 
 * G21 (mm), G90 (absolute XYZ), M83 (relative E), temperatures, start and end code;
 * a MOVE with the tool on is ``G1 X Y E`` with ``E = area(width, height) * length / filament
@@ -251,7 +253,7 @@ class GcodeWriter:
             self._emit(block if self._tail is None else Program.concat(p.robot, [self._tail, block]), final=False)
 
     def flush(self) -> None:
-        """Write what is held back: the end of the program."""
+        """Write what is held back: the end of the program (nothing is written after it)."""
         if self._tail is not None:
             self._emit(self._tail, final=True)
 
