@@ -324,7 +324,6 @@ class CoopWriter:
             turns[0] = self._held + turns.get(0, [])
         self._held = turns.pop(n, [])
         names = [*p.chunks, None]
-        chunk_names = np.array(names, dtype=object)[p.chunk]
         chunk = _changes([p.chunk], (-1,))
         chunk[0] = names[p.chunk[0]] != self._state[0]
         layer = _changes([p.layer, p.height], self._state[1])
@@ -350,7 +349,7 @@ class CoopWriter:
         cmd[sync] = [table.id(f"{KIND_NAMES[kind[i]]} {', '.join(p.events[p.event[i]])}\n") for i in sync.tolist()]
         self._put(assemble(ops, np.arange(n), table, self._templates, p.xyz))
         last = n - 1
-        self._state = (chunk_names[last], (int(p.layer[last]), float(p.height[last])),
+        self._state = (names[p.chunk[last]], (int(p.layer[last]), float(p.height[last])),
                        (int(p.role[last]), float(p.width[last])))
 
 
