@@ -187,3 +187,16 @@ def test_a_really_full_disk(bundles, tmp_path, capsys):
         assert snapshot(small) == before and os.listdir(small) == []
     finally:
         subprocess.run(["umount", str(small)], capture_output=True, timeout=20)
+
+
+def test_force_swaps_plain_and_compressed_programs(bundles, tmp_path):
+    """--force replaces a bundle's programs whichever way they were written: no stale file stays."""
+    out = tmp_path / "job"
+    args = ["run", str(bundles / "bar.stl"), "--out", str(out), "--config", str(bundles / "coarse.toml"),
+            "--no-picture", "-q", "--force"]
+    assert main(args) == 0
+    assert sorted(os.listdir(out / "robots")) == ["A.coop", "A.gcode", "B.coop", "B.gcode"]
+    assert main(args + ["--compress"]) == 0
+    assert sorted(os.listdir(out / "robots")) == ["A.coop.gz", "A.gcode.gz", "B.coop.gz", "B.gcode.gz"]
+    assert main(args) == 0
+    assert sorted(os.listdir(out / "robots")) == ["A.coop", "A.gcode", "B.coop", "B.gcode"]
