@@ -542,8 +542,14 @@ class OutputFile:
     def __enter__(self) -> "OutputFile":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, value, trace) -> None:
+        if kind is None:
+            self.close()
+            return
+        try:  # the error that stopped the writing is the one to report, not the file's
+            self.close()
+        except OSError:
+            pass
 
 
 def program_files(robot: str, compress: bool = False) -> tuple[str, str]:
