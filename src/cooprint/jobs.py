@@ -361,7 +361,7 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     s = settings.slicing
     # closing: on any failure (Ctrl-C included) the slicer's worker processes stop now, not
     # whenever the generator is collected
-    with closing(layers), atomic_file(out, force, inputs=(mesh,)) as tmp, open(tmp, "w", encoding="ascii") as fh:
+    with closing(layers), atomic_file(out, force, inputs=(mesh,)) as tmp, open_output(tmp) as fh:
         used = write_gcode(fh, layer_pieces(counted), s, Feeds.of_slicer(s), Path(mesh).name)
     if used <= 0:  # valid, but surely not what was meant: a part thinner than one line everywhere
         from cooprint.errors import warn
@@ -390,7 +390,7 @@ def write_gcode(sliced: "SlicedModel", out: str | Path, name: str, force: bool =
     from cooprint.program.gcode import Feeds, write_gcode
 
     s = sliced.settings
-    with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
+    with atomic_file(out, force) as tmp, open_output(tmp) as fh:
         return write_gcode(fh, layer_pieces(sliced.layers), s, Feeds.of_slicer(s), name)
 
 
