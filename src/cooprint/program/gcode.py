@@ -145,6 +145,56 @@ def end_code(bed: bool = True) -> str:
 
 
 @numba.njit(cache=True, nogil=True)
+def _runs(kind, extr, moving, climbs, chunk, layer, role, turn_at, first_moved, prev_ext, prev_role):
+    """Per command: whether it extrudes (a MOVE that lays material: ``extr`` of its move), is a
+    travel line (a MOVE that goes somewhere, ``moving``, without extruding), its move's row, whether
+    it moved to another chunk or layer than the command before (``first_moved`` for the first),
+    whether it continues the extrusion run before it (same role, not moved, no turn before it),
+    and its numeric line: -1 ``G1 X Y E``, -2 ``G1 X Y Z E`` (a run of which any move climbs),
+    -3 ``G0``, ``NONE``."""
+    n = len(kind)
+    ext = np.zeros(n, np.bool_)
+    go = np.zeros(n, np.bool_)
+    zm = np.zeros(n, np.bool_)
+    row = np.full(n, -1, np.int64)
+    r = 0
+    for i in range(n):
+        if kind[i] == MOVE:
+            row[i] = r
+            ext[i] = extr[r]
+            go[i] = moving[r] and not extr[r]
+            zm[i] = climbs[r]
+            r += 1
+    moved = np.empty(n, np.bool_)
+    cont = np.empty(n, np.bool_)
+    for i in range(n):
+        if i == 0:
+            m = first_moved
+            c = ext[0] and prev_ext and role[0] == prev_role
+        else:
+            m = chunk[i] != chunk[i - 1] or layer[i] != layer[i - 1]
+            c = ext[i] and ext[i - 1] and role[i] == role[i - 1]
+        moved[i] = m
+        cont[i] = c and not m and not turn_at[i]
+    numeric = np.full(n, NONE, np.int32)
+    i = 0
+    while i < n:  # segment by segment: a run of extruding moves, or one command
+        j = i + 1
+        while j < n and cont[j]:
+            j += 1
+        z = False
+        for k in range(i, j):
+            z = z or zm[k]
+        for k in range(i, j):
+            if ext[k]:
+                numeric[k] = -2 if z else -1
+            elif go[k]:
+                numeric[k] = -3
+        i = j
+    return ext, go, row, moved, cont, numeric
+
+
+@numba.njit(cache=True, nogil=True)
 def _states(kind, long_wait, travel_pre, starts, go, role, hot0, retracted0, role0, can_retract):
     """The state in force before each command 0..n (n: after the last), each set by the last
     command that changes it: the nozzle is hot (TOOL ON heats it, a long WAIT cools it); the
@@ -281,28 +331,18 @@ class GcodeWriter:
         extr = on[mv] & (length > 0)
         with np.errstate(invalid="ignore"):  # (the first move from nowhere: no length)
             e = np.where(extr, extrusion_area(p.width[mv], p.height[mv]) * length / self.fil_area, 0.0)
-        ext_cmd = np.zeros(n, dtype=bool)
-        ext_cmd[mv[extr]] = True
-        zmove = np.zeros(n, dtype=bool)
-        zmove[mv] = at_mv[:, 2] != prev[:, 2]
-        row_of = np.full(n, -1)
-        row_of[mv] = np.arange(len(mv))
-        go = np.zeros(n, dtype=bool)  # travel lines: a MOVE that does not extrude and goes somewhere
-        go[mv] = ~extr & ~(length <= 0)
         names = [*p.chunks, None]  # chunk -1: between chunks
-        # a new extrusion run wherever a command does not continue the one before it
-        moved = np.ones(n, dtype=bool)
-        moved[1:] = (chunk[1:] != chunk[:-1]) | (layer[1:] != layer[:-1])
-        cont = np.zeros(n, dtype=bool)
-        cont[1:] = ext_cmd[1:] & ext_cmd[:-1] & (role[1:] == role[:-1])
-        if n and self._prev is not None:
-            moved[0] = (names[chunk[0]], int(layer[0])) != self._prev[:2]
-            cont[0] = bool(ext_cmd[0]) and self._prev[2] and int(role[0]) == self._prev[3]
-        cont &= ~moved
         turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
         for t, deg in p.turns:
             turns.setdefault(t, []).append(deg)
-        cont[[t for t in turns if t < n]] = False
+        turn_at = np.zeros(n, dtype=bool)
+        turn_at[[t for t in turns if t < n]] = True
+        first_moved = self._prev is None or (n > 0 and (names[chunk[0]], int(layer[0])) != self._prev[:2])
+        prev_ext, prev_role = (False, -1) if self._prev is None else self._prev[2:]
+        # extrusion runs: a new one wherever a command does not continue the one before it
+        ext_cmd, go, row_of, moved, cont, numeric = _runs(
+            kind, extr, ~(length <= 0), at_mv[:, 2] != prev[:, 2], chunk, layer, role, turn_at, first_moved,
+            prev_ext, prev_role)
         seg = np.flatnonzero(~cont)  # segment starts: a run of extruding moves, or one command
         # travel runs (consecutive moves with the tool off; other commands do not end them), for
         # the retraction: a run continuing from the last piece counts as long if it was
@@ -387,11 +427,7 @@ class GcodeWriter:
                     line += (self.retract if not retracted[i] else "") + idle
                 lines.append(table.id(line + f"{code} {word} {ev}\n"))
             text[sync] = lines
-        # numeric lines: a whole extrusion run with Z if any of its moves climbs
-        seg_id = np.cumsum(~cont) - 1
-        zany = np.logical_or.reduceat(zmove, seg)[seg_id] if n else zmove
-        num = np.flatnonzero((ext_cmd | go)[:c])
-        ops[num, 5] = np.where(go[num], -3, np.where(zany[num], -2, -1))
+        ops[:, 5] = numeric[:c]  # a whole extrusion run with Z if any of its moves climbs
         values = np.empty((len(mv), 4))
         values[:, :3] = at_mv
         values[:, 3] = e
