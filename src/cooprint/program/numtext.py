@@ -32,48 +32,57 @@ _HUGE = 9e18
 
 
 @numba.njit(cache=True, nogil=True)
-def _round(v, scale):
-    """Per value: ``rint(|v| * scale)``, the sign bit, and a code: 0 that rounding is sure, 1
-    not sure (``%`` decides), 2 NaN, 3 infinite."""
-    n = len(v)
-    mag = np.zeros(n, np.int64)
-    neg = np.empty(n, np.bool_)
-    code = np.zeros(n, np.int8)
+def _round(v, scale, cols):
+    """Per value of columns ``cols`` of ``v`` (scaled by ``scale[j]`` in column ``j``):
+    ``rint(|v| * scale)``, the sign bit, and a code: 0 that rounding is sure, 1 not sure (``%``
+    decides), 2 NaN, 3 infinite."""
+    n, m = v.shape
+    mag = np.zeros((n, m), np.int64)
+    neg = np.zeros((n, m), np.bool_)
+    code = np.zeros((n, m), np.int8)
     for i in range(n):
-        x = v[i]
-        neg[i] = np.signbit(x)
-        if np.isnan(x):
-            code[i] = 2
-            continue
-        if np.isinf(x):
-            code[i] = 3
-            continue
-        a = abs(x) * scale
-        if not a < _SAFE:
-            code[i] = 1
-            continue
-        mag[i] = np.int64(np.rint(a))
-        if abs(a - np.floor(a) - 0.5) < 1e-6:
-            code[i] = 1
+        for j in cols:
+            x = v[i, j]
+            neg[i, j] = np.signbit(x)
+            if np.isnan(x):
+                code[i, j] = 2
+                neg[i, j] = False  # '%' writes NaN without a sign
+                continue
+            if np.isinf(x):
+                code[i, j] = 3
+                continue
+            a = abs(x) * scale[j]
+            if not a < _SAFE:
+                code[i, j] = 1
+                continue
+            mag[i, j] = np.int64(np.rint(a))
+            if abs(a - np.floor(a) - 0.5) < 1e-6:
+                code[i, j] = 1
     return mag, neg, code
 
 
-def fixed(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fixed(values: np.ndarray, decimals: int | dict[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(magnitude, negative, special)``: ``'%.{decimals}f' % v`` is ``'-' * negative``
     followed by ``magnitude`` with a point before its last ``decimals`` digits (at least one
     digit before the point), for every ``v`` of ``values``; ``special`` is 2 for NaN (``nan``,
-    no sign) and 3 for an infinity (``inf``, signed), else 0."""
-    v = np.ascontiguousarray(values, dtype=np.float64)
-    k, neg, code = _round(v, float(10 ** decimals))
-    unsure = np.flatnonzero(code == 1)
-    if len(unsure) and np.abs(v[unsure]).max() >= _HUGE / 10.0 ** decimals:
-        raise OverflowError("a value too large for a 64-bit fixed-point number")
-    if len(unsure):
-        fmt = f"%.{decimals}f"
-        k[unsure] = [int((fmt % x).replace(".", "")) for x in np.abs(v[unsure]).tolist()]
-        code[unsure] = 0
-    neg &= code != 2  # '%' writes NaN without a sign
-    return k, neg, code
+    no sign) and 3 for an infinity (``inf``, signed), else 0. For an (n, m) array, ``decimals``
+    maps the columns to format to their decimals (the others are left 0)."""
+    v = np.asarray(values, dtype=np.float64)
+    flat = v.ndim == 1
+    v = np.ascontiguousarray(v.reshape(-1, 1) if flat else v)
+    dec = {0: decimals} if flat else dict(decimals)
+    scale = np.ones(v.shape[1])
+    for j, d in dec.items():
+        scale[j] = 10.0 ** d
+    k, neg, code = _round(v, scale, np.array(sorted(dec), np.int64))
+    unsure = np.argwhere(code == 1)
+    for i, j in unsure.tolist():
+        x = abs(float(v[i, j]))
+        if x >= _HUGE / scale[j]:
+            raise OverflowError("a value too large for a 64-bit fixed-point number")
+        k[i, j] = int((f"%.{dec[j]}f" % x).replace(".", ""))
+        code[i, j] = 0
+    return (k[:, 0], neg[:, 0], code[:, 0]) if flat else (k, neg, code)
 
 
 class Templates:
@@ -115,6 +124,9 @@ class Templates:
                               for t in range(len(templates))], np.int64)
 
 
+_POW10 = 10 ** np.arange(19, dtype=np.int64)
+#: "00", "01" ... "99": two digits at a time.
+_PAIRS = np.frombuffer("".join(f"{i:02d}" for i in range(100)).encode(), np.uint8)
 #: An empty slot of an operation matrix.
 NONE = -(1 << 30)
 
@@ -134,7 +146,6 @@ def _assemble(op, row, tab, tab_at, lit, lit_at, count, decimals, column, mag, n
                 t = -1 - o
                 bound += lit_at[t, count[t] + 1] - lit_at[t, 0] + 21 * count[t]
     buf = np.empty(bound, np.uint8)
-    digits = np.empty(24, np.uint8)
     w = 0
     for i in range(op.shape[0]):
         for k in range(op.shape[1]):
@@ -157,7 +168,7 @@ def _assemble(op, row, tab, tab_at, lit, lit_at, count, decimals, column, mag, n
                     break
                 c = column[t, f]
                 d = decimals[t, f]
-                m = np.uint64(mag[r, c])
+                m = mag[r, c]
                 if neg[r, c]:
                     buf[w] = 45  # '-'
                     w += 1
@@ -166,25 +177,39 @@ def _assemble(op, row, tab, tab_at, lit, lit_at, count, decimals, column, mag, n
                         buf[w] = ch
                         w += 1
                     continue
-                # digits from the last: d decimals, the point, then at least one digit
-                n = 0
-                for _ in range(d):
-                    digits[n] = 48 + m % np.uint64(10)
-                    m //= np.uint64(10)
-                    n += 1
+                # the whole part, then the point and d decimals, two digits at a time from the last
+                p10 = _POW10[d]
+                q = m // p10
+                f = m - q * p10
+                nd = 1
+                while nd < 19 and q >= _POW10[nd]:
+                    nd += 1
+                at = w + nd - 1
+                while q >= 100:
+                    k = (q % 100) * 2
+                    q //= 100
+                    buf[at] = _PAIRS[k + 1]
+                    buf[at - 1] = _PAIRS[k]
+                    at -= 2
+                if q >= 10:
+                    buf[at] = _PAIRS[q * 2 + 1]
+                    buf[at - 1] = _PAIRS[q * 2]
+                else:
+                    buf[at] = 48 + q
+                w += nd
                 if d > 0:
-                    digits[n] = 46  # '.'
-                    n += 1
-                digits[n] = 48 + m % np.uint64(10)
-                m //= np.uint64(10)
-                n += 1
-                while m > 0:
-                    digits[n] = 48 + m % np.uint64(10)
-                    m //= np.uint64(10)
-                    n += 1
-                for j in range(n - 1, -1, -1):
-                    buf[w] = digits[j]
+                    buf[w] = 46  # '.'
                     w += 1
+                    at = w + d - 1
+                    for _ in range(d // 2):
+                        k = (f % 100) * 2
+                        f //= 100
+                        buf[at] = _PAIRS[k + 1]
+                        buf[at - 1] = _PAIRS[k]
+                        at -= 2
+                    if d % 2:
+                        buf[at] = 48 + f % 10
+                    w += d
     return buf[:w]
 
 
@@ -236,12 +261,8 @@ def assemble(op: np.ndarray, row: np.ndarray, table: Table, templates: Templates
     op = np.ascontiguousarray(op if op.ndim == 2 else op.reshape(-1, 1), np.int32)
     values = np.asarray(values, dtype=np.float64)
     values = values.reshape(len(values), -1) if values.ndim < 2 else values
-    mag = np.zeros(values.shape, np.int64)
-    neg = np.zeros(values.shape, bool)
-    special = np.zeros(values.shape, np.int8)
     try:  # every column a template reads (a row no line writes may hold anything, NaN too)
-        for j, d in templates.column_decimals.items():
-            mag[:, j], neg[:, j], special[:, j] = fixed(values[:, j], d)
+        mag, neg, special = fixed(values, templates.column_decimals)
     except OverflowError:  # a number of more than 18 digits: no writer makes one; '%' writes it
         return _assemble_slow(op, row, table, templates, values)
     tab, tab_at = table.arrays()
