@@ -652,6 +652,6 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
                 pass
 
 
-__all__ = ["CoopWriter", "FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
-           "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "program_rows", "coop_text", "quantize",
-           "read_coop", "write_coop"]
+__all__ = ["CoopWriter", "FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION",
+           "ROLE_WORDS", "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "program_rows", "coop_text",
+           "quantize", "read_coop", "write_coop"]

@@ -243,7 +243,8 @@ def _exact_units(e: np.ndarray) -> int:
         g, part = group[a:a + (1 << 26)], mant[a:a + (1 << 26)]
         hi = np.bincount(g, weights=part >> 26)
         lo = np.bincount(g, weights=part & ((1 << 26) - 1))
-        total += sum(((int(h) << 26) + int(lo_)) << (low + k) for k, (h, lo_) in enumerate(zip(hi.tolist(), lo.tolist())))
+        total += sum(((int(h) << 26) + int(lo_)) << (low + k)
+                     for k, (h, lo_) in enumerate(zip(hi.tolist(), lo.tolist())))
     return total
 
 

@@ -119,9 +119,6 @@ class Templates:
                 if self.column_decimals.setdefault(c, d) != d:
                     raise ValueError(f"column {c} written with {self.column_decimals[c]} and with {d} decimals")
         self.lit = np.frombuffer(b"".join(lit) or b"\0", np.uint8)
-        #: the columns each template reads (padded with its first)
-        self.used = np.array([[self.column[t, min(f, max(int(self.count[t]) - 1, 0))] for f in range(self.column.shape[1])]
-                              for t in range(len(templates))], np.int64)
 
 
 _POW10 = 10 ** np.arange(19, dtype=np.int64)
