@@ -92,16 +92,20 @@ def test_the_estimate_is_a_function_of_the_chunks_and_settings(parts):
                                                                                  cores=1).seconds
 
 
-def test_run_prints_the_estimate_on_stderr_unless_quiet(parts, tmp_path, capsys, monkeypatch):
+def test_run_prints_the_estimate_unless_quiet(parts, tmp_path, capsys, monkeypatch):
+    """On stdout, first (stderr stays a failed run's one error line)."""
     monkeypatch.delenv("COOPRINT_PROGRESS", raising=False)
     mesh = parts["box"][0]
     assert main(["run", str(mesh), "--out", str(tmp_path / "a")]) == 0
-    err = capsys.readouterr().err
+    captured = capsys.readouterr()
+    out, err = captured.out, captured.err
+    assert out.startswith("estimate: ") and "estimate" not in err
     assert re.search(r"^estimate: [\d.]+ [kMG]B of output \(A [\d.]+ [kMG]B, B [\d.]+ [kMG]B\), about [\d.]+ [kMG]B "
-                     r"of memory, about \d+ (s|min|h) on \d cores?$", err, re.M), err
+                     r"of memory, about \d+ (s|min|h) on \d cores?$", out, re.M), out
     assert "slicing layers" not in err  # not a terminal: no bars
     assert main(["run", str(mesh), "--out", str(tmp_path / "b"), "-q"]) == 0
-    assert capsys.readouterr().err == ""
+    captured = capsys.readouterr()
+    assert captured.err == "" and "estimate" not in captured.out
 
 
 def test_a_run_whose_estimate_does_not_fit_on_the_disk_is_refused_before_slicing(parts, tmp_path, capsys,

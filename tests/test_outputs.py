@@ -151,7 +151,8 @@ def test_a_full_disk_while_writing_leaves_nothing(meshes, planned, tmp_path, cap
 
     monkeypatch.setattr(cooprint.jobs, "write_stl", _fail_on(2, cooprint.jobs.write_stl))
     line = assert_rejected(["chunk", meshes / "spot.stl", "--out", tmp_path / "new", "-q"], capsys, watch=[tmp_path])
-    assert "new: cannot write: No space left on device (ENOSPC)" in line
+    assert "new: the disk is full (no space left on device) while writing chunks/" in line  # (issue 15)
+    assert line.endswith(".stl; nothing was written")
     assert os.listdir(tmp_path) == []
     # an existing bundle replaced with --force: the old one stays as it was
     job = Path(shutil.copytree(planned, tmp_path / "job"))
@@ -224,7 +225,7 @@ def test_a_write_failure_mid_slice_stops_the_workers(tmp_path, capsys, monkeypat
     monkeypatch.setattr(cooprint.program.gcode, "write_gcode", fails_after_a_while)
     before = {p.pid for p in multiprocessing.active_children()}  # an earlier test's, not this slice's
     line = assert_rejected(["slice", mesh, "--out", tmp_path / "tall.gcode", "-q"], capsys, watch=[])
-    assert "No space left on device (ENOSPC)" in line
+    assert "tall.gcode: the disk is full (no space left on device); nothing was written" in line
     assert [p for p in multiprocessing.active_children() if p.pid not in before] == []
     assert sorted(os.listdir(tmp_path)) == ["tall.stl"]
 
@@ -264,7 +265,7 @@ def test_a_failed_summary_write_leaves_no_sim_folder(planned, tmp_path, capsys, 
     monkeypatch.setattr(cooprint.io.bundle, "write_json", _fail_on(1, cooprint.io.bundle.write_json))
     # written and removed again: the folder's times change, its contents do not
     line = assert_rejected(["simulate", job, "-q"], capsys)
-    assert "summary.json: cannot write: No space left on device (ENOSPC)" in line
+    assert "summary.json: the disk is full (no space left on device); nothing was written" in line
     assert not (job / "sim").exists() and contents(job) == before and hidden(tmp_path) == []
 
 
@@ -351,7 +352,8 @@ def test_an_mp4_is_written_quietly(planned, tmp_path, capfd):
 
 
 FFMPEG_FAILURES = [  # (what the fake ffmpeg says last, the one line expected)
-    ("av_interleaved_write_frame(): No space left on device", "a.mp4: cannot write: No space left on device (ENOSPC)"),
+    ("av_interleaved_write_frame(): No space left on device",
+     "a.mp4: the disk is full (no space left on device); nothing was written"),
     ("Unknown encoder 'libx264'", "a.mp4: cannot write: ffmpeg failed (exit 1): Unknown encoder 'libx264'"),
 ]
 

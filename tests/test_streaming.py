@@ -17,7 +17,7 @@ from cooprint.io.bundle import write_stl
 from cooprint.jobs import SPOOL, coop_job, run_job, write_coop_bundle
 from cooprint.models import car
 from cooprint.program.build import layer_program
-from cooprint.program.commands import MOVE, TOOL_OFF, Program
+from cooprint.program.commands import MOVE, TOOL_OFF, Program, program_rows
 from cooprint.program.stream import ChunkStore, canonical_program, entered, hull_points
 from cooprint.simulation.timeline import PieceRobot, SimRobot, event_times, schedule
 from cooprint.slicing import iter_layers
@@ -206,7 +206,7 @@ def test_event_times_are_schedule_times():
     def cut(p):
         offs = np.flatnonzero(p.kind == TOOL_OFF) + 1
         cuts = np.unique(np.r_[0, rng.choice(offs, min(len(offs), 9), replace=False) if len(offs) else [], len(p)])
-        return [p.part(int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
+        return [program_rows(p, int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
 
     pieces = {r: cut(p) for r, p in job.programs.items()}
     got = event_times([PieceRobot(r, np.asarray(job.placements[r].start, float), (lambda r=r: pieces[r]),

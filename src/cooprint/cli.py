@@ -385,13 +385,17 @@ def strict_option(command: Any) -> Any:
               help="Then simulate the plan: OUT/sim/summary.json, gantt.png and snapshot.png; exit 1 if the "
                    "simulation finds errors.")
 @strict_option
+@click.option("--compress", is_flag=True,
+              help="Write the robots' programs gzip-compressed: OUT/robots/<robot>.coop.gz and .gcode.gz "
+                   "(simulate and render read them as they are).")
 def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: dict[str, Any], force: bool,
-            no_picture: bool, quiet: bool, then_simulate: bool, strict: bool) -> None:
+            no_picture: bool, quiet: bool, then_simulate: bool, strict: bool, compress: bool) -> None:
     """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
 
     Chunks, assigns, slices every chunk and writes OUT/job.json, OUT/chunks/<id>.stl,
-    OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically.
-    With --simulate, a plan whose own simulation finds errors is reported INVALID (exit 1).
+    OUT/robots/<robot>.coop (MOVE/TOOL/NOTIFY/WAIT) and OUT/robots/<robot>.gcode, atomically
+    (with --compress, .coop.gz and .gcode.gz). With --simulate, a plan whose own simulation
+    finds errors is reported INVALID (exit 1).
     """
     from cooprint.jobs import run_job
 
@@ -400,7 +404,7 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
 
     def make(mesh: str, settings: Any, out: str, robots: int, force: bool, picture: bool, progress: Any) -> Any:
         return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress,
-                       on_estimate=estimate_reporter(out, quiet))
+                       on_estimate=estimate_reporter(out, quiet), compress=compress)
 
     record = _plan(make, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
@@ -429,8 +433,8 @@ def estimate_reporter(out: str, quiet: bool) -> Any:
         from cooprint.io.estimate import check_room
 
         check_room(out, estimate)
-        if not quiet:
-            click.echo(estimate.describe(), err=True)
+        if not quiet:  # on stdout, with the plan's lines: stderr is a failed run's one error line
+            click.echo(estimate.describe())
     return report
 
 

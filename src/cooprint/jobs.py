@@ -20,7 +20,7 @@ from cooprint.chunking import ChunkSet
 from cooprint.chunking.planes import safe_top_width
 from cooprint.config import JobSettings, SlicingSettings, load_settings
 from cooprint.errors import UserError, warn
-from cooprint.io.bundle import atomic_dir, write_json, write_stl
+from cooprint.io.bundle import atomic_dir, open_output, program_files, write_json, write_stl
 from cooprint.io.mesh import Solid, load_mesh
 from cooprint.io.place import Placement, place
 from cooprint.scheduling import Assignment, Schedule
@@ -376,7 +376,7 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     s = settings.slicing
     # closing: on any failure (Ctrl-C included) the slicer's worker processes stop now, not
     # whenever the generator is collected
-    with closing(layers), atomic_file(out, force, inputs=(mesh,)) as tmp, open(tmp, "w", encoding="ascii") as fh:
+    with closing(layers), atomic_file(out, force, inputs=(mesh,)) as tmp, open_output(tmp) as fh:
         used = write_gcode(fh, layer_pieces(counted), s, Feeds.of_slicer(s), Path(mesh).name)
     if used <= 0:  # valid, but surely not what was meant: a part thinner than one line everywhere
         from cooprint.errors import warn
@@ -405,7 +405,7 @@ def write_gcode(sliced: "SlicedModel", out: str | Path, name: str, force: bool =
     from cooprint.program.gcode import Feeds, write_gcode
 
     s = sliced.settings
-    with atomic_file(out, force) as tmp, open(tmp, "w", encoding="ascii") as fh:
+    with atomic_file(out, force) as tmp, open_output(tmp) as fh:
         return write_gcode(fh, layer_pieces(sliced.layers), s, Feeds.of_slicer(s), name)
 
 
@@ -623,11 +623,12 @@ def program_stats(program: Any, s: SlicingSettings) -> dict[str, Any]:
     return ProgramStats().add(program).to_dict(s.filament_diameter)
 
 
-def coop_record(job: CoopJob, stats: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+def coop_record(job: CoopJob, stats: dict[str, dict[str, Any]] | None = None, compress: bool = False) -> dict[str, Any]:
     """``job.json`` of a cooperative run: the chunk record, robots with their placement, their
     whole profile (so that the bundle says each robot's speeds and geometry itself; a mixed fleet
     gives each its own) and program statistics (``stats``, as they were written; else counted
-    here), and the synchronisation events."""
+    here), and the synchronisation events. ``compress``: the programs are ``.coop.gz`` and
+    ``.gcode.gz`` files."""
     from dataclasses import asdict
 
     from cooprint.program.commands import NOTIFY, Program
@@ -639,8 +640,7 @@ def coop_record(job: CoopJob, stats: dict[str, dict[str, Any]] | None = None) ->
         name = r["name"]
         r["profile"] = asdict(job.chunked.settings.robot)
         r.update(job.placements[name].to_dict())
-        r["program"] = f"robots/{name}.coop"
-        r["gcode"] = f"robots/{name}.gcode"
+        r["program"], r["gcode"] = program_files(name, compress)
         if stats is None:
             counted = ProgramStats()
             for piece in job.streams[name].programs(job.store):
@@ -659,21 +659,23 @@ def coop_record(job: CoopJob, stats: dict[str, dict[str, Any]] | None = None) ->
 
 
 def write_coop_bundle(job: CoopJob, out: str | Path, force: bool = False, picture: bool = True,
-                      progress: Progress | None = None) -> dict[str, Any]:
+                      progress: Progress | None = None, *, compress: bool = False) -> dict[str, Any]:
     """Write the whole bundle (job.json, chunks/, robots/<name>.coop and .gcode, chunks.png)
-    atomically; returns the job record."""
+    atomically; returns the job record. ``compress``: the programs gzip-compressed
+    (``robots/<name>.coop.gz`` and ``.gcode.gz``)."""
     with atomic_dir(Path(out), force, inputs=_input_paths(job.chunked.solid)) as tmp:
-        return write_coop_files(job, tmp, picture, progress)
+        return write_coop_files(job, tmp, picture, progress, compress)
 
 
-def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Progress | None = None) -> dict[str, Any]:
+def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Progress | None = None,
+                     compress: bool = False) -> dict[str, Any]:
     """Write the bundle's files into the (new, empty) folder ``tmp``: each robot's ``.coop`` and
-    G-code written as its stream's pieces come (one chunk's commands in memory at a time).
-    Returns the job record."""
+    G-code written as its stream's pieces come (at most ``PIECE_COMMANDS`` commands of one
+    chunk in memory at a time), gzip-compressed with ``compress``. Returns the job record."""
     from cooprint.io.estimate import CALIBRATION
     from cooprint.program.commands import CoopWriter
     from cooprint.program.gcode import Feeds, Heating, write_gcode
-    from cooprint.program.stream import ChunkPiece, ProgramStats
+    from cooprint.program.stream import PIECE_COMMANDS, ChunkPiece, ProgramStats
     from cooprint.progress import ByteMeter
     from cooprint.simulation.timeline import event_times
 
@@ -704,12 +706,12 @@ def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Pr
                   "annotations: ;@chunk ID, ;@layer INDEX HEIGHT, ;@path ROLE WIDTH"
                   + (", ;@facing DEGREES" if has_turns else "") + " (docs/program.md)"]
         counted = ProgramStats()
-        with open(tmp / "robots" / f"{robot}.coop", "w", encoding="utf-8") as coop, \
-                open(tmp / "robots" / f"{robot}.gcode", "w", encoding="ascii") as gcode:
+        coop_file, gcode_file = program_files(robot, compress)
+        with open_output(tmp / coop_file, compress) as coop, open_output(tmp / gcode_file, compress) as gcode:
             writer = CoopWriter(meter.wrap(coop), robot, header)
 
             def pieces() -> Iterator[Any]:
-                for piece in stream.programs(job.store):
+                for piece in stream.programs(job.store, PIECE_COMMANDS):
                     writer.write(piece)
                     counted.add(piece)
                     yield piece
@@ -720,7 +722,7 @@ def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Pr
             writer.close()
         stats[robot] = counted.to_dict(s.filament_diameter)
     meter.finish()
-    record = coop_record(job, stats)
+    record = coop_record(job, stats, compress)
     if picture:
         from cooprint.render.chunks import render_chunks
 
@@ -750,14 +752,15 @@ def _stream_commands(stream: Any, store: Any) -> int:
 
 def run(mesh: str | Path, out: str | Path, *, config: Sequence[str | Path] = (),
         overrides: dict[str, Any] | None = None, robots: int = 2, force: bool = False,
-        picture: bool = True, progress: Progress | None = None, executor: Any = None) -> dict[str, Any]:
+        picture: bool = True, progress: Progress | None = None, executor: Any = None,
+        compress: bool = False) -> dict[str, Any]:
     """Python twin of ``cooprint run``: the whole cooperative pipeline; returns the job record
     written to ``out/job.json``."""
     from cooprint.io.bundle import check_destination
 
     check_destination(Path(out), force, inputs=(mesh, *config))
     return run_job(mesh, load_settings(*config, overrides=overrides), out, robots, force=force, picture=picture,
-                   progress=progress, executor=executor)
+                   progress=progress, executor=executor, compress=compress)
 
 
 #: The folder of a bundle being written that holds the chunks' commands meanwhile (removed
@@ -767,7 +770,8 @@ SPOOL = ".spool"
 
 def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, robots: int = 2, *,
             force: bool = False, picture: bool = True, progress: Progress | None = None,
-            executor: Any = None, on_estimate: "Callable[[JobEstimate], None] | None" = None) -> dict[str, Any]:
+            executor: Any = None, on_estimate: "Callable[[JobEstimate], None] | None" = None,
+            compress: bool = False) -> dict[str, Any]:
     """Plan and write a cooperative job, streamed (issue 15): each chunk's commands are spooled
     into the bundle's temporary folder as soon as it is sliced, and each robot's files are
     written piece by piece from there, so that memory holds the chunks in flight, not the job.
@@ -778,7 +782,7 @@ def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, ro
     inputs = (str(mesh),) if not isinstance(mesh, Solid) and os.path.exists(mesh) else ()
     with atomic_dir(Path(out), force, inputs=inputs) as tmp:
         job = coop_job(mesh, settings, robots, progress, executor, spool=tmp / SPOOL, on_estimate=on_estimate)
-        record = write_coop_files(job, tmp, picture, progress)
+        record = write_coop_files(job, tmp, picture, progress, compress)
         shutil.rmtree(tmp / SPOOL)
     return record
 

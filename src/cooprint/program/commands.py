@@ -47,7 +47,7 @@ import mmap
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, TextIO
+from typing import BinaryIO, Iterable, TextIO
 
 import numpy as np
 
@@ -56,6 +56,7 @@ from cooprint.geometry import MAX_COORD_MM
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
 from cooprint.io.files import regular_file
 from cooprint.program.comment import comment_safe
+from cooprint.program.numtext import NONE, Table, Templates, assemble
 
 #: Command kinds.
 MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT = range(5)
@@ -191,16 +192,23 @@ class Program:
         return Program(robot, *(np.concatenate(cols[f]) for f in cols), chunks=tuple(chunks),
                        events=tuple(events), turns=tuple(turns))
 
-    def part(self, a: int, b: int) -> "Program":
-        """Commands ``a .. b`` as a program of their own (events renumbered, turns before them
-        kept): ``Program.concat`` of consecutive parts is the program again."""
-        ev = self.event[a:b]
-        sync = ev >= 0
-        events = tuple(self.events[e] for e in ev[sync])
-        event = np.where(sync, np.cumsum(sync) - 1, -1).astype(np.int32)
-        turns = tuple((i - a, d) for i, d in self.turns if a <= i < b or (i == b == len(self)))
-        return Program(self.robot, self.kind[a:b], self.xyz[a:b], self.role[a:b], self.width[a:b], self.layer[a:b],
-                       self.height[a:b], self.chunk[a:b], event, self.chunks, events, turns)
+
+
+def program_rows(p: Program, a: int, b: int, last: bool | None = None) -> Program:
+    """Commands ``a`` to ``b - 1`` of ``p`` as a program piece: the turns before them (and,
+    if ``last``, by default when ``b`` is the end, those after the last command), the events
+    they name renumbered from 0, the chunk table kept. Splitting a program at any points and writing the pieces in
+    order writes the whole program (:class:`CoopWriter`, :class:`~.gcode.GcodeWriter`)."""
+    n = len(p)
+    a, b = max(0, min(a, n)), max(0, min(b, n))
+    ev = p.event[a:b]
+    used = ev[ev >= 0]
+    first = int(used[0]) if len(used) else 0
+    events = p.events[first:int(used[-1]) + 1] if len(used) else ()
+    last = b == n if last is None else last
+    turns = tuple((i - a, d) for i, d in p.turns if a <= i < b or (last and i == n and b == n))
+    return Program(p.robot, p.kind[a:b], p.xyz[a:b], p.role[a:b], p.width[a:b], p.layer[a:b], p.height[a:b],
+                   p.chunk[a:b], np.where(ev >= 0, ev - first, -1).astype(np.int32), p.chunks, events, turns)
 
 
 def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *, role=TRAVEL, width=0.0,
@@ -233,86 +241,125 @@ def make_program(robot: str, kind: np.ndarray, xyz: np.ndarray | None = None, *,
 # writing
 
 
-def _annotations(p: Program, i: int, prev: tuple) -> tuple[str, tuple]:
-    """The annotation lines before command ``i`` (those whose value differs from ``prev``)."""
-    c, la, h, r, w = int(p.chunk[i]), int(p.layer[i]), float(p.height[i]), int(p.role[i]), float(p.width[i])
-    out = []
-    if c != prev[0]:
-        out.append(f";@chunk {p.chunks[c] if c >= 0 else '-'}\n")
-    if (la, h) != prev[1]:
-        out.append(f";@layer {la} {h!r}\n" if la >= 0 else ";@layer -\n")
-    if (r, w) != prev[2]:
-        out.append(f";@path {ROLE_WORDS[r]} {w!r}\n")
-    return "".join(out), (c, (la, h), (r, w))
+#: State before the first command: what the parser assumes until an annotation says otherwise
+#: (chunk id, None between chunks; layer and height; role and width).
+_START = (None, (-1, 0.0), (TRAVEL, 0.0))
 
 
-#: State before the first command: what the parser assumes until an annotation says otherwise.
-_START = (-1, (-1, 0.0), (TRAVEL, 0.0))
+def _changes(cols: list[np.ndarray], before: tuple) -> np.ndarray:
+    """(n,) bool: the commands where any of ``cols`` differs from the command before (the
+    first compared with ``before``, the values of the last command of the previous piece)."""
+    n = len(cols[0])
+    out = np.zeros(n, dtype=bool)
+    for col, b in zip(cols, before):
+        out[1:] |= col[1:] != col[:-1]
+        out[0] |= bool(col[0] != b)
+    return out
+
+
+def _keyed(table, a: np.ndarray, b: np.ndarray, text) -> np.ndarray:
+    """The table ids of ``text(x, y)`` for the pairs of ``a`` and ``b``, each distinct pair
+    formatted once."""
+    if not len(a):
+        return np.zeros(0, np.int64)
+    def unique(x):  # floats by their bits: -0.0 is written as such
+        bits = x.dtype.kind == "f"
+        u, inv = np.unique(x.astype(np.float64).view(np.int64) if bits else x, return_inverse=True)
+        return (u.view(np.float64) if bits else u), inv.ravel()
+
+    ua, ia = unique(a)
+    ub, ib = unique(b)
+    key = ia.astype(np.int64) * len(ub) + ib
+    uk, ik = np.unique(key, return_inverse=True)
+    ids = np.array([table.id(text(ua[k // len(ub)].item(), ub[k % len(ub)].item())) for k in uk.tolist()], np.int64)
+    return ids[ik.ravel()]
 
 
 class CoopWriter:
-    """Writes a robot's program as ``.coop`` text piece after piece (a header of comment lines
-    first), keeping the annotations in force and the turns due between pieces: the text is the
-    same however the program is cut into pieces. Runs of MOVEs with the same annotations are
-    formatted in one operation each."""
+    """Writes a robot's ``.coop`` file piece by piece: the same bytes for any split of the
+    program into pieces (``cooprint run`` streams it: a chunk's commands, a travel leg, a
+    WAIT).
 
-    def __init__(self, out: TextIO, robot: str, header: Iterable[str] = ()):
+    An annotation is written where its value differs from the command before, across pieces
+    too; a turn is written after the annotations of the command it precedes, so turns after a
+    piece's last command are held until the next command (or :meth:`close`). Text is made by
+    :mod:`.numtext`, all lines of a block of at most ``BLOCK`` commands in one compiled pass;
+    ``out`` is a text or a binary file. :meth:`close` ends the program (the file is the
+    caller's to close).
+    """
+
+    BLOCK = 1 << 17
+
+    def __init__(self, out: TextIO | BinaryIO, robot: str, header: Iterable[str] = ()):
         self.out = out
-        out.write(f"; {FORMAT} program for robot {comment_safe(robot)}\n")
-        for line in header:
-            out.write(f"; {comment_safe(line)}\n")
-        self.state = _START
-        self.pending: list[float] = []  # turns due before the next command
+        self._text = isinstance(out, io.TextIOBase)
+        self._state = _START
+        self._held: list[float] = []  # facings turned to after the last command written
+        self._templates = Templates(["MOVE %.3f, %.3f, %.3f\n"])
+        self._put((f"; {FORMAT} program for robot {comment_safe(robot)}\n"
+                   + "".join(f"; {comment_safe(line)}\n" for line in header)).encode("utf-8"))
 
-    def write(self, p: Program) -> None:
-        """Append one piece of the program."""
-        out = self.out
+    def _put(self, data: np.ndarray | bytes) -> None:
+        if len(data):
+            self.out.write(bytes(data).decode("utf-8") if self._text else memoryview(data))
+
+    def write(self, piece: Program) -> None:
+        n = len(piece)
+        for a in range(0, max(n, 1), self.BLOCK):
+            self._write(program_rows(piece, a, min(a + self.BLOCK, n)))
+
+    def close(self) -> None:
+        """Write the turns after the last command."""
+        self._put("".join(f";@facing {d!r}\n" for d in self._held).encode())
+        self._held = []
+
+    def _write(self, p: Program) -> None:
         n = len(p)
         turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
-        if self.pending:
-            turns[0], self.pending = self.pending, []
         for i, deg in p.turns:
             turns.setdefault(i, []).append(deg)
         if n == 0:
-            self.pending = turns.get(0, [])
+            self._held += turns.get(0, [])
             return
-        meta_change = np.ones(n, dtype=bool)
-        meta_change[1:] = ((p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1])
-                           | (p.height[1:] != p.height[:-1]) | (p.role[1:] != p.role[:-1])
-                           | (p.width[1:] != p.width[:-1]))
-        meta_change[[i for i in turns if i < n]] = True  # a turn starts a run of its own
-        not_move = p.kind != MOVE
-        # a run of MOVEs ends before a command that is not a move or whose annotations change
-        breaks = np.flatnonzero(meta_change | not_move | np.r_[False, not_move[:-1]])
-        bounds = np.r_[breaks, n]
-        xyz = p.xyz.ravel().tolist()
-        state = self.state
-        for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-            text, state = _annotations(p, a, state)
-            out.write(text)
-            if a in turns:
-                out.write("".join(f";@facing {d!r}\n" for d in turns[a]))
-            k = int(p.kind[a])
-            if k == MOVE:
-                out.write("MOVE %.3f, %.3f, %.3f\n" * (b - a) % tuple(xyz[3 * a:3 * b]))
-            elif k in (TOOL_ON, TOOL_OFF):
-                out.write(KIND_NAMES[k] + "\n")
-            else:
-                out.write(f"{KIND_NAMES[k]} {', '.join(p.events[int(p.event[a])])}\n")
-        self.state = state
-        self.pending = turns.get(n, [])
+        if self._held:
+            turns[0] = self._held + turns.get(0, [])
+        self._held = turns.pop(n, [])
+        names = [*p.chunks, None]
+        chunk = _changes([p.chunk], (-1,))
+        chunk[0] = names[p.chunk[0]] != self._state[0]
+        layer = _changes([p.layer, p.height], self._state[1])
+        path = _changes([p.role, p.width], self._state[2])
+        table = Table()
+        ops = np.full((n, 5), NONE, np.int32)  # per command: ;@chunk, ;@layer, ;@path, ;@facing, the command
+        at = np.flatnonzero(chunk)
+        chunk_ids = np.array([table.id(f";@chunk {c if c is not None else '-'}\n") for c in names], np.int64)
+        ops[at, 0] = chunk_ids[p.chunk[at]]
+        at = np.flatnonzero(layer)
+        ops[at, 1] = _keyed(table, p.layer[at], p.height[at],
+                            lambda la, h: f";@layer {la} {h!r}\n" if la >= 0 else ";@layer -\n")
+        at = np.flatnonzero(path)
+        ops[at, 2] = _keyed(table, p.role[at], p.width[at], lambda r, w: f";@path {ROLE_WORDS[r]} {w!r}\n")
+        for i, facings in turns.items():
+            ops[i, 3] = table.id("".join(f";@facing {d!r}\n" for d in facings))
+        kind = p.kind
+        cmd = ops[:, 4]
+        cmd[kind == MOVE] = -1  # the numeric template
+        cmd[kind == TOOL_ON] = table.id("TOOL ON\n")
+        cmd[kind == TOOL_OFF] = table.id("TOOL OFF\n")
+        sync = np.flatnonzero(p.event >= 0)
+        cmd[sync] = [table.id(f"{KIND_NAMES[kind[i]]} {', '.join(p.events[p.event[i]])}\n") for i in sync.tolist()]
+        self._put(assemble(ops, np.arange(n), table, self._templates, p.xyz))
+        last = n - 1
+        self._state = (names[p.chunk[last]], (int(p.layer[last]), float(p.height[last])),
+                       (int(p.role[last]), float(p.width[last])))
 
-    def close(self) -> None:
-        """The turns after the last command."""
-        self.out.write("".join(f";@facing {d!r}\n" for d in self.pending))
-        self.pending = []
 
-
-def write_coop(out: TextIO, program: Program, header: Iterable[str] = ()) -> None:
-    """Write ``program`` as ``.coop`` text (a header of comment lines first)."""
-    writer = CoopWriter(out, program.robot, header)
-    writer.write(program)
-    writer.close()
+def write_coop(out: TextIO | BinaryIO, program: Program, header: Iterable[str] = ()) -> None:
+    """Write ``program`` as ``.coop`` text (a header of comment lines first): a
+    :class:`CoopWriter` given the whole program."""
+    w = CoopWriter(out, program.robot, header)
+    w.write(program)
+    w.close()
 
 
 def coop_text(program: Program, header: Iterable[str] = ()) -> str:
@@ -575,8 +622,11 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:
-    """Read a ``.coop`` file; the robot's name defaults to the file's stem. The file is mapped,
-    not copied: its pages stay the page cache's."""
+    """Read a ``.coop`` file, plain or gzip-compressed (``A.coop.gz``); the robot's name
+    defaults to the file's stem (``A``). A plain file is mapped, not copied: its pages stay the
+    page cache's; a compressed one is read and decompressed."""
+    from cooprint.io.bundle import GZIP_MAGIC, plain_name, read_output
+
     p = Path(path)
     regular_file(p, "command file", ProgramError)  # a FIFO would block the read for ever
     try:
@@ -585,12 +635,16 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
                 data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
             except (OSError, ValueError):  # empty, or not a regular file (a pipe): read it
                 data = f.read()
+        if bytes(data[:2]) == GZIP_MAGIC:
+            if isinstance(data, mmap.mmap):
+                data.close()
+            data = read_output(p, ProgramError)
     except FileNotFoundError:
         raise ProgramError(f"{p}: no such command file") from None
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read ({exc})") from None
     try:
-        return parse_coop(data, robot or p.stem, str(p))
+        return parse_coop(data, robot or plain_name(p).stem, str(p))
     finally:
         if isinstance(data, mmap.mmap):
             try:
@@ -599,6 +653,6 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
                 pass
 
 
-__all__ = ["FORMAT", "CoopWriter", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION", "ROLE_WORDS",
-           "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "coop_text", "quantize",
-           "read_coop", "write_coop"]
+__all__ = ["CoopWriter", "FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION",
+           "ROLE_WORDS", "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "program_rows", "coop_text",
+           "quantize", "read_coop", "write_coop"]

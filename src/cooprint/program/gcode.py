@@ -1,7 +1,9 @@
 """Marlin-flavour G-code from a command stream (a writer only: no geometry decisions here).
 
 The same :class:`~cooprint.program.commands.Program` that a robot's ``.coop`` file holds is
-written here, piece by piece as it arrives (``cooprint slice`` streams one layer at a time):
+written here, piece by piece as it arrives (``cooprint slice`` streams one layer at a time,
+``cooprint run`` a robot's program chunk by chunk); any split of a program into pieces gives the
+bytes of the whole (:class:`GcodeWriter`):
 
 * G21 (mm), G90 (absolute XYZ), M83 (relative E), temperatures, start and end code;
 * a MOVE with the tool on is ``G1 X Y E`` with ``E = area(width, height) * length / filament
@@ -29,19 +31,19 @@ from __future__ import annotations
 import io
 import math
 from dataclasses import dataclass
-from typing import Iterable, TextIO
+from typing import BinaryIO, Iterable, TextIO
 
+import numba
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.program.commands import MOVE, NOTIFY, TOOL_ON, WAIT, Program
+from cooprint.program.commands import MOVE, NOTIFY, TOOL_ON, WAIT, Program, program_rows
+from cooprint.program.numtext import NONE, Table, Templates, assemble
 from cooprint.program.comment import comment_safe
 from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, extrusion_area
 
 ROLE_TYPES = {PERIMETER_OUTER: "WALL-OUTER", PERIMETER_INNER: "WALL-INNER", SKIN: "SKIN", INFILL: "FILL",
               TRAVEL: "TRAVEL"}
-_G1 = "G1 X%.3f Y%.3f E%.5f\n"
-_G1Z = "G1 X%.3f Y%.3f Z%.3f E%.5f\n"
 
 
 @dataclass(frozen=True)
@@ -143,11 +145,132 @@ def end_code(bed: bool = True) -> str:
     return "\n".join(["; end", "M400", "M104 S0", *(["M140 S0"] if bed else []), "M84", ""])
 
 
-class GcodeWriter:
-    """Writes programs, piece after piece, keeping the state between them (position, tool,
-    retraction, current layer and role). ``filament`` is the length extruded so far, mm."""
+@numba.njit(cache=True, nogil=True)
+def _runs(kind, extr, moving, climbs, chunk, layer, role, turn_at, first_moved, prev_ext, prev_role):
+    """Per command: whether it extrudes (a MOVE that lays material: ``extr`` of its move), is a
+    travel line (a MOVE that goes somewhere, ``moving``, without extruding), its move's row, whether
+    it moved to another chunk or layer than the command before (``first_moved`` for the first),
+    whether it continues the extrusion run before it (same role, not moved, no turn before it),
+    and its numeric line: -1 ``G1 X Y E``, -2 ``G1 X Y Z E`` (a run of which any move climbs),
+    -3 ``G0``, ``NONE``."""
+    n = len(kind)
+    ext = np.zeros(n, np.bool_)
+    go = np.zeros(n, np.bool_)
+    zm = np.zeros(n, np.bool_)
+    row = np.full(n, -1, np.int64)
+    r = 0
+    for i in range(n):
+        if kind[i] == MOVE:
+            row[i] = r
+            ext[i] = extr[r]
+            go[i] = moving[r] and not extr[r]
+            zm[i] = climbs[r]
+            r += 1
+    moved = np.empty(n, np.bool_)
+    cont = np.empty(n, np.bool_)
+    for i in range(n):
+        if i == 0:
+            m = first_moved
+            c = ext[0] and prev_ext and role[0] == prev_role
+        else:
+            m = chunk[i] != chunk[i - 1] or layer[i] != layer[i - 1]
+            c = ext[i] and ext[i - 1] and role[i] == role[i - 1]
+        moved[i] = m
+        cont[i] = c and not m and not turn_at[i]
+    numeric = np.full(n, NONE, np.int32)
+    i = 0
+    while i < n:  # segment by segment: a run of extruding moves, or one command
+        j = i + 1
+        while j < n and cont[j]:
+            j += 1
+        z = False
+        for k in range(i, j):
+            z = z or zm[k]
+        for k in range(i, j):
+            if ext[k]:
+                numeric[k] = -2 if z else -1
+            elif go[k]:
+                numeric[k] = -3
+        i = j
+    return ext, go, row, moved, cont, numeric
 
-    def __init__(self, out: TextIO, s: SlicingSettings, feeds: Feeds, heating: Heating | None = None):
+
+@numba.njit(cache=True, nogil=True)
+def _states(kind, long_wait, travel_pre, starts, go, role, hot0, retracted0, role0, can_retract):
+    """The state in force before each command 0..n (n: after the last), each set by the last
+    command that changes it: the nozzle is hot (TOOL ON heats it, a long WAIT cools it); the
+    filament is retracted (by a travel that retracts, ``travel_pre`` and hot, or a long WAIT
+    while hot; TOOL ON pushes it back); the role of the extrusion in progress (set where an
+    extrusion run starts, -1 after a travel line)."""
+    n = len(kind)
+    hot = np.empty(n + 1, np.bool_)
+    retracted = np.empty(n + 1, np.bool_)
+    last_role = np.empty(n + 1, np.int64)
+    h, r, lr = hot0, retracted0, role0
+    for i in range(n):
+        hot[i], retracted[i], last_role[i] = h, r, lr
+        if kind[i] == TOOL_ON:
+            h, r = True, False
+        elif long_wait[i]:
+            if h and can_retract:
+                r = True
+            h = False
+        elif travel_pre[i] and h:
+            r = True
+        if starts[i]:
+            lr = role[i]
+        elif go[i]:
+            lr = -1
+    hot[n], retracted[n], last_role[n] = h, r, lr
+    return hot, retracted, last_role
+
+
+def _exact_units(e: np.ndarray) -> int:
+    """The exact sum of finite doubles, as an integer in units of 2**-1126 (every double is a
+    whole number of those): a sum that does not depend on how the values were split into
+    pieces, which a float sum does (in its last bits)."""
+    if not len(e):
+        return 0
+    e = np.asarray(e, dtype=np.float64)
+    m, ex = np.frexp(e[e != 0])
+    mant = (m * 2.0**53).astype(np.int64)  # exact: e = mant * 2**(ex - 53)
+    if not len(mant):
+        return 0
+    group = ex.astype(np.int64) + 1073  # e = mant * 2**(group - 1126), group >= 0
+    low = int(group.min())
+    group -= low
+    total = 0
+    for a in range(0, len(mant), 1 << 26):  # float sums of at most 2**26 numbers below 2**27: exact
+        g, part = group[a:a + (1 << 26)], mant[a:a + (1 << 26)]
+        hi = np.bincount(g, weights=part >> 26)
+        lo = np.bincount(g, weights=part & ((1 << 26) - 1))
+        total += sum(((int(h) << 26) + int(lo_)) << (low + k)
+                     for k, (h, lo_) in enumerate(zip(hi.tolist(), lo.tolist())))
+    return total
+
+
+class GcodeWriter:
+    """Writes a program piece after piece, the bytes the same for any split of it into pieces
+    (``cooprint run`` streams each robot's program: a chunk's commands, a travel leg, a WAIT).
+
+    Some lines depend on what comes after them: a run of extruding moves is written with Z on
+    every line if any of its moves climbs; a travel retracts if its whole run of travel moves
+    (which NOTIFY, WAIT and TOOL commands do not end) is at least ``retract_before_travel``
+    long; a layer's ``;Z:`` names the height of its next move. What such a decision still waits
+    for is held back (the last extrusion run, an undecided travel run, a ``;LAYER:`` with no
+    move yet) and written with a later piece or by :meth:`flush`; everything else is written at
+    once. The state between pieces (position, tool, heat, retraction, current layer and role,
+    the last command) is kept here. ``filament`` is the length extruded so far, mm (an exact
+    sum: the same for any split).
+
+    Text is made by :mod:`.numtext` (all lines of a block of commands in one compiled pass) and
+    written in blocks of at most ``BLOCK`` commands; ``out`` is a text or a binary file.
+    """
+
+    #: Commands formatted at once (bounds the text buffer: about 40 bytes a command).
+    BLOCK = 1 << 17
+
+    def __init__(self, out: TextIO | BinaryIO, s: SlicingSettings, feeds: Feeds, heating: Heating | None = None):
         self.out, self.s, self.feeds, self.heating = out, s, feeds, heating
         self.hot = heating is None  # a printer heated its nozzle in the start code
         self.waits = 0  # WAITs written so far
@@ -157,137 +280,216 @@ class GcodeWriter:
         self.retracted = False
         self.where: tuple = (None, None)  # (chunk id, layer) last announced
         self.role: int | None = None  # role of the extrusion in progress (None after a travel)
-        self.filament = 0.0
+        self._units = 0  # filament so far, in units of 2**-1126 mm
         f = s.retract_speed * 60
         self.retract = f"G1 E{-s.retract_length:.5f} F{f:.0f}\n" if s.retract_length > 0 else ""
         self.unretract = f"G1 E{s.retract_length:.5f} F{f:.0f}\n" if s.retract_length > 0 else ""
         self.travel_f = f"F{feeds.travel * 60:.0f}"
+        self._templates = Templates(["G1 X%.3f Y%.3f E%.5f\n", "G1 X%.3f Y%.3f Z%.3f E%.5f\n",
+                                     f"G0 X%.3f Y%.3f Z%.3f {self.travel_f}\n"], [(0, 1, 3), (0, 1, 2, 3), (0, 1, 2)])
+        self._text = isinstance(out, io.TextIOBase)
+        self._tail: Program | None = None  # commands (and turns) not written yet
+        self._prev: tuple | None = None  # (chunk id, layer, extruding, role) of the last command written
+        self._last_move_off = False  # the last move written was a travel ...
+        self._run_long = False  # ... of a run already known to be long enough to retract
+
+    @property
+    def filament(self) -> float:
+        return self._units / (1 << 1126)
 
     def write(self, p: Program) -> None:
-        """Append one program piece.
-
-        Lengths and E values are computed for the whole piece at once; each run of extruding
-        moves (one role, layer and chunk) is then one ``%`` format, other commands a line each.
-        """
+        """Append one program piece (written at once but for what later pieces decide)."""
         n = len(p)
-        if n == 0:
-            for _, deg in p.turns:  # a piece that is only a turn
-                self._turn([deg])
-            return
-        kind, xyz = p.kind, p.xyz
+        for a in range(0, max(n, 1), self.BLOCK):
+            block = program_rows(p, a, min(a + self.BLOCK, n))
+            self._emit(block if self._tail is None else Program.concat(p.robot, [self._tail, block]), final=False)
+
+    def flush(self) -> None:
+        """Write what is held back: the end of the program (nothing is written after it)."""
+        if self._tail is not None:
+            self._emit(self._tail, final=True)
+
+    def _put(self, data: np.ndarray | bytes) -> None:
+        if len(data):
+            self.out.write(bytes(data).decode("ascii") if self._text else memoryview(data))
+
+    def _emit(self, p: Program, final: bool) -> None:
+        """Write the commands of ``p`` whose text is decided (all of them if ``final``), keep
+        the rest as the tail. ``p`` starts where the last write stopped."""
+        self._tail = None
+        n = len(p)
+        kind, xyz, role, layer, chunk = p.kind, p.xyz, p.role.astype(np.int64), p.layer, p.chunk
+        heating, s = self.heating, self.s
         on = p.tool_on(self.tool)
-        mv = np.flatnonzero(kind == MOVE)
+        is_mv = kind == MOVE
+        mv = np.flatnonzero(is_mv)
+        at_mv = xyz[mv]
         prev = np.empty((len(mv), 3))
-        if len(mv):  # a piece may hold no move at all (only dwells or turns)
-            prev[1:] = xyz[mv[:-1]]
+        if len(mv):
+            prev[1:] = at_mv[:-1]
             prev[0] = self.pos if self.pos is not None else np.nan
-        length = np.linalg.norm(xyz[mv] - prev, axis=1)  # NaN for a first move from nowhere
+        sq = (at_mv - prev) ** 2
+        length = np.sqrt(sq[:, 0] + sq[:, 1] + sq[:, 2])  # NaN for a first move from nowhere (np.linalg.norm's sum)
         extr = on[mv] & (length > 0)
-        e = np.zeros(len(mv))
-        e[extr] = extrusion_area(p.width[mv[extr]], p.height[mv[extr]]) * length[extr] / self.fil_area
-        self.filament += float(e.sum())
-        ext_cmd = np.zeros(n, dtype=bool)
-        ext_cmd[mv[extr]] = True
-        xye = np.column_stack([xyz[mv, :2], e]).ravel().tolist()
-        row_of = np.full(n, -1)
-        row_of[mv] = np.arange(len(mv))
-        zmove = np.zeros(n, dtype=bool)
-        zmove[mv] = xyz[mv, 2] != prev[:, 2]
-        # length of each run of travel moves, for the retraction decision
-        off_mv = ~on[mv]
-        run_id = np.cumsum(np.r_[True, off_mv[1:] != off_mv[:-1]]) if len(mv) else np.zeros(0, np.int64)
-        run_len = np.bincount(run_id, weights=np.where(off_mv, np.nan_to_num(length), 0.0))[run_id]
-        # runs: a new one wherever a command does not continue the extrusion before it
-        moved = np.r_[True, (p.chunk[1:] != p.chunk[:-1]) | (p.layer[1:] != p.layer[:-1])]
-        cont = np.r_[False, ext_cmd[1:] & ext_cmd[:-1] & (p.role[1:] == p.role[:-1])] & ~moved
+        with np.errstate(invalid="ignore"):  # (the first move from nowhere: no length)
+            e = np.where(extr, extrusion_area(p.width[mv], p.height[mv]) * length / self.fil_area, 0.0)
+        names = [*p.chunks, None]  # chunk -1: between chunks
         turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
         for t, deg in p.turns:
             turns.setdefault(t, []).append(deg)
-        cont[[t for t in turns if t < n]] = False
-        starts = np.flatnonzero(~cont).tolist() + [n]
-        out, s = self.out, self.s
-        for i, j in zip(starts[:-1], starts[1:]):
-            if i in turns:
-                self._turn(turns[i])
-            if moved[i] and p.layer[i] >= 0:
-                where = (p.chunks[p.chunk[i]] if p.chunk[i] >= 0 else None, int(p.layer[i]))
-                if where != self.where:
-                    self._announce(where, xyz, kind, i)
-            k = int(kind[i])
-            if ext_cmd[i]:
-                role = int(p.role[i])
-                if role != self.role:
-                    out.write(f";TYPE:{ROLE_TYPES[role]}\n")
-                    self.role = role
-                out.write(f"G1 F{self.feeds.extrude(role, int(p.layer[i])) * 60:.0f}\n")
-                r0, r1 = int(row_of[i]), int(row_of[j - 1]) + 1
-                if zmove[i:j].any():
-                    out.write(_G1Z * (j - i) % tuple(np.column_stack([xyz[mv[r0:r1]], e[r0:r1]]).ravel().tolist()))
-                else:
-                    out.write(_G1 * (j - i) % tuple(xye[3 * r0:3 * r1]))
-            elif k == MOVE:
-                r = int(row_of[i])
-                if length[r] > 0 and not on[i] and self.retract and not self.retracted and self.hot \
-                        and run_len[r] >= s.retract_before_travel:  # (firmware refuses cold E moves)
-                    out.write(self.retract)
-                    self.retracted = True
-                if not length[r] <= 0:  # a travel, or the first move (from nowhere): go there
-                    out.write(f"G0 X{xyz[i, 0]:.3f} Y{xyz[i, 1]:.3f} Z{xyz[i, 2]:.3f} {self.travel_f}\n")
-                    self.role = None
-            elif k == TOOL_ON:
-                if not self.hot:
-                    t = self.heating.nozzle  # type: ignore[union-attr]
-                    out.write(f"M104 S{t:g}\nM109 S{t:g} ; heat before extruding\n")
-                    self.hot = True
-                if self.retracted:
-                    out.write(self.unretract)
-                    self.retracted = False
-            elif k in (NOTIFY, WAIT):
+        turn_at = np.zeros(n, dtype=bool)
+        turn_at[[t for t in turns if t < n]] = True
+        first_moved = self._prev is None or (n > 0 and (names[chunk[0]], int(layer[0])) != self._prev[:2])
+        prev_ext, prev_role = (False, -1) if self._prev is None else self._prev[2:]
+        # extrusion runs: a new one wherever a command does not continue the one before it
+        ext_cmd, go, row_of, moved, cont, numeric = _runs(
+            kind, extr, ~(length <= 0), at_mv[:, 2] != prev[:, 2], chunk, layer, role, turn_at, first_moved,
+            prev_ext, prev_role)
+        seg = np.flatnonzero(~cont)  # segment starts: a run of extruding moves, or one command
+        # travel runs (consecutive moves with the tool off; other commands do not end them), for
+        # the retraction: a run continuing from the last piece counts as long if it was
+        off = ~on[mv]
+        new_run = np.r_[True, off[1:] != off[:-1]] if len(mv) else np.zeros(0, bool)
+        run_id = np.cumsum(new_run) - 1
+        run_sum = np.bincount(run_id, weights=np.where(off, np.nan_to_num(length), 0.0)) if len(mv) else np.zeros(0)
+        continuing = len(mv) > 0 and self.pos is not None and self._last_move_off and bool(off[0])
+        if continuing and self._run_long:
+            run_sum[0] = np.inf
+        run_len = run_sum[run_id]
+        announce = np.flatnonzero(moved & (layer >= 0))  # segment starts that may name a new layer
+        nxt = np.r_[mv, n][np.searchsorted(mv, announce)]  # the next move at or after each
+        # how far the text is decided
+        c = n
+        if not final:
+            if n and ext_cmd[-1]:
+                c = min(c, int(seg[-1]))  # the last extrusion run may go on
+            if self.retract and len(mv) and off[-1] and run_sum[-1] < s.retract_before_travel:
+                c = min(c, int(mv[np.flatnonzero(new_run)[-1]]))  # the last travel run may grow long
+            lonely = announce[nxt >= n]
+            if len(lonely):
+                c = min(c, int(lonely[0]))  # a layer whose first move is still to come
+        # the state in force at each command (set by the last command that changes it)
+        wait = kind == WAIT
+        long_wait = np.zeros(n, dtype=bool)
+        if heating is not None and wait.any():
+            k0 = self.waits
+            long_wait[wait] = [heating.wait_is_long(k0 + k) for k in range(int(wait.sum()))]
+        tool_on = kind == TOOL_ON
+        travel_pre = np.zeros(n, dtype=bool)  # a travel that retracts if the nozzle is hot
+        if self.retract:
+            travel_pre[mv] = off & (length > 0) & (run_len >= s.retract_before_travel)
+        starts = ext_cmd & ~cont
+        hot, retracted, last_role = _states(kind, long_wait, travel_pre, starts, go, role, self.hot, self.retracted,
+                                            -1 if self.role is None else self.role, bool(self.retract))
+        travel_retract = travel_pre & hot[:-1]
+        # the operations, command by command: turns, layer, ;TYPE, feed, text, the numeric line
+        table = Table()
+        ops = np.full((c, 6), NONE, np.int32)  # per command: turns, layer, ;TYPE, feed, text, numeric line
+        for t in sorted(turns):
+            if t < c:
+                ops[t, 0] = table.id("".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[t]))
+        ann_at, ann_op = [], []
+        for i, z in zip(announce[announce < c].tolist(), nxt.tolist()):
+            where = (names[chunk[i]], int(layer[i]))
+            if where != self.where:
+                text = f";CHUNK:{where[0]}\n" if where[0] != self.where[0] and where[0] is not None else ""
+                text += f";LAYER:{where[1]}" + (f"\n;Z:{xyz[z, 2]:.3f}" if z < n else "") + "\n"
+                ann_at.append(i)
+                ann_op.append(table.id(text))
+                self.where = where
+        ops[ann_at, 1] = ann_op
+        st = np.flatnonzero(starts[:c])
+        if len(st):
+            ty = role[st] != last_role[st]
+            type_lut = np.array([table.id(f";TYPE:{ROLE_TYPES[r]}\n") if r in ROLE_TYPES else -1
+                                 for r in range(int(role[st].max()) + 1)], np.int64)
+            ops[st[ty], 2] = type_lut[role[st[ty]]]
+            key = role[st] * 2 + (layer[st] == 0)  # the feed rate: by role, and on the first layer
+            feed_lut = np.array([table.id(f"G1 F{self.feeds.extrude(k // 2, 0 if k % 2 else 1) * 60:.0f}\n")
+                                 for k in range(int(key.max()) + 1)], np.int64)
+            ops[st, 3] = feed_lut[key]
+        text = ops[:, 4]  # a command's own text: a travel's retraction, TOOL ON's, a sync's
+        text[travel_retract[:c] & ~retracted[:c]] = table.id(self.retract)
+        ons = np.flatnonzero(tool_on[:c])
+        if len(ons):
+            heat = ""
+            if heating is not None:
+                heat = f"M104 S{heating.nozzle:g}\nM109 S{heating.nozzle:g} ; heat before extruding\n"
+            combos = [table.id(h + u) for h in ("", heat) for u in ("", self.unretract)]
+            text[ons] = np.array(combos, np.int64)[(~hot[ons]).astype(np.int64) * 2 + retracted[ons]]
+        sync = np.flatnonzero(((kind == NOTIFY) | wait)[:c])
+        if len(sync):
+            idle = f"M104 S0 ; idle: a wait longer than {heating.idle_limit:g} s\n" if heating is not None else ""
+            lines = []
+            for i in sync.tolist():
                 ev = ", ".join(p.events[int(p.event[i])])
-                word, code = ("NOTIFY", "M118") if k == NOTIFY else ("WAIT", "M0")
-                out.write(f"; {word} {ev}\nM400\n")
-                if k == WAIT and self.heating is not None:
-                    if self.hot and self.heating.wait_is_long(self.waits):
-                        if self.retract and not self.retracted:  # no ooze while it cools and heats again
-                            out.write(self.retract)
-                            self.retracted = True
-                        out.write(f"M104 S0 ; idle: a wait longer than {self.heating.idle_limit:g} s\n")
-                        self.hot = False
-                    self.waits += 1
-                out.write(f"{code} {word} {ev}\n")
-        if n in turns:
-            self._turn(turns[n])
-        self.tool = bool(on[-1])
-        if len(mv):
-            self.pos = xyz[mv[-1]]
-
-    def _turn(self, facings: list[float]) -> None:
-        """Host lines of a turn: the printer finishes its moves and stops; the host turns the
-        robot (through each facing in order) and resumes it."""
-        for deg in facings:
-            self.out.write(f"; FACING {deg:.3f}\nM400\nM0 FACING {deg:.3f}\n")
-
-    def _announce(self, where: tuple, xyz: np.ndarray, kind: np.ndarray, i: int) -> None:
-        chunk, layer = where
-        if chunk != self.where[0] and chunk is not None:
-            self.out.write(f";CHUNK:{chunk}\n")
-        nxt = i + int(np.argmax(kind[i:] == MOVE)) if (kind[i:] == MOVE).any() else None
-        z = f"\n;Z:{xyz[nxt, 2]:.3f}" if nxt is not None else ""
-        self.out.write(f";LAYER:{layer}{z}\n")
-        self.where = where
+                word, code = ("NOTIFY", "M118") if kind[i] == NOTIFY else ("WAIT", "M0")
+                line = f"; {word} {ev}\nM400\n"
+                if long_wait[i] and hot[i]:
+                    line += (self.retract if not retracted[i] else "") + idle
+                lines.append(table.id(line + f"{code} {word} {ev}\n"))
+            text[sync] = lines
+        ops[:, 5] = numeric[:c]  # a whole extrusion run with Z if any of its moves climbs
+        values = np.empty((len(mv), 4))
+        values[:, :3] = at_mv
+        values[:, 3] = e
+        self._put(assemble(ops, row_of[:c], table, self._templates, values))
+        if final and n in turns:
+            self._put("".join(f"; FACING {d:.3f}\nM400\nM0 FACING {d:.3f}\n" for d in turns[n]).encode())
+        # the state after command c - 1
+        done = int(np.searchsorted(mv, c))  # moves written
+        self._units += _exact_units(e[:done])
+        if c > 0:
+            self._prev = (names[chunk[c - 1]], int(layer[c - 1]), bool(ext_cmd[c - 1]), int(role[c - 1]))
+            self.tool = bool(on[c - 1])
+        if done:
+            self.pos = xyz[mv[done - 1]].copy()
+            self._last_move_off = bool(off[done - 1])
+            self._run_long = bool(run_sum[run_id[done - 1]] >= s.retract_before_travel)
+        self.hot, self.retracted = bool(hot[c]), bool(retracted[c])
+        self.role = None if last_role[c] < 0 else int(last_role[c])
+        if heating is not None:
+            self.waits += int(wait[:c].sum())
+        if not final and (c < n or any(t >= c for t in turns)):
+            self._tail = program_rows(p, c, n)
 
 
-def write_gcode(out: TextIO, pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds, name: str,
+def _put_text(out: TextIO | BinaryIO, text: str) -> None:
+    out.write(text if isinstance(out, io.TextIOBase) else text.encode("ascii"))
+
+
+def write_gcode(out: TextIO | BinaryIO, pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds, name: str,
                 notes: Iterable[str] = (), home: bool = True, heating: Heating | None = None) -> float:
     """Start code, the pieces, end code and the filament total; returns filament used, mm.
-    ``heating`` is a mobile robot's (heat on demand, its own bed or none); ``None`` a printer's."""
-    out.write(start_code(s, name, notes, home, heating))
-    w = GcodeWriter(out, s, feeds, heating)
+    ``heating`` is a mobile robot's (heat on demand, its own bed or none); ``None`` a printer's.
+    ``out`` is a text or a binary file (binary is faster)."""
+    w = GcodeFile(out, s, feeds, name, notes, home, heating)
     for piece in pieces:
         w.write(piece)
-    out.write(end_code(heating is None or heating.bed is not None))
-    out.write(f"; filament used [mm] = {w.filament:.2f}\n")
-    return w.filament
+    return w.close()
+
+
+class GcodeFile:
+    """A whole G-code file written piece by piece: the start code at once, :meth:`write` for
+    each program piece (any split gives the same bytes), :meth:`close` for the end code and the
+    filament total (it returns the filament used, mm; the file itself is the caller's to
+    close)."""
+
+    def __init__(self, out: TextIO | BinaryIO, s: SlicingSettings, feeds: Feeds, name: str,
+                 notes: Iterable[str] = (), home: bool = True, heating: Heating | None = None):
+        self.out, self.heating = out, heating
+        _put_text(out, start_code(s, name, notes, home, heating))
+        self.writer = GcodeWriter(out, s, feeds, heating)
+
+    def write(self, piece: Program) -> None:
+        self.writer.write(piece)
+
+    def close(self) -> float:
+        w = self.writer
+        w.flush()
+        _put_text(self.out, end_code(self.heating is None or self.heating.bed is not None))
+        _put_text(self.out, f"; filament used [mm] = {w.filament:.2f}\n")
+        return w.filament
 
 
 def gcode_text(pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds | None = None,
@@ -298,4 +500,4 @@ def gcode_text(pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds | Non
     return buf.getvalue()
 
 
-__all__ = ["Feeds", "GcodeWriter", "Heating", "end_code", "gcode_text", "start_code", "write_gcode"]
+__all__ = ["Feeds", "GcodeFile", "GcodeWriter", "Heating", "end_code", "gcode_text", "start_code", "write_gcode"]

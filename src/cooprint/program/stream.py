@@ -25,7 +25,7 @@ from typing import Iterator, Mapping, Sequence
 import numba
 import numpy as np
 
-from cooprint.program.commands import COLUMNS, MOVE, Program, quantize
+from cooprint.program.commands import COLUMNS, MOVE, Program, program_rows, quantize
 from cooprint.slicing.paths import LayerPaths
 
 
@@ -147,6 +147,16 @@ def _chain(p: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     return out[:k - 1].copy()
 
 
+def _save(fh, array: np.ndarray) -> None:
+    """``np.save`` through the file's own ``write`` (numpy's fast path writes with ``tofile``,
+    whose error on a full disk has no errno: here it is the OS's ENOSPC, which the bundle
+    reports as a full disk)."""
+    a = np.ascontiguousarray(array)
+    np.lib.format.write_array_header_1_0(fh, np.lib.format.header_data_from_array_1_0(a))
+    if a.size:
+        fh.write(memoryview(a.reshape(-1)).cast("B"))
+
+
 class ChunkStore:
     """The chunks' canonical programs and summaries: in memory (``folder`` None) or one file per
     chunk in ``folder`` (the last one read is kept, for the pieces of a chunk that follow one
@@ -173,7 +183,7 @@ class ChunkStore:
             path = self.folder / f"{len(self._files):06d}.npy"
             with open(path, "wb") as fh:
                 for f in COLUMNS:
-                    np.save(fh, getattr(canon, f), allow_pickle=False)
+                    _save(fh, getattr(canon, f))
             self._files[cid] = path
             self._last = (cid, canon)
         return canon
@@ -204,7 +214,7 @@ class ChunkStore:
         prog = entered(self.program(piece.chunk), None if piece.entry is None else np.asarray(piece.entry))
         if piece.start == 0 and piece.stop is None:
             return prog
-        return prog.part(piece.start, len(prog) if piece.stop is None else piece.stop)
+        return program_rows(prog, piece.start, len(prog) if piece.stop is None else piece.stop)
 
     def nbytes(self) -> int:
         """Bytes of the programs on disk (0 in memory)."""
@@ -242,7 +252,7 @@ class RobotStream:
                 yield prog
                 continue
             for a in range(0, len(prog), most):
-                yield prog.part(a, min(a + most, len(prog)))
+                yield program_rows(prog, a, min(a + most, len(prog)))
 
     def program(self, store: ChunkStore) -> Program:
         """The whole program in memory (for small jobs and tests)."""

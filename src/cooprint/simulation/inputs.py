@@ -19,6 +19,7 @@ from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_set
 from cooprint.geometry import unit_deg
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path, shown_key)
+from cooprint.io.bundle import plain_name, read_output
 from cooprint.io.files import path_kind, regular_file
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
@@ -503,7 +504,7 @@ def load_coop_files(paths: list[str | Path], settings: JobSettings | None = None
     robots, names = [], {}
     for x in paths:
         p = Path(x)
-        name = p.stem
+        name = plain_name(p).stem  # A.coop and A.coop.gz: robot A
         if not ROBOT_NAME.fullmatch(name):
             raise SimInputError(f"{p}: the file name '{name[:40]}' is not a robot name (letters, digits, _ : . -; "
                                 "at most 64); rename the file or use --manifest")
@@ -547,7 +548,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     p = Path(path)
     regular_file(p, "G-code file", SimInputError)  # a FIFO would block the read for ever
     try:
-        data = p.read_bytes()
+        data = read_output(p, SimInputError)  # plain or gzip-compressed
     except FileNotFoundError:
         raise SimInputError(f"{p}: no such G-code file") from None
     except IsADirectoryError:
@@ -557,11 +558,11 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     rows = gcode_rows(data, filament_diameter, str(p))
     if rows is None:
         return _read_gcode_lines(p, _gcode_text(data), filament_diameter)
-    prog = make_program(p.stem, rows.kind, rows.xyz if len(rows.kind) else None,
+    prog = make_program(plain_name(p).stem, rows.kind, rows.xyz if len(rows.kind) else None,
                         role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height,
                         events=rows.events)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
-    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de, _notes(p, rows.pauses))
+    return SimRobot(plain_name(p).stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de, _notes(p, rows.pauses))
 
 
 def _notes(p: Path, pauses: list[int]) -> tuple[str, ...]:
@@ -660,12 +661,12 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
                 heights.append(0.0)
                 pushed.append(0.0)
     kind = np.array(kinds, dtype=np.uint8)
-    prog = make_program(p.stem, kind, np.array(xyz).reshape(-1, 3) if xyz else None,
+    prog = make_program(plain_name(p).stem, kind, np.array(xyz).reshape(-1, 3) if xyz else None,
                         role=np.where(kind == MOVE, INFILL, TRAVEL), width=np.array(widths),
                         height=np.array(heights), events=tuple(events))
     speed = np.array(speeds)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
-    return SimRobot(p.stem, prog, np.zeros(3), _facing(90.0), speed, np.array(pushed), _notes(p, pauses))
+    return SimRobot(plain_name(p).stem, prog, np.zeros(3), _facing(90.0), speed, np.array(pushed), _notes(p, pauses))
 
 
 GCODE_SUFFIXES = (".gcode", ".gco", ".g")
@@ -695,8 +696,8 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
     missing = [x for x in paths if found[x] == "missing"]
     if missing:
         raise SimInputError(f"{missing[0]}: no such file or folder")
-    kinds = {x: ("gcode" if Path(x).suffix.lower() in GCODE_SUFFIXES else
-                 "coop" if Path(x).suffix.lower() == ".coop" else None) for x in paths}
+    suffix = {x: plain_name(x).suffix.lower() for x in paths}  # (of A.gcode.gz: .gcode)
+    kinds = {x: ("gcode" if suffix[x] in GCODE_SUFFIXES else "coop" if suffix[x] == ".coop" else None) for x in paths}
     other = [x for x, k in kinds.items() if k is None]
     if other:
         raise SimInputError(f"{other[0]}: expected a bundle folder, G-code files (.gcode) or .coop files")
