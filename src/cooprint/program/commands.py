@@ -472,7 +472,7 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
     ProgramError
         ``source:line:column: what is wrong`` for the first malformed line.
     """
-    from cooprint.program.scan import LAYER_LINE, PATH_LINE, sweep  # numba: on first use
+    from cooprint.program.scan import LAYER_LINE, PATH_LINE, commands_before, compact, sweep  # numba: on first use
 
     data = text.encode() if isinstance(text, str) else text
     if bytes(data[:3]) == UTF8_BOM:  # Windows editors start UTF-8 text with one: it is not part of line 1
@@ -499,44 +499,55 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
             xyz_of[slot] = payload
         elif kind in (NOTIFY, WAIT):
             events.append(payload)
-    slot_of = None  # each command's slot, if some slots are not commands
-    if (kind_of < 0).any():
-        slot_of = np.flatnonzero(kind_of >= 0)
-        kind_of, xyz_of = kind_of[slot_of], xyz_of[slot_of]
-    kind_of = kind_of.astype(np.uint8)
+    # the line parser's slots that hold no command (annotations, blank lines in its share) leave:
+    # the commands are moved to the front in place and the arrays cut there (no copy of the
+    # program's columns), after each annotation's slot is turned into the commands above it
+    def above(slots: np.ndarray) -> np.ndarray:
+        """How many commands come before each of ``slots`` (ascending)."""
+        out = np.empty(len(slots), np.int64)
+        if len(slots):
+            commands_before(kind_of, slots, out)
+        return out
 
-    def state(key: str, start: tuple, fast: int = -1) -> list[np.ndarray]:
-        """Each command's value of an annotation (its columns): the last one above its line,
-        read by the sweep (``fast``) or by the line parser; ``start`` before any."""
-        mine = swept.notes[:, 2] == fast
+    def state(key: str, start: tuple, dtypes: tuple, fast: int = -1) -> tuple[list[np.ndarray], np.ndarray]:
+        """Each annotation's values (the last one above each command holds), ``start`` before
+        any, read by the sweep (``fast``) or by the line parser, in line order, as ``dtypes``;
+        and how many commands each holds for."""
+        mine = np.flatnonzero(swept.notes[:, 2] == fast)
         line = np.concatenate([np.array([x[0] for x in ann[key]], dtype=np.int64), swept.notes[mine, 0]])
         slot = np.concatenate([np.array([x[1] for x in ann[key]], dtype=np.int64), swept.notes[mine, 1]])
         order = np.argsort(line, kind="stable")
-        cols = [np.concatenate([[s], [x[2][j] for x in ann[key]], swept.values[mine, j]])[np.r_[0, order + 1]]
-                for j, s in enumerate(start)]
-        before = slot[order] if slot_of is None else np.searchsorted(slot_of, slot[order])  # commands above
-        return [np.repeat(c, np.diff(np.r_[0, before, len(kind_of)])) for c in cols]
+        held = np.diff(np.concatenate([[0], above(slot[order]), [commands]]))
+        values = [np.concatenate([[s], np.array([x[2][j] for x in ann[key]], dtype=np.float64),
+                                  swept.values[mine, j]])[np.r_[0, order + 1]].astype(dt)
+                  for j, (s, dt) in enumerate(zip(start, dtypes))]
+        return values, held
 
-    (chunk,) = state("chunk", (-1,))
-    layer, height = state("layer", (-1, 0.0), LAYER_LINE)
-    role, width = state("path", (TRAVEL, 0.0), PATH_LINE)
-    sync = (kind_of == NOTIFY) | (kind_of == WAIT)
-    event = np.full(len(kind_of), -1, np.int32)
-    event[sync] = np.arange(int(sync.sum()), dtype=np.int32)
-    chunk = chunk.astype(np.int16)
+    commands = int(np.count_nonzero(kind_of >= 0))
+    (chunk_v,), chunk_n = state("chunk", (-1,), (np.int64,))
+    layer_v, layer_n = state("layer", (-1, 0.0), (np.int32, np.float64), LAYER_LINE)
+    path_v, path_n = state("path", (TRAVEL, 0.0), (np.uint8, np.float64), PATH_LINE)
+    turn_at = above(np.array([x[1] for x in ann["facing"]], dtype=np.int64))
+    if commands < len(kind_of):
+        compact(kind_of, xyz_of)
+        kind_of.resize(commands, refcheck=False)  # in place: the rest goes back to the heap
+        xyz_of.resize((commands, 3), refcheck=False)
+    kind_of = kind_of.view(np.uint8)  # 0..4 either way
     # the chunk table: the chunks that commands belong to, in the order they first appear
-    runs = chunk[np.flatnonzero(np.r_[True, chunk[1:] != chunk[:-1]])] if len(chunk) else chunk
-    used, first = np.unique(runs[runs >= 0], return_index=True)
-    used = used[np.argsort(first)]
+    used = chunk_v[(chunk_n > 0) & (chunk_v >= 0)]
+    used = used[np.sort(np.unique(used, return_index=True)[1])]
     remap = np.full(len(lines.chunks) + 1, -1, dtype=np.int16)
     remap[used] = np.arange(len(used))
-    # a turn comes before the first command below its line (the commands above it: its slot
-    # among the commands' slots)
-    turn_slot = np.array([x[1] for x in ann["facing"]], dtype=np.int64)
-    turn_at = turn_slot if slot_of is None else np.searchsorted(slot_of, turn_slot)
+    chunk = np.repeat(remap[chunk_v], chunk_n)
+    layer, height = (np.repeat(v, layer_n) for v in layer_v)
+    role, width = (np.repeat(v, path_n) for v in path_v)
+    event = np.full(commands, -1, np.int32)
+    sync = np.flatnonzero(kind_of >= NOTIFY)  # NOTIFY and WAIT
+    event[sync] = np.arange(len(sync), dtype=np.int32)
+    # a turn comes before the first command below its line (the commands above its slot)
     turns = tuple((int(i), x[2][0]) for i, x in zip(turn_at.tolist(), ann["facing"]))
-    return Program(robot, kind_of, xyz_of, role.astype(np.uint8), width, layer.astype(np.int32), height,
-                   remap[chunk], event, tuple(lines.chunks[c] for c in used.tolist()), tuple(events), turns)
+    return Program(robot, kind_of, xyz_of, role, width, layer, height, chunk, event,
+                   tuple(lines.chunks[c] for c in used.tolist()), tuple(events), turns)
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:
