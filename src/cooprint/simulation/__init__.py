@@ -159,7 +159,18 @@ def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings) -> np.ndarray:
     without (a program without width and height annotations prints at the slicing settings'
     width and layer)."""
     w, h = r.bead(tl.index, s.extrusion_width, s.layer_height)
-    return np.where(tl.on, extrusion_area(w, h) * tl.length, 0.0)
+    # extrusion_area(w, h) * length, 0 where the tool is off, in w's array (the same operations
+    # in the same order: the same numbers, without a temporary of each)
+    np.subtract(w, h, out=w)
+    w *= h
+    h /= 2
+    np.square(h, out=h)
+    h *= np.pi
+    w += h
+    del h
+    w *= tl.length
+    np.copyto(w, 0.0, where=~tl.on)
+    return w
 
 
 def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
@@ -287,7 +298,9 @@ def summary(result: SimResult, perturbed: "PerturbResult | None" = None) -> dict
     for r in result.robots:
         tl = result.timelines[r.name]
         dur = tl.t1 - tl.t0
-        printing, travelling = float(dur[tl.on].sum()), float(dur[~tl.on].sum())
+        printing = float(dur[tl.on].sum())
+        travelling = float(dur[~tl.on].sum())
+        del dur
         waiting = float(sum(w[1] - w[0] for w in tl.waits))
         robots.append({"name": r.name, "printing_s": printing, "travelling_s": travelling, "waiting_s": waiting,
                        "idle_s": max(0.0, span - printing - travelling - waiting), "end_s": tl.end,

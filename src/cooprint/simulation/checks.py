@@ -111,14 +111,26 @@ class Material:
     def sample(robots: list[SimRobot], timelines: dict[str, Timeline], step: float,
                layer_height: float) -> "Material":
         step = _step(timelines, step, deposits_only=True)
-        parts = [_selection(timelines[r.name], step, deposits_only=True) for r in robots]
-        bounds = np.cumsum([0] + [int(n.sum()) for _, n, _ in parts])
+        blocks = [[(c, min(len(tl.t0), c + BLOCK_MOVES)) for c in range(0, len(tl.t0), BLOCK_MOVES)]
+                  for tl in (timelines[r.name] for r in robots)]
+
+        def deposits(tl: Timeline, c: int, d: int) -> tuple[np.ndarray, np.ndarray]:
+            """The moves of ``c:d`` that deposit (from ``c``) and how many points each gets."""
+            sel = np.flatnonzero(tl.on[c:d])
+            return sel, kernels.sample_counts(tl.length[c:d][sel], step)
+
+        sizes = [sum(int(deposits(timelines[r.name], c, d)[1].sum()) for c, d in b) for r, b in zip(robots, blocks)]
+        bounds = np.cumsum([0] + sizes)
         xyz, t, h = np.empty((bounds[-1], 3), np.float32), np.empty(bounds[-1]), np.empty(bounds[-1], np.float32)
-        for i, (r, (sel, n, _)) in enumerate(zip(robots, parts)):  # each robot's points in one pass, in place
+        for i, (r, b) in enumerate(zip(robots, blocks)):  # each robot's points in order, a block of moves at a time
             tl = timelines[r.name]
-            if len(sel):
-                kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, False, xyz, t, np.zeros(0, np.int64),
-                                     r.layer_heights(tl.index, layer_height).astype(np.float32), h, bounds[i])
+            k = int(bounds[i])
+            for c, d in b:
+                sel, n = deposits(tl, c, d)
+                if len(sel):
+                    k = kernels.sample_moves(tl.p0[c:d], tl.p1[c:d], tl.t0[c:d], tl.t1[c:d], sel, n, False, xyz, t,
+                                             np.zeros(0, np.int64),
+                                             r.layer_heights(tl.index[c:d], layer_height).astype(np.float32), h, k)
         return Material(xyz, t, h, bounds)
 
     def moves(self, points: np.ndarray, timeline: Timeline) -> np.ndarray:
@@ -264,6 +276,19 @@ class _Raster:
                          dtype=np.int64))
 
 
+#: Moves looked at a block at a time by the checks that sweep a robot's path (their per-move
+#: arrays are made for one block, not for the whole program: bounded memory on any plan).
+BLOCK_MOVES = 1 << 20
+
+
+def chunk_slots(r: SimRobot, tl: Timeline, a: int, e: int) -> np.ndarray:
+    """(e - a,) int64 the chunk slot of moves ``a:e`` of robot ``r``: the chunk's index in its
+    program, or past them (``len(chunks)``) between chunks."""
+    chunk = r.program.chunk[tl.index[a:e]].astype(np.int64)
+    chunk[chunk < 0] = len(r.program.chunks)
+    return chunk
+
+
 def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
                      material: Material, body: bool = True, head: bool = True, step: float = STEP,
                      tolerance: float = TOLERANCE) -> list[Finding]:
@@ -285,32 +310,32 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
         tl = timelines[r.name]
         if len(tl.t0) == 0:
             continue
-        chunk = r.program.chunk[tl.index].astype(np.int64)
-        chunk[chunk < 0] = len(r.program.chunks)  # between chunks: the last slot
         slots = len(r.program.chunks) + 1
         count, when, where = np.zeros((2, slots), np.int64), np.full((2, slots), np.inf), np.zeros((2, slots, 3))
-        _, n, first = _selection(tl, n_step, deposits_only=False)  # the nozzle samples: all its path
         spans = r.facing_spans(tl)
         for j, span in enumerate(spans):
             frame = _frame(span.facing).astype(np.float32)
             a, e = span.start, span.stop
-            if a < e:  # its moves, from the turn point on (from the start, for the first span)
-                p0, p1, t0, t1, nn, ch, first_here = tl.p0[a:e], tl.p1[a:e], tl.t0[a:e], tl.t1[a:e], n[a:e], \
-                    chunk[a:e], first if j == 0 else True
-            else:  # none: the turn point alone, as a move that goes nowhere
-                p0 = p1 = span.position[None].astype(np.float64)
-                t0 = t1 = np.array([span.time])
-                nn, first_here = np.ones(1, np.int64), False
-                ch = np.array([chunk[a] if a < len(chunk) else slots - 1], np.int64)
             # the material laid down before the span's last instant, on rasters in its frame
-            mat = material.before(float(t1[-1])) if len(spans) > 1 else material
+            last = float(tl.t1[e - 1]) if a < e else span.time
+            mat = material.before(last) if len(spans) > 1 else material
             checks = robot_checks(mat, frame, profile, body, head, tolerance, tl)
             if not checks:
                 break
             b, h = (checks[0] if body else None), (checks[-1] if head else None)
-            kernels.footprint_sweep(p0, p1, t0, t1, nn, first_here, ch, frame, b is not None,
-                                    (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state,
-                                    count, when, where)
+            states = (b is not None, (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state)
+            if a == e:  # no moves: the turn point alone, as a move that goes nowhere
+                p = span.position[None].astype(np.float64)
+                kernels.footprint_sweep(p, p, np.array([span.time]), np.array([span.time]), np.ones(1, np.int64),
+                                        False, chunk_slots(r, tl, a, a + 1) if a < len(tl.t0) else
+                                        np.array([slots - 1], np.int64), frame, *states, count, when, where)
+            # its moves, from the turn point on (from the start, for the first span), a block at a
+            # time (the sweep carries its state from one block to the next: the same hits)
+            for c in range(a, e, BLOCK_MOVES):
+                d = min(e, c + BLOCK_MOVES)
+                kernels.footprint_sweep(tl.p0[c:d], tl.p1[c:d], tl.t0[c:d], tl.t1[c:d],
+                                        kernels.sample_counts(tl.length[c:d], n_step), c == a,
+                                        chunk_slots(r, tl, c, d), frame, *states, count, when, where)
         for k, (kind, detail) in enumerate(((_BodyCheck.kind, _BodyCheck.detail), (_HeadCheck.kind, _head_detail(profile)))):
             findings += _slot_findings(kind, r, count[k], when[k], where[k], detail)
     return sorted(findings, key=lambda f: (f.time, f.kind))
@@ -659,14 +684,17 @@ def chunk_order(robots: list[SimRobot], timelines: dict[str, Timeline],
         tl = timelines[r.name]
         for t, event in tl.notifies:
             announced[event] = min(announced.get(event, np.inf), float(t))
-        on = np.flatnonzero(tl.on)
-        if not len(on):
-            continue
-        chunk = r.program.chunk[tl.index[on]]
-        for c in np.unique(chunk[chunk >= 0]).tolist():
-            moves = on[chunk == c]
+        first_of, last_of = {}, {}  # per chunk (index in the program): its first and last deposit
+        for b in range(0, len(tl.t0), BLOCK_MOVES):
+            on = np.flatnonzero(tl.on[b:b + BLOCK_MOVES]) + b
+            chunk = r.program.chunk[tl.index[on]]
+            for c in np.unique(chunk[chunk >= 0]).tolist():
+                moves = on[chunk == c]
+                first_of.setdefault(c, int(moves[0]))
+                last_of[c] = int(moves[-1])
+        for c in sorted(first_of):
             name = r.program.chunks[c]
-            first, last = int(moves[0]), int(moves[-1])
+            first, last = first_of[c], last_of[c]
             if name not in start or tl.t0[first] < start[name][0]:
                 start[name] = (float(tl.t0[first]), r.name, tl.p0[first])
             end[name] = max(end.get(name, -np.inf), float(tl.t1[last]))
@@ -852,7 +880,8 @@ def below_floor(robots: list[SimRobot], timelines: dict[str, Timeline]) -> list[
     for r in robots:
         tl = timelines[r.name]
         z0, z1 = tl.p0[:, 2], tl.p1[:, 2]
-        low = np.flatnonzero(np.minimum(z0, z1) < -FLOOR_TOLERANCE)
+        low = np.concatenate([np.flatnonzero(np.minimum(z0[c:c + BLOCK_MOVES], z1[c:c + BLOCK_MOVES]) < -FLOOR_TOLERANCE)
+                              + c for c in range(0, len(z0), BLOCK_MOVES)] or [np.zeros(0, np.int64)])
         if not len(low):
             continue
         a, b = z0[low], z1[low]

@@ -97,13 +97,21 @@ class SimRobot:
     def bead(self, index: np.ndarray, width: float, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Width and height of the material laid by commands ``index``: their annotations, or
         ``width`` and ``height`` (the slicing settings') where a program has none."""
-        w = self.program.width[index]
-        return np.where(w > 0, w, width), self.layer_heights(index, height)
+        return _or_default(self.program.width, index, width), self.layer_heights(index, height)
 
     def layer_heights(self, index: np.ndarray, height: float) -> np.ndarray:
         """The height of the material laid by commands ``index`` (:meth:`bead`'s second half)."""
-        h = self.program.height[index]
-        return np.where(h > 0, h, height)
+        return _or_default(self.program.height, index, height)
+
+
+def _or_default(column: np.ndarray, index: np.ndarray, default: float) -> np.ndarray:
+    """``column[index]`` where above 0, else ``default``: a new array (filled in place, no
+    temporary of the size of ``index``)."""
+    out = column[index]
+    if np.may_share_memory(out, column):  # a view (``index`` a slice): not to be written
+        out = out.copy()
+    np.copyto(out, default, where=~(out > 0))
+    return out
 
 
 @dataclass(frozen=True)
