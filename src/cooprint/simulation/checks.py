@@ -57,6 +57,9 @@ MAX_SAMPLES = 8_000_000
 MAX_CELLS = 8_000_000
 #: At most this many instants of the collision check (its step grows past 8,000 h of plan).
 MAX_INSTANTS = 4_000_000
+#: The collision check's instants are looked at this many at a time (the nozzles and facings of
+#: a block of instants, not of all of them).
+COLLIDE_BLOCK = 1 << 18
 #: Between two instants the collision check looks closer wherever the robots could have met,
 #: down to windows in which they move this little relative to each other, mm: an overlap that
 #: lasts less than such a window is at most this deep beyond the parts' tolerances.
@@ -489,27 +492,37 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     end = max((tl.end for tl in timelines.values()), default=0.0)
     dt = max(dt, end / MAX_INSTANTS)  # a plan of years (a program that jumps kilometres) is looked at less often
     times = np.arange(0.0, end + dt, dt)
-    nozzle = {r.name: _nozzle_xy(r, timelines[r.name], times) for r in robots}
-    robots = [r for r in robots if nozzle[r.name] is not None]
-    facing = {}  # per robot: its facings, and which is in force at each instant
+    robots = [r for r in robots if len(timelines[r.name].t1) or r.start is not None]  # one with neither is nowhere
+    facing, turns, speed = {}, {}, {}  # per robot: its facings, when it turns, its top speed
     for r in robots:
         spans = r.facing_spans(timelines[r.name])
-        starts = np.array([sp.time for sp in spans])
-        facing[r.name] = ([sp.facing for sp in spans], np.searchsorted(starts[1:], times, side="right"))
-    turns, speed = {}, {}
-    for r in robots:
-        spans = r.facing_spans(timelines[r.name])
+        facing[r.name] = ([sp.facing for sp in spans],)
         turns[r.name] = np.array([sp.time for sp in spans[1:]])
         speed[r.name] = _top_speed(timelines[r.name])
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
             pa, pb = a.profile or profile, b.profile or profile  # each robot's own outline
             pair = _Pair(a, b, pa, pb, facing, tolerance)
-            at_times = (nozzle[a.name], nozzle[b.name], facing[a.name][1], facing[b.name][1])
-            mask = pair.mask(times, at_times[2], at_times[3], at_times[0], at_times[1])
+            both, turn = speed[a.name] + speed[b.name], np.sort(np.r_[turns[a.name], turns[b.name]])
+            h = dt / 2
+            refine = both > 0.0 and both * h > COLLIDE_DEPTH  # the windows between instants are looked into
+            mask, near = np.zeros(len(times), np.int32), []
+            for s in range(0, len(times), COLLIDE_BLOCK):  # the instants a block at a time
+                at = times[s:s + COLLIDE_BLOCK]
+                state = _pair_state(pair, at, timelines)  # both nozzles and facings there
+                mask[s:s + COLLIDE_BLOCK] = got = pair.mask(at, state[2], state[3], state[0], state[1])
+                if refine:  # the windows without an overlap at their instant that may hold one
+                    free = np.flatnonzero(got == 0)
+                    na, nb, ka, kb = state if len(free) == len(at) else (x[free] for x in state)
+                    close = pair.mask(at[free], ka, kb, na, nb, margin=both * h / 2) != 0
+                    if len(turn):
+                        close |= np.searchsorted(turn, at[free] - h) != np.searchsorted(turn, at[free] + h,
+                                                                                         side="right")
+                    near.append(free[close] + s)
             when = times.copy()
-            _between_instants(pair, times, dt, mask, when, speed[a.name] + speed[b.name],
-                              np.sort(np.r_[turns[a.name], turns[b.name]]), timelines, at_times)
+            if refine:
+                _between_instants(pair, times, dt, mask, when, both, turn, timelines,
+                                  np.concatenate(near) if near else np.zeros(0, np.int64))
             k = np.flatnonzero(mask)
             if len(k):
                 k = k[np.argsort(when[k], kind="stable")]
@@ -557,7 +570,7 @@ class _Pair:
 
 
 def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarray, when: np.ndarray,
-                      speed: float, turns: np.ndarray, timelines: dict[str, Timeline], at_times: tuple) -> None:
+                      speed: float, turns: np.ndarray, timelines: dict[str, Timeline], near: np.ndarray) -> None:
     """Overlaps that begin and end between two instants of the collision check, added to
     ``mask`` (and their first time to ``when``) at the instant whose window (``dt`` wide) holds
     them: two printheads crossing head-on at travel speed overlap for less than ``dt``.
@@ -569,20 +582,18 @@ def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarra
     Windows that may hold an overlap are halved and looked at again, down to ``COLLIDE_DEPTH``
     of relative motion (at most ``MAX_INSTANTS`` windows at a time); a window in which a robot
     turns is always halved (its outline changes).
-    ``at_times``: both nozzles and facings at ``times``, as :func:`_pair_state` gives them."""
-    if speed <= 0.0:
-        return
-    owner = np.flatnonzero(mask == 0)
-    centre, h = times[owner], dt / 2
-    # the instants' own nozzles and facings are known already
-    state = at_times if len(owner) == len(times) else tuple(x[owner] for x in at_times)
+    ``near``: the instants (indices into ``times``, ascending) whose whole windows may hold an
+    overlap, as :func:`robots_collide` finds them a block of instants at a time: the first
+    look, with ``speed * dt / 2 > COLLIDE_DEPTH``."""
+    centre, owner, h = times[near], near, dt / 2
+    first = True
     while len(centre) and speed * h > COLLIDE_DEPTH:
-        na, nb, ka, kb = state if state is not None else _pair_state(pair, centre, timelines)
-        state = None
-        near = pair.mask(centre, ka, kb, na, nb, margin=speed * h / 2) != 0
-        if len(turns):
-            near |= np.searchsorted(turns, centre - h) != np.searchsorted(turns, centre + h, side="right")
-        centre, owner = centre[near], owner[near]
+        if not first:
+            near = pair.mask(centre, ka, kb, na, nb, margin=speed * h / 2) != 0
+            if len(turns):
+                near |= np.searchsorted(turns, centre - h) != np.searchsorted(turns, centre + h, side="right")
+            centre, owner = centre[near], owner[near]
+        first = False
         if 2 * len(centre) > MAX_INSTANTS:  # bounded work: robots that stay within a hair of each other for days
             break
         h /= 2
@@ -593,14 +604,13 @@ def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarra
         hit = pair.mask(centre, ka, kb, na, nb)
         got = hit != 0
         if got.any():
-            first = np.unique(owner[got], return_index=True)[1]  # each window's earliest (sorted)
-            k = np.flatnonzero(got)[first]
+            first_hit = np.unique(owner[got], return_index=True)[1]  # each window's earliest (sorted)
+            k = np.flatnonzero(got)[first_hit]
             mask[owner[k]] = hit[k]
             when[owner[k]] = centre[k]
             keep = mask[owner] == 0
             centre, owner = centre[keep], owner[keep]
             na, nb, ka, kb = na[keep], nb[keep], ka[keep], kb[keep]
-        state = (na, nb, ka, kb)
 
 
 def _pair_state(pair: _Pair, t: np.ndarray, timelines: dict[str, Timeline]):
@@ -649,7 +659,10 @@ def _nozzle_xy(r: SimRobot, tl: Timeline, times: np.ndarray) -> np.ndarray | Non
         if r.start is None:
             return None
         return np.broadcast_to(np.asarray(r.start, dtype=np.float64)[:2], (len(times), 2))
-    return kernels.positions_at(tl.t0, tl.t1, tl.p0, tl.p1, times)
+    # the kernel's pointer walks from the move under way at the first time (where a walk from
+    # the first move would stop): the same positions, without walking the moves before
+    k = min(int(np.searchsorted(tl.t1, times[0], side="left")), len(tl.t1) - 1) if len(times) else 0
+    return kernels.positions_at(tl.t0[k:], tl.t1[k:], tl.p0[k:], tl.p1[k:], times)
 
 
 def _chunk_of(r: SimRobot, tl: Timeline, t: float) -> str | None:
