@@ -629,11 +629,12 @@ def _pair_state(pair: _Pair, t: np.ndarray, timelines: dict[str, Timeline]):
 def _top_speed(tl: Timeline) -> float:
     """At least the fastest the nozzle moves in XY on any move of ``tl``, mm/s (its fastest in
     XYZ; 0: it never moves)."""
-    if len(tl.t1) == 0:
-        return 0.0
-    span = tl.t1 - tl.t0
-    moving = span > 0
-    return float(np.max(tl.length[moving] / span[moving], initial=0.0))
+    top = 0.0
+    for a in range(0, len(tl.t1), BLOCK_MOVES):  # a block of moves at a time (the maximum is the same)
+        span = tl.t1[a:a + BLOCK_MOVES] - tl.t0[a:a + BLOCK_MOVES]
+        moving = span > 0
+        top = max(top, float(np.max(tl.length[a:a + BLOCK_MOVES][moving] / span[moving], initial=0.0)))
+    return top
 
 
 def _collide_detail(a: str, b: str, masks: np.ndarray, where_b: str = "") -> str:
