@@ -37,6 +37,7 @@ not a finding; a plan the chunker made keeps the body just clear of its chunk's 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -94,7 +95,8 @@ def path_samples(tl: Timeline, step: float, deposits_only: bool) -> tuple[np.nda
 
 def _step(timelines: dict[str, Timeline], step: float, deposits_only: bool) -> float:
     """``step``, or longer on a print so long that it would make more than ``MAX_SAMPLES``."""
-    total = sum(float(tl.length[tl.on].sum() if deposits_only else tl.length.sum()) for tl in timelines.values())
+    total = sum(float(block_sum(lambda a, e: tl.length[a:e], len(tl.t0), lambda a, e: tl.on[a:e]) if deposits_only
+                      else tl.length.sum()) for tl in timelines.values())
     return max(step, total / MAX_SAMPLES)
 
 
@@ -282,6 +284,38 @@ class _Raster:
 #: Moves looked at a block at a time by the checks that sweep a robot's path (their per-move
 #: arrays are made for one block, not for the whole program: bounded memory on any plan).
 BLOCK_MOVES = 1 << 20
+
+
+def block_sum(values: Callable[[int, int], np.ndarray], n: int,
+              mask: Callable[[int, int], np.ndarray] | None = None) -> float:
+    """``np.sum(v)`` (or ``np.sum(v[m])``) of per-move values ``v`` (``values(a, e)``: those of
+    moves ``a:e``, float64; ``mask(a, e)``: which of them count), the very same double, made a
+    block of ``BLOCK_MOVES`` at a time: numpy sums a float64 array pairwise (halves of a length
+    rounded down to a multiple of 8, down to 128 values), so a sum of a range that is one of
+    those halves is its own ``np.sum``, and the halves are added as numpy adds them. Summaries
+    keep their numbers to the last bit without an array of every move."""
+    block, moves = BLOCK_MOVES, n
+    if mask is None:
+        get = values
+    else:  # the selected values, by their rank among the selected: a block's worth at a time
+        counts = np.cumsum([0] + [int(np.count_nonzero(mask(a, min(a + block, moves)))) for a in range(0, moves, block)])
+
+        def get(lo: int, hi: int) -> np.ndarray:
+            b0 = int(np.searchsorted(counts, lo, side="right")) - 1
+            b1 = int(np.searchsorted(counts, hi, side="left"))
+            a, e = b0 * block, min(b1 * block, moves)
+            return values(a, e)[mask(a, e)][lo - counts[b0]:hi - counts[b0]]
+
+        n = int(counts[-1])
+
+    def pairwise(lo: int, size: int) -> float:
+        if size <= max(block, 128):
+            return np.add.reduce(get(lo, lo + size), initial=0.0)
+        half = size // 2
+        half -= half % 8
+        return pairwise(lo, half) + pairwise(lo + half, size - half)
+
+    return float(pairwise(0, n)) if n else 0.0
 
 
 def chunk_slots(r: SimRobot, tl: Timeline, a: int, e: int) -> np.ndarray:
