@@ -143,3 +143,16 @@ def test_no_stage_of_simulate_holds_a_copy_per_move(monkeypatch):
     # (robots 200 mm apart are close at 120 mm/s): 2 MB more for that work
     assert all(v < 2 * commands + (1 << 20) + (2 << 20) * (k == "robots-collide") for k, v in held.items()), \
         {k: f"{v / commands:.1f} bytes a command" for k, v in held.items()}
+
+
+@pytest.mark.parametrize("block", [97, 4096])
+def test_block_sums_are_numpys_sums_to_the_last_bit(monkeypatch, block):
+    """summary.json's times and volumes are sums of per-move values made a block at a time: the
+    same doubles as numpy's sum of the whole array (a change of numpy's summation shows here)."""
+    monkeypatch.setattr(checks, "BLOCK_MOVES", block)
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 7, 128, 129, 1000, 54_321, 300_001):
+        x = rng.random(n) * 10.0 ** rng.uniform(-3, 6, n)
+        m = rng.random(n) < 0.7
+        assert checks.block_sum(lambda a, e: x[a:e], n) == np.sum(x)
+        assert checks.block_sum(lambda a, e: x[a:e], n, lambda a, e: m[a:e]) == np.sum(x[m])
