@@ -12,7 +12,8 @@ import pytest
 
 import solids
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, parse_coop, read_coop
+from cooprint.program.commands import (MOVE, TOOL_OFF, TOOL_ON, Program, ProgramError, iter_coop, make_program,
+                                       parse_coop, read_coop)
 from cooprint.render import sim as render_sim
 from cooprint.simulation import SimInput, SimResult, checks, load_inputs, simulate, summary
 from cooprint.simulation.inputs import load_manifest
@@ -156,3 +157,31 @@ def test_block_sums_are_numpys_sums_to_the_last_bit(monkeypatch, block):
         m = rng.random(n) < 0.7
         assert checks.block_sum(lambda a, e: x[a:e], n) == np.sum(x)
         assert checks.block_sum(lambda a, e: x[a:e], n, lambda a, e: m[a:e]) == np.sum(x[m])
+
+
+ODD = ("\ufeff; cooprint-coop/1 program for robot A\r\n;@chunk C\n;@layer 0 0.2\n;@path skin 0.45\nTOOL ON\n"
+       "MOVE 1, 2, 0.2\nMOVE 3 4 0.2 ; a comment\n;@facing -90\nNOTIFY\n# hash comment\n\n;@chunk L1\n"
+       ";@layer 1 0.25\nmove 5, 6, 0.45\nTOOL OFF\n;@path travel 0\nWAIT B:1, C\n;@layer -\nNOTIFY done\n"
+       ";@chunk C\n;@path perimeter 0.4\nTOOL ON\nMOVE 7, 8, 0.45\n;@facing 90\n;@chunk -\nMOVE 9, 9, 1\nNOTIFY")
+
+
+@pytest.mark.parametrize("piece", [1, 7, 40, 1 << 20])
+def test_a_program_read_in_pieces_is_the_whole_program(bundle, tmp_path, piece):
+    """iter_coop: the pieces of whole lines, concatenated, are read_coop's program (annotations,
+    chunk names, bare NOTIFY numbers and turns carried across pieces, a BOM, CRLF, comments)."""
+    odd = tmp_path / "A.coop"
+    odd.write_bytes(ODD.encode())
+    for path in (odd, bundle / "robots" / "B.coop"):
+        pieces = list(iter_coop(path, piece_bytes=piece))
+        assert Program.concat(path.stem, pieces) == read_coop(path)
+    assert piece > 100 or len(pieces) > 100  # small pieces: many of them
+
+
+@pytest.mark.parametrize("piece", [1, 25, 1 << 20])
+def test_an_error_in_a_later_piece_names_its_line(tmp_path, piece):
+    bad = tmp_path / "A.coop"
+    bad.write_text("".join(f"MOVE {i}, 0, 1\n" for i in range(50)) + "MOVE 1, 2\n")
+    with pytest.raises(ProgramError, match=r"A\.coop:51:10: MOVE needs 3 numbers"):
+        list(iter_coop(bad, piece_bytes=piece))
+    with pytest.raises(ProgramError, match=r"A\.coop:51:10: MOVE needs 3 numbers"):
+        read_coop(bad)

@@ -305,6 +305,8 @@ class Sweep:
     values : (m, 2) float64
         Their values: layer index (-1 for '-') and height, or role (``cooprint.slicing.paths``)
         and width.
+    lines : int
+        How many lines the text has (its newlines plus one).
     """
 
     kind: np.ndarray
@@ -312,6 +314,7 @@ class Sweep:
     other: np.ndarray
     notes: np.ndarray
     values: np.ndarray
+    lines: int = 0
 
 
 def sweep(data) -> Sweep:
@@ -329,7 +332,7 @@ def sweep(data) -> Sweep:
     del buf
     for arr, rows in ((kind, slots), (xyz, slots), (other, others), (notes, annotations), (values, annotations)):
         arr.resize((rows,) + arr.shape[1:], refcheck=False)  # in place: the rest goes back to the heap
-    return Sweep(kind, xyz, other, notes, values)
+    return Sweep(kind, xyz, other, notes, values, int(lines))
 
 
 __all__ = ["LAYER_LINE", "commands_before", "compact", "MOVE_LINE", "OTHER", "PATH_LINE", "POW10", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep",
