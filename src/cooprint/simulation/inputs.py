@@ -7,6 +7,7 @@ import difflib
 import io
 import json
 import math
+import mmap
 import re
 import tomllib
 from dataclasses import dataclass, fields, replace
@@ -547,16 +548,27 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     p = Path(path)
     regular_file(p, "G-code file", SimInputError)  # a FIFO would block the read for ever
     try:
-        data = p.read_bytes()
+        with open(p, "rb") as f:  # mapped, not copied: its pages stay the page cache's
+            try:
+                data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+            except (OSError, ValueError):  # empty, or not a regular file: read it
+                data = f.read()
     except FileNotFoundError:
         raise SimInputError(f"{p}: no such G-code file") from None
     except IsADirectoryError:
         raise SimInputError(f"{p}: a folder, not a G-code file") from None
     except OSError as exc:
         raise SimInputError(f"{p}: cannot read ({exc.strerror or exc})") from None
-    rows = gcode_rows(data, filament_diameter, str(p))
-    if rows is None:
-        return _read_gcode_lines(p, _gcode_text(data), filament_diameter)
+    try:
+        rows = gcode_rows(data, filament_diameter, str(p))
+        if rows is None:
+            return _read_gcode_lines(p, _gcode_text(bytes(data)), filament_diameter)
+    finally:
+        if isinstance(data, mmap.mmap):
+            try:
+                data.close()
+            except BufferError:  # a view still held (by a traceback): the collector closes it
+                pass
     prog = make_program(p.stem, rows.kind, rows.xyz if len(rows.kind) else None,
                         role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height,
                         events=rows.events)
