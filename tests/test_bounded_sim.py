@@ -53,14 +53,17 @@ def test_findings_numbers_and_pictures_are_the_same_a_block_at_a_time(bundle, tm
     whole = {k: simulate(inp) for k, inp in plans.items()}
     assert {k for k, v in summary(whole["crowded"])["finding_counts"].items() if v} >= \
         {"robots-collide", "body-on-material", "double-deposit"}  # the checks that sweep have work to do
-    for k, res in whole.items():
-        render_sim.render_snapshot(res, res.makespan * 0.6, tmp_path / f"{k}_whole.png", max_segments=500)
+    def pictures(res, k, tag):
+        render_sim.render_snapshot(res, res.makespan * 0.6, tmp_path / f"{k}_{tag}.png", max_segments=500)
+        render_sim.render_gantt(res, tmp_path / f"{k}_{tag}_gantt.png")
+        return [(tmp_path / f"{k}_{tag}{x}.png").read_bytes() for x in ("", "_gantt")]
+
+    drawn = {k: pictures(res, k, "whole") for k, res in whole.items()}
     _tiny_blocks(monkeypatch)
     for k, inp in plans.items():
         res = simulate(inp)
         assert summary(res) == summary(whole[k]), k
-        render_sim.render_snapshot(res, res.makespan * 0.6, tmp_path / f"{k}_blocks.png", max_segments=500)
-        assert (tmp_path / f"{k}_blocks.png").read_bytes() == (tmp_path / f"{k}_whole.png").read_bytes(), k
+        assert pictures(res, k, "blocks") == drawn[k], k
 
 
 def test_reading_a_program_gives_the_same_columns_as_the_line_parser_would(bundle):

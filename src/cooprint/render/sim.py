@@ -470,10 +470,11 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
         y1 = y0 + bar
         draw.text((15, y0 + (bar - 16) / 2 if bar >= 16 else y0), f"robot {r.name}", fill=_colour(i), font=row_font)
         for on, colour in ((False, TRAVEL_COLOUR), (True, _colour(i))):
-            sel = tl.on == on
-            a, b = x(tl.t0[sel]), x(tl.t1[sel])
-            # merge touching bars (a print is millions of moves): draw runs at pixel resolution
-            for xa, xb in _runs(a, b):
+            # merge touching bars (a print is millions of moves): draw runs at pixel resolution,
+            # the moves a block at a time
+            bars = ((x(tl.t0[c:c + BLOCK_MOVES][sel]), x(tl.t1[c:c + BLOCK_MOVES][sel]))
+                    for c in range(0, len(tl.t0), BLOCK_MOVES) for sel in [tl.on[c:c + BLOCK_MOVES] == on])
+            for xa, xb in _runs(bars):
                 draw.rectangle([xa, y0, max(xb, xa + 1), y1], fill=colour)
         for a, b, _ in tl.waits:
             if b > a:
@@ -524,27 +525,37 @@ def _chunk_spans(robot, tl) -> list[tuple[str, float, float]]:
     prog = robot.program
     if not len(tl.index) or not prog.chunks:
         return []
-    chunk = np.asarray(prog.chunk)[tl.index]
-    sel = tl.on & (chunk >= 0)
-    if not sel.any():
-        return []
-    k, t0, t1 = chunk[sel], tl.t0[sel], tl.t1[sel]
-    out = []
-    for c in np.unique(k).tolist():
-        m = k == c
-        out.append((prog.chunks[c], float(t0[m].min()), float(t1[m].max())))
+    first, last = {}, {}  # per chunk: its earliest print start and latest print end, a block of moves at a time
+    for a in range(0, len(tl.index), BLOCK_MOVES):
+        chunk = np.asarray(prog.chunk)[tl.index[a:a + BLOCK_MOVES]]
+        sel = tl.on[a:a + BLOCK_MOVES] & (chunk >= 0)
+        k, t0, t1 = chunk[sel], tl.t0[a:a + BLOCK_MOVES][sel], tl.t1[a:a + BLOCK_MOVES][sel]
+        for c in np.unique(k).tolist():
+            m = k == c
+            first[c] = min(first.get(c, np.inf), float(t0[m].min()))
+            last[c] = max(last.get(c, -np.inf), float(t1[m].max()))
+    return [(prog.chunks[c], first[c], last[c]) for c in sorted(first)]
+
+
+def _runs(bars) -> list[tuple[float, float]]:
+    """Intervals ``[a, b]`` (``bars``: pairs of arrays ``a``, ``b``, one after the other, sorted
+    by ``a``) merged where they touch within a pixel: a run ends where the next interval starts
+    more than a pixel after the furthest end so far."""
+    out: list[tuple[float, float]] = []
+    lo, hi = None, -np.inf  # the run under way: its start; the furthest end so far
+    for a, b in bars:
+        if not len(a):
+            continue
+        top = np.maximum(np.maximum.accumulate(b), hi)  # the furthest end up to each interval
+        before = np.concatenate([[hi], top[:-1]])  # ... and before it
+        for s in np.flatnonzero(a > before + 1.0).tolist():  # intervals that start a run
+            if lo is not None:
+                out.append((lo, float(before[s])))
+            lo = float(a[s])
+        hi = top[-1]
+    if lo is not None:
+        out.append((lo, float(hi)))
     return out
-
-
-def _runs(a: np.ndarray, b: np.ndarray) -> list[tuple[float, float]]:
-    """Intervals [a, b] (sorted by a) merged where they touch within a pixel."""
-    if len(a) == 0:
-        return []
-    gap = np.flatnonzero(a[1:] > np.maximum.accumulate(b)[:-1] + 1.0)
-    starts = np.r_[0, gap + 1]
-    ends = np.r_[gap, len(a) - 1]
-    hi = np.maximum.accumulate(b)
-    return list(zip(a[starts].tolist(), hi[ends].tolist()))
 
 
 def _nice_step(raw: float) -> float:
