@@ -176,7 +176,8 @@ def test_a_program_read_in_pieces_is_the_whole_program(bundle, tmp_path, piece):
     odd.write_bytes(ODD.encode())
     for path in (odd, bundle / "robots" / "B.coop"):
         pieces = list(iter_coop(path, piece_bytes=piece))
-        assert Program.concat(path.stem, pieces) == read_coop(path)
+        whole = parse_coop(path.read_bytes(), path.stem, str(path))
+        assert Program.concat(path.stem, pieces) == whole == read_coop(path)
     assert piece > 100 or len(pieces) > 100  # small pieces: many of them
 
 

@@ -572,14 +572,39 @@ class _Piece:
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:
-    """Read a ``.coop`` file; the robot's name defaults to the file's stem. The file is mapped,
-    not copied: its pages stay the page cache's (:func:`iter_coop` reads it in pieces)."""
+    """Read a ``.coop`` file; the robot's name defaults to the file's stem. The file is mapped
+    and read a piece at a time (:func:`iter_coop`), each piece's commands written into the
+    program's columns as they come: reading holds the program and one piece, not the file's
+    pages nor the sweep's work space for the whole file."""
     p = Path(path)
-    data = _open_coop(p)
-    try:
-        return parse_coop(data, robot or p.stem, str(p))
-    finally:
-        _close(data)
+    name = robot or p.stem
+    size = p.stat().st_size if p.is_file() else 0
+    # at most a command every 7 bytes ('NOTIFY' and its newline): room for all; pages never
+    # written are never backed by memory, and the columns are cut to size at the end
+    cols = {f: None for f in COLUMNS}
+    at, chunks, events, turns = 0, [], [], []
+    for piece in iter_coop(p, name):
+        n = len(piece)
+        if cols["kind"] is None or at + n > len(cols["kind"]):  # first piece, or a file that grew
+            room = max(at + n, size // 7 + 1, 2 * len(cols["kind"]) if cols["kind"] is not None else 0)
+            for f in COLUMNS:
+                col = getattr(piece, f)
+                if cols[f] is None:
+                    cols[f] = np.empty((room,) + col.shape[1:], col.dtype)
+                else:
+                    cols[f].resize((room,) + col.shape[1:], refcheck=False)
+        chunks += [c for c in piece.chunks if c not in chunks]  # in the order they first appear
+        remap = np.array([chunks.index(c) for c in piece.chunks] + [-1], dtype=np.int16)
+        for f in COLUMNS[:6]:
+            cols[f][at:at + n] = getattr(piece, f)
+        cols["chunk"][at:at + n] = remap[piece.chunk]  # -1 indexes the appended -1
+        cols["event"][at:at + n] = np.where(piece.event >= 0, piece.event + len(events), -1)
+        events += piece.events
+        turns += [(i + at, deg) for i, deg in piece.turns]
+        at += n
+    for f in COLUMNS:
+        cols[f].resize((at,) + cols[f].shape[1:], refcheck=False)  # in place: the rest goes back
+    return Program(name, *(cols[f] for f in COLUMNS), chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
 
 
 #: How much text :func:`iter_coop` reads at a time, bytes (about a million commands).
