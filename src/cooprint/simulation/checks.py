@@ -622,20 +622,22 @@ def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarra
     centre, owner, h = times[near], near, dt / 2
     first = True
     while len(centre) and speed * h > COLLIDE_DEPTH:
-        if not first:
-            near = pair.mask(centre, ka, kb, na, nb, margin=speed * h / 2) != 0
+        if not first:  # the windows that may still hold an overlap
+            close = _in_blocks(centre, lambda c, state: pair.mask(c, state[2], state[3], state[0], state[1],
+                                                                   margin=speed * h / 2) != 0, pair, timelines)
             if len(turns):
-                near |= np.searchsorted(turns, centre - h) != np.searchsorted(turns, centre + h, side="right")
-            centre, owner = centre[near], owner[near]
+                close |= np.searchsorted(turns, centre - h) != np.searchsorted(turns, centre + h, side="right")
+            centre, owner = centre[close], owner[close]
         first = False
         if 2 * len(centre) > MAX_INSTANTS:  # bounded work: robots that stay within a hair of each other for days
             break
         h /= 2
-        centre, owner = np.r_[centre - h, centre + h], np.r_[owner, owner]
-        order = np.argsort(centre, kind="stable")
-        centre, owner = centre[order], owner[order]
-        na, nb, ka, kb = _pair_state(pair, centre, timelines)
-        hit = pair.mask(centre, ka, kb, na, nb)
+        # each window halved: its two halves' centres, in time order (windows are at least 2 h apart)
+        halves = np.empty(2 * len(centre))
+        halves[0::2], halves[1::2] = centre - h, centre + h
+        centre, owner = halves, np.repeat(owner, 2)
+        hit = _in_blocks(centre, lambda c, state: pair.mask(c, state[2], state[3], state[0], state[1]), pair,
+                         timelines)
         got = hit != 0
         if got.any():
             first_hit = np.unique(owner[got], return_index=True)[1]  # each window's earliest (sorted)
@@ -644,7 +646,15 @@ def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarra
             when[owner[k]] = centre[k]
             keep = mask[owner] == 0
             centre, owner = centre[keep], owner[keep]
-            na, nb, ka, kb = na[keep], nb[keep], ka[keep], kb[keep]
+
+
+def _in_blocks(t: np.ndarray, look, pair: _Pair, timelines: dict[str, Timeline]) -> np.ndarray:
+    """``look(times, state)`` for sorted times ``t``, ``COLLIDE_BLOCK`` at a time (``state``:
+    both nozzles and facings there, :func:`_pair_state`), concatenated: the robots' states at a
+    block of times at once, not at all of them."""
+    out = [look(t[s:s + COLLIDE_BLOCK], _pair_state(pair, t[s:s + COLLIDE_BLOCK], timelines))
+           for s in range(0, len(t), COLLIDE_BLOCK)]
+    return np.concatenate(out) if out else np.zeros(0, np.int32)
 
 
 def _pair_state(pair: _Pair, t: np.ndarray, timelines: dict[str, Timeline]):
