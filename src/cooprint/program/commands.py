@@ -607,8 +607,9 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
     return Program(name, *(cols[f] for f in COLUMNS), chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
 
 
-#: How much text :func:`iter_coop` reads at a time, bytes (about a million commands).
-PIECE_BYTES = 32 << 20
+#: How much text :func:`iter_coop` reads at a time, bytes (about 200,000 commands; small, so
+#: that what a piece needs while it is read is little beside the program it is read into).
+PIECE_BYTES = 4 << 20
 
 
 def iter_coop(path: str | Path, robot: str | None = None, piece_bytes: int = PIECE_BYTES) -> Iterator[Program]:
