@@ -257,15 +257,14 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
     if r.profile is not None:
         print_speed, travel_speed = r.profile.print_speed, r.profile.travel_speed
-    dur = np.empty(k)
     if limits is None and r.speed is None and r.de is None:  # length / speed, no array but the result
-        np.divide(length, travel_speed, out=dur)
+        dur = np.divide(length, travel_speed)
         np.divide(length, print_speed, out=dur, where=on)
         return mv, p0, p1, on, length, dur
     v = np.where(on, print_speed, travel_speed) if r.speed is None else r.speed[mv]
     de = np.zeros(len(mv)) if r.de is None else r.de[mv]
     if limits is None:
-        np.abs(de, out=dur)  # a move of filament alone takes |E| / speed
+        dur = np.abs(de)  # a move of filament alone takes |E| / speed
         np.copyto(dur, length, where=length > 0)
         dur /= v
     else:
