@@ -189,3 +189,18 @@ def test_an_error_in_a_later_piece_names_its_line(tmp_path, piece):
         list(iter_coop(bad, piece_bytes=piece))
     with pytest.raises(ProgramError, match=r"A\.coop:51:10: MOVE needs 3 numbers"):
         read_coop(bad)
+
+
+def test_a_robot_stuck_at_a_later_wait_keeps_the_delays_of_its_earlier_waits():
+    """The schedule adds each WAIT's delay to the moves after it, run by run: a robot that
+    deadlocks at its second WAIT still starts the moves after its first one when that WAIT ends
+    (the per-command arrays this replaced looked the delays up with the stuck robot's position
+    instead of its WAITs' indices: those moves started at 0 s)."""
+    up = np.array([0.0, 1.0])
+    a = SimRobot("A", parse_coop("MOVE 0 0 0\nMOVE 400 0 0\nNOTIFY\n", "A"), np.zeros(3), up)
+    b = SimRobot("B", parse_coop("MOVE 0 1000 0\nWAIT A:1\nMOVE 40 1000 0\nWAIT never\nMOVE 80 1000 0\n", "B"),
+                 np.array([0.0, 1000.0, 0.0]), up)
+    timelines, findings = schedule([a, b], 40.0, 40.0)
+    assert [f.kind for f in findings] == ["deadlock"] and findings[0].time == 11.0
+    np.testing.assert_array_equal(timelines["B"].t0, [0.0, 10.0])
+    np.testing.assert_array_equal(timelines["B"].t1, [0.0, 11.0])
