@@ -47,7 +47,7 @@ import mmap
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO, Iterable, TextIO
+from typing import BinaryIO, Iterable, Iterator, TextIO
 
 import numpy as np
 
@@ -554,80 +554,187 @@ def parse_coop(text: str | bytes | mmap.mmap, robot: str, source: str = "<progra
     ProgramError
         ``source:line:column: what is wrong`` for the first malformed line.
     """
-    from cooprint.program.scan import LAYER_LINE, PATH_LINE, sweep  # numba: on first use
-
     data = text.encode() if isinstance(text, str) else text
     if bytes(data[:3]) == UTF8_BOM:  # Windows editors start UTF-8 text with one: it is not part of line 1
         data = memoryview(data)[3:]  # for the compiled sweep and the line parser alike (no copy of an mmap)
-    swept = sweep(data)
-    kind_of, xyz_of = swept.kind, swept.xyz  # per slot: a command, or a line for the line parser
-    lines = _Lines(source, robot)
-    events = []
-    ann: dict[str, list] = {"chunk": [], "layer": [], "path": [], "facing": []}  # (line, slot, value) of the line parser's
-    for i, a, b, slot in swept.other.tolist():
-        try:
-            line = bytes(data[a:b]).decode("utf-8")
-        except UnicodeDecodeError:
-            raise lines.error(i + 1, 1, "not UTF-8 text") from None
-        got = lines.parse(line, i + 1)
-        if got is None:
-            continue
-        if got[0] == "ann":
-            ann[got[1]].append((i, slot, got[2] if isinstance(got[2], tuple) else (got[2],)))
-            continue
-        kind, payload = got
-        kind_of[slot] = kind
-        if kind == MOVE:
-            xyz_of[slot] = payload
-        elif kind in (NOTIFY, WAIT):
-            events.append(payload)
-    slot_of = None  # each command's slot, if some slots are not commands
-    if (kind_of < 0).any():
-        slot_of = np.flatnonzero(kind_of >= 0)
-        kind_of, xyz_of = kind_of[slot_of], xyz_of[slot_of]
-    kind_of = kind_of.astype(np.uint8)
+    return _Piece(_Lines(source, robot)).parse(data)
 
-    def state(key: str, start: tuple, fast: int = -1) -> list[np.ndarray]:
-        """Each command's value of an annotation (its columns): the last one above its line,
-        read by the sweep (``fast``) or by the line parser; ``start`` before any."""
-        mine = swept.notes[:, 2] == fast
-        line = np.concatenate([np.array([x[0] for x in ann[key]], dtype=np.int64), swept.notes[mine, 0]])
-        slot = np.concatenate([np.array([x[1] for x in ann[key]], dtype=np.int64), swept.notes[mine, 1]])
-        order = np.argsort(line, kind="stable")
-        cols = [np.concatenate([[s], [x[2][j] for x in ann[key]], swept.values[mine, j]])[np.r_[0, order + 1]]
-                for j, s in enumerate(start)]
-        before = slot[order] if slot_of is None else np.searchsorted(slot_of, slot[order])  # commands above
-        return [np.repeat(c, np.diff(np.r_[0, before, len(kind_of)])) for c in cols]
 
-    (chunk,) = state("chunk", (-1,))
-    layer, height = state("layer", (-1, 0.0), LAYER_LINE)
-    role, width = state("path", (TRAVEL, 0.0), PATH_LINE)
-    sync = (kind_of == NOTIFY) | (kind_of == WAIT)
-    event = np.full(len(kind_of), -1, np.int32)
-    event[sync] = np.arange(int(sync.sum()), dtype=np.int32)
-    chunk = chunk.astype(np.int16)
-    # the chunk table: the chunks that commands belong to, in the order they first appear
-    runs = chunk[np.flatnonzero(np.r_[True, chunk[1:] != chunk[:-1]])] if len(chunk) else chunk
-    used, first = np.unique(runs[runs >= 0], return_index=True)
-    used = used[np.argsort(first)]
-    remap = np.full(len(lines.chunks) + 1, -1, dtype=np.int16)
-    remap[used] = np.arange(len(used))
-    # a turn comes before the first command below its line (the commands above it: its slot
-    # among the commands' slots)
-    turn_slot = np.array([x[1] for x in ann["facing"]], dtype=np.int64)
-    turn_at = turn_slot if slot_of is None else np.searchsorted(slot_of, turn_slot)
-    turns = tuple((int(i), x[2][0]) for i, x in zip(turn_at.tolist(), ann["facing"]))
-    return Program(robot, kind_of, xyz_of, role.astype(np.uint8), width, layer.astype(np.int32), height,
-                   remap[chunk], event, tuple(lines.chunks[c] for c in used.tolist()), tuple(events), turns)
+class _Piece:
+    """Reads a program a piece of text at a time (whole lines): the line parser (its chunk names
+    and NOTIFY count), the annotations in force and the line number carry from one piece to the
+    next, so that the pieces' programs, concatenated, are the whole text's."""
+
+    def __init__(self, lines: _Lines):
+        self.lines = lines
+        self.line0 = 0  # lines before the piece
+        # the annotations in force: chunk (index in lines.chunks), (layer, height), (role, width)
+        self.start = {"chunk": (-1,), "layer": (-1, 0.0), "path": (TRAVEL, 0.0)}
+
+    def parse(self, data) -> Program:
+        """The program of ``data`` (bytes or a buffer of them: whole lines, the next piece)."""
+        from cooprint.program.scan import LAYER_LINE, PATH_LINE, commands_before, compact, sweep  # numba: on first use
+
+        lines, line0 = self.lines, self.line0
+        robot = lines.robot
+        swept = sweep(data)
+        kind_of, xyz_of = swept.kind, swept.xyz  # per slot: a command, or a line for the line parser
+        events = []
+        ann: dict[str, list] = {"chunk": [], "layer": [], "path": [], "facing": []}  # (line, slot, value) of the line parser's
+        for i, a, b, slot in swept.other.tolist():
+            try:
+                line = bytes(data[a:b]).decode("utf-8")
+            except UnicodeDecodeError:
+                raise lines.error(line0 + i + 1, 1, "not UTF-8 text") from None
+            got = lines.parse(line, line0 + i + 1)
+            if got is None:
+                continue
+            if got[0] == "ann":
+                ann[got[1]].append((i, slot, got[2] if isinstance(got[2], tuple) else (got[2],)))
+                continue
+            kind, payload = got
+            kind_of[slot] = kind
+            if kind == MOVE:
+                xyz_of[slot] = payload
+            elif kind in (NOTIFY, WAIT):
+                events.append(payload)
+        # the line parser's slots that hold no command (annotations, blank lines in its share) leave:
+        # the commands are moved to the front in place and the arrays cut there (no copy of the
+        # program's columns), after each annotation's slot is turned into the commands above it
+        def above(slots: np.ndarray) -> np.ndarray:
+            """How many commands come before each of ``slots`` (ascending)."""
+            out = np.empty(len(slots), np.int64)
+            if len(slots):
+                commands_before(kind_of, slots, out)
+            return out
+
+        def state(key: str, start: tuple, dtypes: tuple, fast: int = -1) -> tuple[list[np.ndarray], np.ndarray]:
+            """Each annotation's values (the last one above each command holds), ``start`` before
+            any, read by the sweep (``fast``) or by the line parser, in line order, as ``dtypes``;
+            and how many commands each holds for."""
+            mine = np.flatnonzero(swept.notes[:, 2] == fast)
+            line = np.concatenate([np.array([x[0] for x in ann[key]], dtype=np.int64), swept.notes[mine, 0]])
+            slot = np.concatenate([np.array([x[1] for x in ann[key]], dtype=np.int64), swept.notes[mine, 1]])
+            order = np.argsort(line, kind="stable")
+            held = np.diff(np.concatenate([[0], above(slot[order]), [commands]]))
+            values = [np.concatenate([[s], np.array([x[2][j] for x in ann[key]], dtype=np.float64),
+                                      swept.values[mine, j]])[np.r_[0, order + 1]].astype(dt)
+                      for j, (s, dt) in enumerate(zip(start, dtypes))]
+            return values, held
+
+        commands = int(np.count_nonzero(kind_of >= 0))
+        (chunk_v,), chunk_n = state("chunk", self.start["chunk"], (np.int64,))
+        layer_v, layer_n = state("layer", self.start["layer"], (np.int32, np.float64), LAYER_LINE)
+        path_v, path_n = state("path", self.start["path"], (np.uint8, np.float64), PATH_LINE)
+        # in force after the piece: its last annotations; the next piece's first line
+        self.start = {"chunk": (int(chunk_v[-1]),), "layer": (int(layer_v[0][-1]), float(layer_v[1][-1])),
+                      "path": (int(path_v[0][-1]), float(path_v[1][-1]))}
+        self.line0 += swept.lines - 1
+        turn_at = above(np.array([x[1] for x in ann["facing"]], dtype=np.int64))
+        if commands < len(kind_of):
+            compact(kind_of, xyz_of)
+            kind_of.resize(commands, refcheck=False)  # in place: the rest goes back to the heap
+            xyz_of.resize((commands, 3), refcheck=False)
+        kind_of = kind_of.view(np.uint8)  # 0..4 either way
+        # the chunk table: the chunks that commands belong to, in the order they first appear
+        used = chunk_v[(chunk_n > 0) & (chunk_v >= 0)]
+        used = used[np.sort(np.unique(used, return_index=True)[1])]
+        remap = np.full(len(lines.chunks) + 1, -1, dtype=np.int16)
+        remap[used] = np.arange(len(used))
+        chunk = np.repeat(remap[chunk_v], chunk_n)
+        layer, height = (np.repeat(v, layer_n) for v in layer_v)
+        role, width = (np.repeat(v, path_n) for v in path_v)
+        event = np.full(commands, -1, np.int32)
+        sync = np.flatnonzero(kind_of >= NOTIFY)  # NOTIFY and WAIT
+        event[sync] = np.arange(len(sync), dtype=np.int32)
+        # a turn comes before the first command below its line (the commands above its slot)
+        turns = tuple((int(i), x[2][0]) for i, x in zip(turn_at.tolist(), ann["facing"]))
+        return Program(robot, kind_of, xyz_of, role, width, layer, height, chunk, event,
+                       tuple(lines.chunks[c] for c in used.tolist()), tuple(events), turns)
 
 
 def read_coop(path: str | Path, robot: str | None = None) -> Program:
     """Read a ``.coop`` file, plain or gzip-compressed (``A.coop.gz``); the robot's name
-    defaults to the file's stem (``A``). A plain file is mapped, not copied: its pages stay the
-    page cache's; a compressed one is read and decompressed."""
-    from cooprint.io.bundle import GZIP_MAGIC, plain_name, read_output
+    defaults to the file's stem (``A``). The file is mapped (a compressed one read and
+    decompressed) and read a piece at a time (:func:`iter_coop`), each piece's commands written
+    into the program's columns as they come: reading holds the program and one piece, not the
+    file's pages nor the sweep's work space for the whole file."""
+    from cooprint.io.bundle import plain_name
 
     p = Path(path)
+    name = robot or plain_name(p).stem
+    size = p.stat().st_size if p.is_file() else 0
+    # at most a command every 7 bytes ('NOTIFY' and its newline): room for all; pages never
+    # written are never backed by memory, and the columns are cut to size at the end
+    cols = {f: None for f in COLUMNS}
+    at, chunks, events, turns = 0, [], [], []
+    for piece in iter_coop(p, name):
+        n = len(piece)
+        if cols["kind"] is None or at + n > len(cols["kind"]):  # first piece, or a file that grew
+            room = max(at + n, size // 7 + 1, 2 * len(cols["kind"]) if cols["kind"] is not None else 0)
+            for f in COLUMNS:
+                col = getattr(piece, f)
+                if cols[f] is None:
+                    cols[f] = np.empty((room,) + col.shape[1:], col.dtype)
+                else:
+                    cols[f].resize((room,) + col.shape[1:], refcheck=False)
+        chunks += [c for c in piece.chunks if c not in chunks]  # in the order they first appear
+        remap = np.array([chunks.index(c) for c in piece.chunks] + [-1], dtype=np.int16)
+        for f in COLUMNS[:6]:
+            cols[f][at:at + n] = getattr(piece, f)
+        cols["chunk"][at:at + n] = remap[piece.chunk]  # -1 indexes the appended -1
+        cols["event"][at:at + n] = np.where(piece.event >= 0, piece.event + len(events), -1)
+        events += piece.events
+        turns += [(i + at, deg) for i, deg in piece.turns]
+        at += n
+    for f in COLUMNS:
+        cols[f].resize((at,) + cols[f].shape[1:], refcheck=False)  # in place: the rest goes back
+    return Program(name, *(cols[f] for f in COLUMNS), chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
+
+
+#: How much text :func:`iter_coop` reads at a time, bytes (about 200,000 commands; small, so
+#: that what a piece needs while it is read is little beside the program it is read into).
+PIECE_BYTES = 4 << 20
+
+
+def iter_coop(path: str | Path, robot: str | None = None, piece_bytes: int = PIECE_BYTES) -> Iterator[Program]:
+    """A ``.coop`` file's program in pieces of whole lines, about ``piece_bytes`` of text each:
+    ``Program.concat(robot, iter_coop(path))`` is ``read_coop(path)`` (each piece has its own
+    chunk table and events; the annotations in force, the chunk names, the count of bare
+    NOTIFYs and the line numbers of error messages carry over). The file is mapped, and the
+    pages of each piece are given back once it is read: reading a program of any size holds a
+    piece of its text and the piece's program at a time."""
+    from cooprint.io.bundle import plain_name
+
+    p = Path(path)
+    name = robot or plain_name(p).stem
+    data = _open_coop(p)
+    try:
+        n = len(data)
+        a = 3 if n >= 3 and bytes(data[:3]) == UTF8_BOM else 0  # not part of line 1
+        reader = _Piece(_Lines(str(p), name))
+        first = True
+        while a < n or first:  # an empty file is one empty piece
+            first = False
+            cut = data.find(b"\n", a + max(piece_bytes, 1) - 1) if a + piece_bytes < n else -1
+            b = n if cut < 0 else cut + 1  # just after a newline, or the end
+            with memoryview(data)[a:b] as piece:
+                program = reader.parse(piece)
+            if isinstance(data, mmap.mmap):  # the piece's whole pages: read, not needed again
+                lo, hi = a - a % mmap.PAGESIZE, b - b % mmap.PAGESIZE
+                if hi > lo:
+                    data.madvise(mmap.MADV_DONTNEED, lo, hi - lo)
+            a = b
+            yield program
+    finally:
+        _close(data)
+
+
+def _open_coop(p: Path):
+    """A command file mapped (or read: an empty file, a pipe; read and decompressed: a gzip
+    file), or a one-line error."""
+    from cooprint.io.bundle import GZIP_MAGIC, read_output
+
     regular_file(p, "command file", ProgramError)  # a FIFO would block the read for ever
     try:
         with open(p, "rb") as f:
@@ -636,23 +743,23 @@ def read_coop(path: str | Path, robot: str | None = None) -> Program:
             except (OSError, ValueError):  # empty, or not a regular file (a pipe): read it
                 data = f.read()
         if bytes(data[:2]) == GZIP_MAGIC:
-            if isinstance(data, mmap.mmap):
-                data.close()
+            _close(data)
             data = read_output(p, ProgramError)
+        return data
     except FileNotFoundError:
         raise ProgramError(f"{p}: no such command file") from None
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read ({exc})") from None
-    try:
-        return parse_coop(data, robot or plain_name(p).stem, str(p))
-    finally:
-        if isinstance(data, mmap.mmap):
-            try:
-                data.close()
-            except BufferError:  # a view still held (by a traceback): the collector closes it
-                pass
+
+
+def _close(data) -> None:
+    if isinstance(data, mmap.mmap):
+        try:
+            data.close()
+        except BufferError:  # a view still held (by a traceback): the collector closes it
+            pass
 
 
 __all__ = ["CoopWriter", "FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION",
-           "ROLE_WORDS", "TOOL_OFF", "TOOL_ON", "WAIT", "make_program", "parse_coop", "program_rows", "coop_text",
-           "quantize", "read_coop", "write_coop"]
+           "ROLE_WORDS", "TOOL_OFF", "TOOL_ON", "WAIT", "iter_coop", "make_program", "parse_coop", "program_rows",
+           "coop_text", "quantize", "read_coop", "write_coop"]

@@ -257,6 +257,34 @@ def _sweep(buf, pow10, tool_on, tool_off, words, word_starts, limits, kind, xyz,
     return slots, others, notes
 
 
+@numba.njit(cache=True, nogil=True)
+def commands_before(kind, slots, out):
+    """``out[j]``: how many commands (``kind >= 0``) come before slot ``slots[j]``; ``slots`` in
+    ascending order. One pass over ``kind``, no per-slot array."""
+    k = 0  # commands before slot s
+    s = 0
+    for j in range(len(slots)):
+        while s < slots[j]:
+            if kind[s] >= 0:
+                k += 1
+            s += 1
+        out[j] = k
+
+
+@numba.njit(cache=True, nogil=True)
+def compact(kind, xyz):
+    """Move the command slots (``kind >= 0``) of ``kind`` and ``xyz`` to the front, in order, in
+    place; return how many there are (the rest of the arrays is left as it was)."""
+    m = 0
+    for s in range(len(kind)):
+        if kind[s] >= 0:
+            if m != s:
+                kind[m] = kind[s]
+                xyz[m, 0], xyz[m, 1], xyz[m, 2] = xyz[s, 0], xyz[s, 1], xyz[s, 2]
+            m += 1
+    return m
+
+
 @dataclass(frozen=True)
 class Sweep:
     """What the sweep read of a ``.coop`` text.
@@ -277,6 +305,8 @@ class Sweep:
     values : (m, 2) float64
         Their values: layer index (-1 for '-') and height, or role (``cooprint.slicing.paths``)
         and width.
+    lines : int
+        How many lines the text has (its newlines plus one).
     """
 
     kind: np.ndarray
@@ -284,6 +314,7 @@ class Sweep:
     other: np.ndarray
     notes: np.ndarray
     values: np.ndarray
+    lines: int = 0
 
 
 def sweep(data) -> Sweep:
@@ -301,8 +332,8 @@ def sweep(data) -> Sweep:
     del buf
     for arr, rows in ((kind, slots), (xyz, slots), (other, others), (notes, annotations), (values, annotations)):
         arr.resize((rows,) + arr.shape[1:], refcheck=False)  # in place: the rest goes back to the heap
-    return Sweep(kind, xyz, other, notes, values)
+    return Sweep(kind, xyz, other, notes, values, int(lines))
 
 
-__all__ = ["LAYER_LINE", "MOVE_LINE", "OTHER", "PATH_LINE", "POW10", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep",
+__all__ = ["LAYER_LINE", "commands_before", "compact", "MOVE_LINE", "OTHER", "PATH_LINE", "POW10", "SKIP", "TOOL_OFF_LINE", "TOOL_ON_LINE", "Sweep",
            "decimal", "sweep"]

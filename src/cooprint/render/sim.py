@@ -45,7 +45,11 @@ class _Scene:
     def __init__(self, result: SimResult, size: tuple[int, int], azimuth_deg: float, elevation_deg: float):
         self.result, self.size = result, size
         self.basis = _view_basis(azimuth_deg, elevation_deg)
-        extent = [np.vstack([tl.p0, tl.p1]) for tl in result.timelines.values() if len(tl.p0)]
+        # the moves' ends projected a block at a time: the least and the most of each axis (all
+        # that the fit and the shading take), not a projected copy of every move
+        ends = [p for tl in result.timelines.values() for a in range(0, len(tl.p0), BLOCK_MOVES)
+                for p in (tl.p0[a:a + BLOCK_MOVES], tl.p1[a:a + BLOCK_MOVES])]
+        extent = [f(p @ self.basis.T, axis=0) for p in ends for f in (np.min, np.max)]
         feet = [_footprint(result, r, p, t) for r in result.robots for tl in [result.timelines[r.name]]
                 for p, t in ([(tl.p0[0], tl.t0[0]), (tl.p1[-1], tl.t1[-1])] if len(tl.p0) else [])
                 if result.placed]
@@ -56,25 +60,26 @@ class _Scene:
             spans = r.facing_spans(result.timelines[r.name]) if r.program.turns else []
             feet += [np.column_stack([sp.position[:2] + body_corners(r.profile or result.profile, f), np.zeros(4)])
                      for before, sp in zip(spans, spans[1:]) for f in (before.facing, sp.facing)]
-        every = np.vstack(extent + feet) if extent else np.zeros((1, 3))
-        self.lo, self.scale, self.off = _fit((every @ self.basis.T)[:, :2], size, 40, 90)
+        every = np.vstack(extent + [f @ self.basis.T for f in feet]) if extent else np.zeros((1, 3)) @ self.basis.T
+        self.lo, self.scale, self.off = _fit(every[:, :2], size, 40, 90)
         self.palette = np.array([_colour(i) for i in range(len(result.robots))])
-        depth = (np.vstack(extent) if extent else np.zeros((1, 3))) @ self.basis.T[:, 2]  # for shading
-        self.d_lo, self.d_span = float(depth.min()), max(float(np.ptp(depth)), 1e-9)
-        # per robot, for its progress bar: its printing moves' starts and ends, and the printing
-        # time done before each
+        depth = [f(p @ self.basis.T[:, 2]) for p in ends for f in (np.min, np.max)] or [0.0]  # for shading
+        self.d_lo, self.d_span = float(min(depth)), max(float(max(depth) - min(depth)), 1e-9)
+        # per robot, for its progress bar: the printing time done before each block of moves
         self.printing = {}
         for r in result.robots:
             tl = result.timelines[r.name]
-            t0, t1 = tl.t0[tl.on], tl.t1[tl.on]
-            self.printing[r.name] = (t0, t1, np.concatenate([[0.0], np.cumsum(t1 - t0)]))
+            done = [_printing(tl, a, min(a + BLOCK_MOVES, len(tl.t0))) for a in range(0, len(tl.t0), BLOCK_MOVES)]
+            self.printing[r.name] = np.concatenate([[0.0], np.cumsum(done)])
 
     def printed(self, robot: str, t: float) -> tuple[float, float]:
         """Seconds of printing robot ``robot`` has done by ``t``, and in all."""
-        t0, t1, before = self.printing[robot]
-        k = int(np.searchsorted(t1, t, side="right"))  # printing moves finished by t
-        under_way = t - t0[k] if k < len(t0) and t0[k] < t else 0.0
-        return float(before[k] + under_way), float(before[-1])
+        tl, before = self.result.timelines[robot], self.printing[robot]
+        k = int(np.searchsorted(tl.t1, t, side="right"))  # moves finished by t
+        b = k // BLOCK_MOVES
+        done = before[b] + (_printing(tl, b * BLOCK_MOVES, k) if k > b * BLOCK_MOVES else 0.0)
+        under_way = t - tl.t0[k] if k < len(tl.t0) and tl.on[k] and tl.t0[k] < t else 0.0  # a print under way
+        return float(done + under_way), float(before[-1])
 
     def px(self, p: np.ndarray) -> np.ndarray:
         return ((p @ self.basis.T)[..., :2] - self.lo) * self.scale * np.array([1, -1]) + self.off
@@ -110,12 +115,49 @@ class _Scene:
             draw.ellipse([b[0] - 5, b[1] - 5, b[0] + 5, b[1] + 5], fill=_colour(i), outline=(30, 30, 30))
 
 
-def _deposited(result: SimResult, t: float) -> tuple[np.ndarray, np.ndarray]:
+#: Moves looked at a block at a time (the scene's extent, the printing time, the material drawn).
+BLOCK_MOVES = 1 << 20
+
+
+def _printing(tl, a: int, e: int) -> float:
+    """Seconds of printing in moves ``a:e`` of a timeline."""
+    on = tl.on[a:e]
+    return float((tl.t1[a:e][on] - tl.t0[a:e][on]).sum())
+
+
+def _deposited(result: SimResult, t: float, most: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The segments (m, 2, 3) of material laid down by ``t`` (each robot's in order, the last
+    one of each cut at ``t``) and the robot of each; with ``most``, at most that many of them,
+    evenly spread over all (``linspace`` over their order), gathered a block of moves at a time
+    (never all of a big plan's segments at once)."""
+    counts = []  # per robot: its moves that may have started by t, and its deposits in each block of them
+    for r in result.robots:
+        tl = result.timelines[r.name]
+        k = int(np.searchsorted(tl.t0, t, side="left"))
+        counts.append((k, np.array([int(np.count_nonzero(tl.on[a:min(a + BLOCK_MOVES, k)]))
+                                    for a in range(0, k, BLOCK_MOVES)], dtype=np.int64)))
+    total = int(sum(int(c.sum()) for _, c in counts))
+    pick = np.linspace(0, total - 1, most).astype(np.int64) if most is not None and total > most else None
     segs, cols = [], []
-    for i, r in enumerate(result.robots):
-        seg, _ = result.timelines[r.name].deposited(t)
-        segs.append(seg)
-        cols.append(np.full(len(seg), i))
+    first = 0  # the robot's first segment among all
+    for i, (r, (k, blocks)) in enumerate(zip(result.robots, counts)):
+        tl = result.timelines[r.name]
+        mine = int(blocks.sum())
+        want = None if pick is None else pick[np.searchsorted(pick, first):np.searchsorted(pick, first + mine)] - first
+        starts = np.concatenate([[0], np.cumsum(blocks)])
+        full = np.flatnonzero(blocks)  # the robot's last deposit by t: the last of the last block that has one
+        last = (int(np.flatnonzero(tl.on[full[-1] * BLOCK_MOVES:min((full[-1] + 1) * BLOCK_MOVES, k)])[-1])
+                + int(full[-1]) * BLOCK_MOVES) if len(full) else -1
+        for j, a in enumerate(range(0, k, BLOCK_MOVES)):
+            idx = np.flatnonzero(tl.on[a:min(a + BLOCK_MOVES, k)]) + a  # the block's deposits
+            if want is not None:
+                idx = idx[want[np.searchsorted(want, starts[j]):np.searchsorted(want, starts[j + 1])] - starts[j]]
+            seg = np.stack([tl.p0[idx], tl.p1[idx]], axis=1)
+            if len(idx) and idx[-1] == last and tl.t1[last] > t:  # its last deposit, under way: up to the nozzle
+                seg[-1, 1] = tl.position(t)
+            segs.append(seg)
+            cols.append(np.full(len(seg), i))
+        first += mine
     return (np.concatenate(segs) if segs else np.zeros((0, 2, 3)),
             np.concatenate(cols) if cols else np.zeros(0, np.int64))
 
@@ -125,10 +167,7 @@ def render_snapshot(result: SimResult, t: float, path: str | Path, size: tuple[i
     """The fleet at time ``t``: material laid down so far (per robot colour, far to near), each
     robot's footprint on the floor and its nozzle, a clock and each robot's progress."""
     scene = _Scene(result, size, azimuth_deg, elevation_deg)
-    seg, col = _deposited(result, t)
-    if len(seg) > max_segments:
-        pick = np.linspace(0, len(seg) - 1, max_segments).astype(np.int64)
-        seg, col = seg[pick], col[pick]
+    seg, col = _deposited(result, t, max_segments)  # at most max_segments, spread over all
     img = Image.new("RGB", size, BACKGROUND)
     draw = ImageDraw.Draw(img)
     scene.robots(draw, t, filled=True)
@@ -437,10 +476,11 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
         y1 = y0 + bar
         draw.text((15, y0 + (bar - 16) / 2 if bar >= 16 else y0), f"robot {r.name}", fill=_colour(i), font=row_font)
         for on, colour in ((False, TRAVEL_COLOUR), (True, _colour(i))):
-            sel = tl.on == on
-            a, b = x(tl.t0[sel]), x(tl.t1[sel])
-            # merge touching bars (a print is millions of moves): draw runs at pixel resolution
-            for xa, xb in _runs(a, b):
+            # merge touching bars (a print is millions of moves): draw runs at pixel resolution,
+            # the moves a block at a time
+            bars = ((x(tl.t0[c:c + BLOCK_MOVES][sel]), x(tl.t1[c:c + BLOCK_MOVES][sel]))
+                    for c in range(0, len(tl.t0), BLOCK_MOVES) for sel in [tl.on[c:c + BLOCK_MOVES] == on])
+            for xa, xb in _runs(bars):
                 draw.rectangle([xa, y0, max(xb, xa + 1), y1], fill=colour)
         for a, b, _ in tl.waits:
             if b > a:
@@ -491,27 +531,37 @@ def _chunk_spans(robot, tl) -> list[tuple[str, float, float]]:
     prog = robot.program
     if not len(tl.index) or not prog.chunks:
         return []
-    chunk = np.asarray(prog.chunk)[tl.index]
-    sel = tl.on & (chunk >= 0)
-    if not sel.any():
-        return []
-    k, t0, t1 = chunk[sel], tl.t0[sel], tl.t1[sel]
-    out = []
-    for c in np.unique(k).tolist():
-        m = k == c
-        out.append((prog.chunks[c], float(t0[m].min()), float(t1[m].max())))
+    first, last = {}, {}  # per chunk: its earliest print start and latest print end, a block of moves at a time
+    for a in range(0, len(tl.index), BLOCK_MOVES):
+        chunk = np.asarray(prog.chunk)[tl.index[a:a + BLOCK_MOVES]]
+        sel = tl.on[a:a + BLOCK_MOVES] & (chunk >= 0)
+        k, t0, t1 = chunk[sel], tl.t0[a:a + BLOCK_MOVES][sel], tl.t1[a:a + BLOCK_MOVES][sel]
+        for c in np.unique(k).tolist():
+            m = k == c
+            first[c] = min(first.get(c, np.inf), float(t0[m].min()))
+            last[c] = max(last.get(c, -np.inf), float(t1[m].max()))
+    return [(prog.chunks[c], first[c], last[c]) for c in sorted(first)]
+
+
+def _runs(bars) -> list[tuple[float, float]]:
+    """Intervals ``[a, b]`` (``bars``: pairs of arrays ``a``, ``b``, one after the other, sorted
+    by ``a``) merged where they touch within a pixel: a run ends where the next interval starts
+    more than a pixel after the furthest end so far."""
+    out: list[tuple[float, float]] = []
+    lo, hi = None, -np.inf  # the run under way: its start; the furthest end so far
+    for a, b in bars:
+        if not len(a):
+            continue
+        top = np.maximum(np.maximum.accumulate(b), hi)  # the furthest end up to each interval
+        before = np.concatenate([[hi], top[:-1]])  # ... and before it
+        for s in np.flatnonzero(a > before + 1.0).tolist():  # intervals that start a run
+            if lo is not None:
+                out.append((lo, float(before[s])))
+            lo = float(a[s])
+        hi = top[-1]
+    if lo is not None:
+        out.append((lo, float(hi)))
     return out
-
-
-def _runs(a: np.ndarray, b: np.ndarray) -> list[tuple[float, float]]:
-    """Intervals [a, b] (sorted by a) merged where they touch within a pixel."""
-    if len(a) == 0:
-        return []
-    gap = np.flatnonzero(a[1:] > np.maximum.accumulate(b)[:-1] + 1.0)
-    starts = np.r_[0, gap + 1]
-    ends = np.r_[gap, len(a) - 1]
-    hi = np.maximum.accumulate(b)
-    return list(zip(a[starts].tolist(), hi[ends].tolist()))
 
 
 def _nice_step(raw: float) -> float:

@@ -17,12 +17,11 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.simulation.checks import (STEP, Material, below_floor, chunk_order, footprint_checks, material_checks,
-                                        outside_part, overhangs, robots_collide)
+from cooprint.simulation.checks import (STEP, Material, below_floor, block_sum, chunk_order, footprint_checks,
+                                        material_checks, outside_part, overhangs, robots_collide)
 from cooprint.simulation.inputs import ScheduleEstimate, SimInput, SimInputError, load_inputs, read_chunk_meshes
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
-from cooprint.slicing.paths import extrusion_area
 
 #: Finding kinds, in the order summaries list them: the robot's outline against material and
 #: other robots, the nozzle and the material it lays (in material, twice, in the chunks' order,
@@ -184,17 +183,28 @@ def _concurrently(groups: list[list]) -> list[Finding]:
         return [f for fut in futures for f in fut.result()]
 
 
-def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings) -> np.ndarray:
-    """(k,) mm^3 each move of a robot lays down: width x height x length with the tool on, 0
-    without (a program without width and height annotations prints at the slicing settings'
-    width and layer)."""
-    w, h = r.bead(tl.index, s.extrusion_width, s.layer_height)
-    return np.where(tl.on, extrusion_area(w, h) * tl.length, 0.0)
+def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings, a: int = 0, e: int | None = None) -> np.ndarray:
+    """(k,) mm^3 each move of a robot lays down (its moves ``a:e``, all by default): width x
+    height x length with the tool on, 0 without (a program without width and height annotations
+    prints at the slicing settings' width and layer)."""
+    w, h = r.bead(tl.index[a:e], s.extrusion_width, s.layer_height)
+    # extrusion_area(w, h) * length, 0 where the tool is off, in w's array (the same operations
+    # in the same order: the same numbers, without a temporary of each)
+    np.subtract(w, h, out=w)
+    w *= h
+    h /= 2
+    np.square(h, out=h)
+    h *= np.pi
+    w += h
+    del h
+    w *= tl.length[a:e]
+    np.copyto(w, 0.0, where=~tl.on[a:e])
+    return w
 
 
 def deposited_volume(r: SimRobot, tl: Timeline, s: SlicingSettings) -> float:
-    """mm^3 a robot lays down in all (:func:`move_volumes`)."""
-    return float(move_volumes(r, tl, s).sum())
+    """mm^3 a robot lays down in all (the sum of :func:`move_volumes`, a block of moves at a time)."""
+    return block_sum(lambda a, e: move_volumes(r, tl, s, a, e), len(tl.t0))
 
 
 @dataclass(frozen=True)
@@ -316,8 +326,9 @@ def summary(result: SimResult, perturbed: "PerturbResult | None" = None) -> dict
     events = []
     for r in result.robots:
         tl = result.timelines[r.name]
-        dur = tl.t1 - tl.t0
-        printing, travelling = float(dur[tl.on].sum()), float(dur[~tl.on].sum())
+        dur = lambda a, e: tl.t1[a:e] - tl.t0[a:e]  # noqa: E731 (a block's durations)
+        printing = block_sum(dur, len(tl.t0), lambda a, e: tl.on[a:e])
+        travelling = block_sum(dur, len(tl.t0), lambda a, e: ~tl.on[a:e])
         waiting = float(sum(w[1] - w[0] for w in tl.waits))
         robots.append({"name": r.name, "printing_s": printing, "travelling_s": travelling, "waiting_s": waiting,
                        "idle_s": max(0.0, span - printing - travelling - waiting), "end_s": tl.end,

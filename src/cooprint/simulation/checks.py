@@ -37,6 +37,7 @@ not a finding; a plan the chunker made keeps the body just clear of its chunk's 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -57,6 +58,9 @@ MAX_SAMPLES = 8_000_000
 MAX_CELLS = 8_000_000
 #: At most this many instants of the collision check (its step grows past 8,000 h of plan).
 MAX_INSTANTS = 4_000_000
+#: The collision check's instants are looked at this many at a time (the nozzles and facings of
+#: a block of instants, not of all of them).
+COLLIDE_BLOCK = 1 << 18
 #: Between two instants the collision check looks closer wherever the robots could have met,
 #: down to windows in which they move this little relative to each other, mm: an overlap that
 #: lasts less than such a window is at most this deep beyond the parts' tolerances.
@@ -91,7 +95,8 @@ def path_samples(tl: Timeline, step: float, deposits_only: bool) -> tuple[np.nda
 
 def _step(timelines: dict[str, Timeline], step: float, deposits_only: bool) -> float:
     """``step``, or longer on a print so long that it would make more than ``MAX_SAMPLES``."""
-    total = sum(float(tl.length[tl.on].sum() if deposits_only else tl.length.sum()) for tl in timelines.values())
+    total = sum(float(block_sum(lambda a, e: tl.length[a:e], len(tl.t0), lambda a, e: tl.on[a:e]) if deposits_only
+                      else tl.length.sum()) for tl in timelines.values())
     return max(step, total / MAX_SAMPLES)
 
 
@@ -111,14 +116,26 @@ class Material:
     def sample(robots: list[SimRobot], timelines: dict[str, Timeline], step: float,
                layer_height: float) -> "Material":
         step = _step(timelines, step, deposits_only=True)
-        parts = [_selection(timelines[r.name], step, deposits_only=True) for r in robots]
-        bounds = np.cumsum([0] + [int(n.sum()) for _, n, _ in parts])
+        blocks = [[(c, min(len(tl.t0), c + BLOCK_MOVES)) for c in range(0, len(tl.t0), BLOCK_MOVES)]
+                  for tl in (timelines[r.name] for r in robots)]
+
+        def deposits(tl: Timeline, c: int, d: int) -> tuple[np.ndarray, np.ndarray]:
+            """The moves of ``c:d`` that deposit (from ``c``) and how many points each gets."""
+            sel = np.flatnonzero(tl.on[c:d])
+            return sel, kernels.sample_counts(tl.length[c:d][sel], step)
+
+        sizes = [sum(int(deposits(timelines[r.name], c, d)[1].sum()) for c, d in b) for r, b in zip(robots, blocks)]
+        bounds = np.cumsum([0] + sizes)
         xyz, t, h = np.empty((bounds[-1], 3), np.float32), np.empty(bounds[-1]), np.empty(bounds[-1], np.float32)
-        for i, (r, (sel, n, _)) in enumerate(zip(robots, parts)):  # each robot's points in one pass, in place
+        for i, (r, b) in enumerate(zip(robots, blocks)):  # each robot's points in order, a block of moves at a time
             tl = timelines[r.name]
-            if len(sel):
-                kernels.sample_moves(tl.p0, tl.p1, tl.t0, tl.t1, sel, n, False, xyz, t, np.zeros(0, np.int64),
-                                     r.layer_heights(tl.index, layer_height).astype(np.float32), h, bounds[i])
+            k = int(bounds[i])
+            for c, d in b:
+                sel, n = deposits(tl, c, d)
+                if len(sel):
+                    k = kernels.sample_moves(tl.p0[c:d], tl.p1[c:d], tl.t0[c:d], tl.t1[c:d], sel, n, False, xyz, t,
+                                             np.zeros(0, np.int64),
+                                             r.layer_heights(tl.index[c:d], layer_height).astype(np.float32), h, k)
         return Material(xyz, t, h, bounds)
 
     def moves(self, points: np.ndarray, timeline: Timeline) -> np.ndarray:
@@ -264,6 +281,51 @@ class _Raster:
                          dtype=np.int64))
 
 
+#: Moves looked at a block at a time by the checks that sweep a robot's path (their per-move
+#: arrays are made for one block, not for the whole program: bounded memory on any plan).
+BLOCK_MOVES = 1 << 20
+
+
+def block_sum(values: Callable[[int, int], np.ndarray], n: int,
+              mask: Callable[[int, int], np.ndarray] | None = None) -> float:
+    """``np.sum(v)`` (or ``np.sum(v[m])``) of per-move values ``v`` (``values(a, e)``: those of
+    moves ``a:e``, float64; ``mask(a, e)``: which of them count), the very same double, made a
+    block of ``BLOCK_MOVES`` at a time: numpy sums a float64 array pairwise (halves of a length
+    rounded down to a multiple of 8, down to 128 values), so a sum of a range that is one of
+    those halves is its own ``np.sum``, and the halves are added as numpy adds them. Summaries
+    keep their numbers to the last bit without an array of every move."""
+    block, moves = BLOCK_MOVES, n
+    if mask is None:
+        get = values
+    else:  # the selected values, by their rank among the selected: a block's worth at a time
+        counts = np.cumsum([0] + [int(np.count_nonzero(mask(a, min(a + block, moves)))) for a in range(0, moves, block)])
+
+        def get(lo: int, hi: int) -> np.ndarray:
+            b0 = int(np.searchsorted(counts, lo, side="right")) - 1
+            b1 = int(np.searchsorted(counts, hi, side="left"))
+            a, e = b0 * block, min(b1 * block, moves)
+            return values(a, e)[mask(a, e)][lo - counts[b0]:hi - counts[b0]]
+
+        n = int(counts[-1])
+
+    def pairwise(lo: int, size: int) -> float:
+        if size <= max(block, 128):
+            return np.add.reduce(get(lo, lo + size), initial=0.0)
+        half = size // 2
+        half -= half % 8
+        return pairwise(lo, half) + pairwise(lo + half, size - half)
+
+    return float(pairwise(0, n)) if n else 0.0
+
+
+def chunk_slots(r: SimRobot, tl: Timeline, a: int, e: int) -> np.ndarray:
+    """(e - a,) int64 the chunk slot of moves ``a:e`` of robot ``r``: the chunk's index in its
+    program, or past them (``len(chunks)``) between chunks."""
+    chunk = r.program.chunk[tl.index[a:e]].astype(np.int64)
+    chunk[chunk < 0] = len(r.program.chunks)
+    return chunk
+
+
 def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,
                      material: Material, body: bool = True, head: bool = True, step: float = STEP,
                      tolerance: float = TOLERANCE) -> list[Finding]:
@@ -285,32 +347,32 @@ def footprint_checks(robots: list[SimRobot], timelines: dict[str, Timeline], pro
         tl = timelines[r.name]
         if len(tl.t0) == 0:
             continue
-        chunk = r.program.chunk[tl.index].astype(np.int64)
-        chunk[chunk < 0] = len(r.program.chunks)  # between chunks: the last slot
         slots = len(r.program.chunks) + 1
         count, when, where = np.zeros((2, slots), np.int64), np.full((2, slots), np.inf), np.zeros((2, slots, 3))
-        _, n, first = _selection(tl, n_step, deposits_only=False)  # the nozzle samples: all its path
         spans = r.facing_spans(tl)
         for j, span in enumerate(spans):
             frame = _frame(span.facing).astype(np.float32)
             a, e = span.start, span.stop
-            if a < e:  # its moves, from the turn point on (from the start, for the first span)
-                p0, p1, t0, t1, nn, ch, first_here = tl.p0[a:e], tl.p1[a:e], tl.t0[a:e], tl.t1[a:e], n[a:e], \
-                    chunk[a:e], first if j == 0 else True
-            else:  # none: the turn point alone, as a move that goes nowhere
-                p0 = p1 = span.position[None].astype(np.float64)
-                t0 = t1 = np.array([span.time])
-                nn, first_here = np.ones(1, np.int64), False
-                ch = np.array([chunk[a] if a < len(chunk) else slots - 1], np.int64)
             # the material laid down before the span's last instant, on rasters in its frame
-            mat = material.before(float(t1[-1])) if len(spans) > 1 else material
+            last = float(tl.t1[e - 1]) if a < e else span.time
+            mat = material.before(last) if len(spans) > 1 else material
             checks = robot_checks(mat, frame, profile, body, head, tolerance, tl)
             if not checks:
                 break
             b, h = (checks[0] if body else None), (checks[-1] if head else None)
-            kernels.footprint_sweep(p0, p1, t0, t1, nn, first_here, ch, frame, b is not None,
-                                    (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state,
-                                    count, when, where)
+            states = (b is not None, (b or _BodyCheck.idle()).state, h is not None, (h or _HeadCheck.idle()).state)
+            if a == e:  # no moves: the turn point alone, as a move that goes nowhere
+                p = span.position[None].astype(np.float64)
+                kernels.footprint_sweep(p, p, np.array([span.time]), np.array([span.time]), np.ones(1, np.int64),
+                                        False, chunk_slots(r, tl, a, a + 1) if a < len(tl.t0) else
+                                        np.array([slots - 1], np.int64), frame, *states, count, when, where)
+            # its moves, from the turn point on (from the start, for the first span), a block at a
+            # time (the sweep carries its state from one block to the next: the same hits)
+            for c in range(a, e, BLOCK_MOVES):
+                d = min(e, c + BLOCK_MOVES)
+                kernels.footprint_sweep(tl.p0[c:d], tl.p1[c:d], tl.t0[c:d], tl.t1[c:d],
+                                        kernels.sample_counts(tl.length[c:d], n_step), c == a,
+                                        chunk_slots(r, tl, c, d), frame, *states, count, when, where)
         for k, (kind, detail) in enumerate(((_BodyCheck.kind, _BodyCheck.detail), (_HeadCheck.kind, _head_detail(profile)))):
             findings += _slot_findings(kind, r, count[k], when[k], where[k], detail)
     return sorted(findings, key=lambda f: (f.time, f.kind))
@@ -464,27 +526,37 @@ def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profi
     end = max((tl.end for tl in timelines.values()), default=0.0)
     dt = max(dt, end / MAX_INSTANTS)  # a plan of years (a program that jumps kilometres) is looked at less often
     times = np.arange(0.0, end + dt, dt)
-    nozzle = {r.name: _nozzle_xy(r, timelines[r.name], times) for r in robots}
-    robots = [r for r in robots if nozzle[r.name] is not None]
-    facing = {}  # per robot: its facings, and which is in force at each instant
+    robots = [r for r in robots if len(timelines[r.name].t1) or r.start is not None]  # one with neither is nowhere
+    facing, turns, speed = {}, {}, {}  # per robot: its facings, when it turns, its top speed
     for r in robots:
         spans = r.facing_spans(timelines[r.name])
-        starts = np.array([sp.time for sp in spans])
-        facing[r.name] = ([sp.facing for sp in spans], np.searchsorted(starts[1:], times, side="right"))
-    turns, speed = {}, {}
-    for r in robots:
-        spans = r.facing_spans(timelines[r.name])
+        facing[r.name] = ([sp.facing for sp in spans],)
         turns[r.name] = np.array([sp.time for sp in spans[1:]])
         speed[r.name] = _top_speed(timelines[r.name])
     for i, a in enumerate(robots):
         for b in robots[i + 1:]:
             pa, pb = a.profile or profile, b.profile or profile  # each robot's own outline
             pair = _Pair(a, b, pa, pb, facing, tolerance)
-            at_times = (nozzle[a.name], nozzle[b.name], facing[a.name][1], facing[b.name][1])
-            mask = pair.mask(times, at_times[2], at_times[3], at_times[0], at_times[1])
+            both, turn = speed[a.name] + speed[b.name], np.sort(np.r_[turns[a.name], turns[b.name]])
+            h = dt / 2
+            refine = both > 0.0 and both * h > COLLIDE_DEPTH  # the windows between instants are looked into
+            mask, near = np.zeros(len(times), np.int32), []
+            for s in range(0, len(times), COLLIDE_BLOCK):  # the instants a block at a time
+                at = times[s:s + COLLIDE_BLOCK]
+                state = _pair_state(pair, at, timelines)  # both nozzles and facings there
+                mask[s:s + COLLIDE_BLOCK] = got = pair.mask(at, state[2], state[3], state[0], state[1])
+                if refine:  # the windows without an overlap at their instant that may hold one
+                    free = np.flatnonzero(got == 0)
+                    na, nb, ka, kb = state if len(free) == len(at) else (x[free] for x in state)
+                    close = pair.mask(at[free], ka, kb, na, nb, margin=both * h / 2) != 0
+                    if len(turn):
+                        close |= np.searchsorted(turn, at[free] - h) != np.searchsorted(turn, at[free] + h,
+                                                                                         side="right")
+                    near.append(free[close] + s)
             when = times.copy()
-            _between_instants(pair, times, dt, mask, when, speed[a.name] + speed[b.name],
-                              np.sort(np.r_[turns[a.name], turns[b.name]]), timelines, at_times)
+            if refine:
+                _between_instants(pair, times, dt, mask, when, both, turn, timelines,
+                                  np.concatenate(near) if near else np.zeros(0, np.int64))
             k = np.flatnonzero(mask)
             if len(k):
                 k = k[np.argsort(when[k], kind="stable")]
@@ -532,7 +604,7 @@ class _Pair:
 
 
 def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarray, when: np.ndarray,
-                      speed: float, turns: np.ndarray, timelines: dict[str, Timeline], at_times: tuple) -> None:
+                      speed: float, turns: np.ndarray, timelines: dict[str, Timeline], near: np.ndarray) -> None:
     """Overlaps that begin and end between two instants of the collision check, added to
     ``mask`` (and their first time to ``when``) at the instant whose window (``dt`` wide) holds
     them: two printheads crossing head-on at travel speed overlap for less than ``dt``.
@@ -544,38 +616,45 @@ def _between_instants(pair: _Pair, times: np.ndarray, dt: float, mask: np.ndarra
     Windows that may hold an overlap are halved and looked at again, down to ``COLLIDE_DEPTH``
     of relative motion (at most ``MAX_INSTANTS`` windows at a time); a window in which a robot
     turns is always halved (its outline changes).
-    ``at_times``: both nozzles and facings at ``times``, as :func:`_pair_state` gives them."""
-    if speed <= 0.0:
-        return
-    owner = np.flatnonzero(mask == 0)
-    centre, h = times[owner], dt / 2
-    # the instants' own nozzles and facings are known already
-    state = at_times if len(owner) == len(times) else tuple(x[owner] for x in at_times)
+    ``near``: the instants (indices into ``times``, ascending) whose whole windows may hold an
+    overlap, as :func:`robots_collide` finds them a block of instants at a time: the first
+    look, with ``speed * dt / 2 > COLLIDE_DEPTH``."""
+    centre, owner, h = times[near], near, dt / 2
+    first = True
     while len(centre) and speed * h > COLLIDE_DEPTH:
-        na, nb, ka, kb = state if state is not None else _pair_state(pair, centre, timelines)
-        state = None
-        near = pair.mask(centre, ka, kb, na, nb, margin=speed * h / 2) != 0
-        if len(turns):
-            near |= np.searchsorted(turns, centre - h) != np.searchsorted(turns, centre + h, side="right")
-        centre, owner = centre[near], owner[near]
+        if not first:  # the windows that may still hold an overlap
+            close = _in_blocks(centre, lambda c, state: pair.mask(c, state[2], state[3], state[0], state[1],
+                                                                   margin=speed * h / 2) != 0, pair, timelines)
+            if len(turns):
+                close |= np.searchsorted(turns, centre - h) != np.searchsorted(turns, centre + h, side="right")
+            centre, owner = centre[close], owner[close]
+        first = False
         if 2 * len(centre) > MAX_INSTANTS:  # bounded work: robots that stay within a hair of each other for days
             break
         h /= 2
-        centre, owner = np.r_[centre - h, centre + h], np.r_[owner, owner]
-        order = np.argsort(centre, kind="stable")
-        centre, owner = centre[order], owner[order]
-        na, nb, ka, kb = _pair_state(pair, centre, timelines)
-        hit = pair.mask(centre, ka, kb, na, nb)
+        # each window halved: its two halves' centres, in time order (windows are at least 2 h apart)
+        halves = np.empty(2 * len(centre))
+        halves[0::2], halves[1::2] = centre - h, centre + h
+        centre, owner = halves, np.repeat(owner, 2)
+        hit = _in_blocks(centre, lambda c, state: pair.mask(c, state[2], state[3], state[0], state[1]), pair,
+                         timelines)
         got = hit != 0
         if got.any():
-            first = np.unique(owner[got], return_index=True)[1]  # each window's earliest (sorted)
-            k = np.flatnonzero(got)[first]
+            first_hit = np.unique(owner[got], return_index=True)[1]  # each window's earliest (sorted)
+            k = np.flatnonzero(got)[first_hit]
             mask[owner[k]] = hit[k]
             when[owner[k]] = centre[k]
             keep = mask[owner] == 0
             centre, owner = centre[keep], owner[keep]
-            na, nb, ka, kb = na[keep], nb[keep], ka[keep], kb[keep]
-        state = (na, nb, ka, kb)
+
+
+def _in_blocks(t: np.ndarray, look, pair: _Pair, timelines: dict[str, Timeline]) -> np.ndarray:
+    """``look(times, state)`` for sorted times ``t``, ``COLLIDE_BLOCK`` at a time (``state``:
+    both nozzles and facings there, :func:`_pair_state`), concatenated: the robots' states at a
+    block of times at once, not at all of them."""
+    out = [look(t[s:s + COLLIDE_BLOCK], _pair_state(pair, t[s:s + COLLIDE_BLOCK], timelines))
+           for s in range(0, len(t), COLLIDE_BLOCK)]
+    return np.concatenate(out) if out else np.zeros(0, np.int32)
 
 
 def _pair_state(pair: _Pair, t: np.ndarray, timelines: dict[str, Timeline]):
@@ -594,11 +673,12 @@ def _pair_state(pair: _Pair, t: np.ndarray, timelines: dict[str, Timeline]):
 def _top_speed(tl: Timeline) -> float:
     """At least the fastest the nozzle moves in XY on any move of ``tl``, mm/s (its fastest in
     XYZ; 0: it never moves)."""
-    if len(tl.t1) == 0:
-        return 0.0
-    span = tl.t1 - tl.t0
-    moving = span > 0
-    return float(np.max(tl.length[moving] / span[moving], initial=0.0))
+    top = 0.0
+    for a in range(0, len(tl.t1), BLOCK_MOVES):  # a block of moves at a time (the maximum is the same)
+        span = tl.t1[a:a + BLOCK_MOVES] - tl.t0[a:a + BLOCK_MOVES]
+        moving = span > 0
+        top = max(top, float(np.max(tl.length[a:a + BLOCK_MOVES][moving] / span[moving], initial=0.0)))
+    return top
 
 
 def _collide_detail(a: str, b: str, masks: np.ndarray, where_b: str = "") -> str:
@@ -624,7 +704,10 @@ def _nozzle_xy(r: SimRobot, tl: Timeline, times: np.ndarray) -> np.ndarray | Non
         if r.start is None:
             return None
         return np.broadcast_to(np.asarray(r.start, dtype=np.float64)[:2], (len(times), 2))
-    return kernels.positions_at(tl.t0, tl.t1, tl.p0, tl.p1, times)
+    # the kernel's pointer walks from the move under way at the first time (where a walk from
+    # the first move would stop): the same positions, without walking the moves before
+    k = min(int(np.searchsorted(tl.t1, times[0], side="left")), len(tl.t1) - 1) if len(times) else 0
+    return kernels.positions_at(tl.t0[k:], tl.t1[k:], tl.p0[k:], tl.p1[k:], times)
 
 
 def _chunk_of(r: SimRobot, tl: Timeline, t: float) -> str | None:
@@ -659,14 +742,17 @@ def chunk_order(robots: list[SimRobot], timelines: dict[str, Timeline],
         tl = timelines[r.name]
         for t, event in tl.notifies:
             announced[event] = min(announced.get(event, np.inf), float(t))
-        on = np.flatnonzero(tl.on)
-        if not len(on):
-            continue
-        chunk = r.program.chunk[tl.index[on]]
-        for c in np.unique(chunk[chunk >= 0]).tolist():
-            moves = on[chunk == c]
+        first_of, last_of = {}, {}  # per chunk (index in the program): its first and last deposit
+        for b in range(0, len(tl.t0), BLOCK_MOVES):
+            on = np.flatnonzero(tl.on[b:b + BLOCK_MOVES]) + b
+            chunk = r.program.chunk[tl.index[on]]
+            for c in np.unique(chunk[chunk >= 0]).tolist():
+                moves = on[chunk == c]
+                first_of.setdefault(c, int(moves[0]))
+                last_of[c] = int(moves[-1])
+        for c in sorted(first_of):
             name = r.program.chunks[c]
-            first, last = int(moves[0]), int(moves[-1])
+            first, last = first_of[c], last_of[c]
             if name not in start or tl.t0[first] < start[name][0]:
                 start[name] = (float(tl.t0[first]), r.name, tl.p0[first])
             end[name] = max(end.get(name, -np.inf), float(tl.t1[last]))
@@ -852,7 +938,8 @@ def below_floor(robots: list[SimRobot], timelines: dict[str, Timeline]) -> list[
     for r in robots:
         tl = timelines[r.name]
         z0, z1 = tl.p0[:, 2], tl.p1[:, 2]
-        low = np.flatnonzero(np.minimum(z0, z1) < -FLOOR_TOLERANCE)
+        low = np.concatenate([np.flatnonzero(np.minimum(z0[c:c + BLOCK_MOVES], z1[c:c + BLOCK_MOVES]) < -FLOOR_TOLERANCE)
+                              + c for c in range(0, len(z0), BLOCK_MOVES)] or [np.zeros(0, np.int64)])
         if not len(low):
             continue
         a, b = z0[low], z1[low]

@@ -97,13 +97,21 @@ class SimRobot:
     def bead(self, index: np.ndarray, width: float, height: float) -> tuple[np.ndarray, np.ndarray]:
         """Width and height of the material laid by commands ``index``: their annotations, or
         ``width`` and ``height`` (the slicing settings') where a program has none."""
-        w = self.program.width[index]
-        return np.where(w > 0, w, width), self.layer_heights(index, height)
+        return _or_default(self.program.width, index, width), self.layer_heights(index, height)
 
     def layer_heights(self, index: np.ndarray, height: float) -> np.ndarray:
         """The height of the material laid by commands ``index`` (:meth:`bead`'s second half)."""
-        h = self.program.height[index]
-        return np.where(h > 0, h, height)
+        return _or_default(self.program.height, index, height)
+
+
+def _or_default(column: np.ndarray, index: np.ndarray, default: float) -> np.ndarray:
+    """``column[index]`` where above 0, else ``default``: a new array (filled in place, no
+    temporary of the size of ``index``)."""
+    out = column[index]
+    if np.may_share_memory(out, column):  # a view (``index`` a slice): not to be written
+        out = out.copy()
+    np.copyto(out, default, where=~(out > 0))
+    return out
 
 
 @dataclass(frozen=True)
@@ -249,10 +257,16 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
     if r.profile is not None:
         print_speed, travel_speed = r.profile.print_speed, r.profile.travel_speed
+    if limits is None and r.speed is None and r.de is None:  # length / speed, no array but the result
+        dur = np.divide(length, travel_speed)
+        np.divide(length, print_speed, out=dur, where=on)
+        return mv, p0, p1, on, length, dur
     v = np.where(on, print_speed, travel_speed) if r.speed is None else r.speed[mv]
     de = np.zeros(len(mv)) if r.de is None else r.de[mv]
     if limits is None:
-        dur = np.where(length > 0, length, np.abs(de)) / v
+        dur = np.abs(de)  # a move of filament alone takes |E| / speed
+        np.copyto(dur, length, where=length > 0)
+        dur /= v
     else:
         from cooprint.simulation.kinematics import trapezoid_durations
 
@@ -309,19 +323,24 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
         mv, p0, p1, on, length, dur = move_durations(r, print_speed, travel_speed,
                                                      limits.get(r.name) if isinstance(limits, dict) else limits)
         kind = r.program.kind
-        cmd_dur = np.zeros(len(kind))
-        cmd_dur[mv] = dur
-        before = np.concatenate([[0.0], np.cumsum(cmd_dur)])  # time at each command, no waits
-        sync = np.flatnonzero((kind == NOTIFY) | (kind == WAIT)).tolist()
-        prep[r.name] = (r, p0, p1, on, length, dur, mv, before, sync)
+        # each move's start without waits: the durations of the moves before it added in order
+        # (the other commands take no time), and the total last
+        starts = np.empty(len(mv) + 1)
+        starts[0] = 0.0
+        np.cumsum(dur, out=starts[1:])
+        sync = np.flatnonzero(kind >= NOTIFY).tolist()  # NOTIFY and WAIT
+        # the time at each NOTIFY and WAIT, without waits (by command index)
+        before = dict(zip(sync, starts[np.searchsorted(mv, sync)]))
+        prep[r.name] = (r, p0, p1, on, length, dur, mv, starts, before, sync)
     syncs = {name: [(i, float(before[i]), r.program.kind[i] == NOTIFY, r.program.events[r.program.event[i]])
                     for i in sync] for name, (r, *_, before, sync) in prep.items()}
     announced, pos, waited, delay, waits, notifies = _resolve(syncs)
     out, findings = {}, []
-    for name, (r, p0, p1, on, length, dur, mv, before, sync) in prep.items():
+    for name, (r, p0, p1, on, length, dur, mv, starts, before, sync) in prep.items():
         # the waits' delays so far before each command: of the WAITs above it (in program order)
         at = np.array([i for i, _ in delay[name]], dtype=np.int64)
         waited_before = np.concatenate([[0.0], np.cumsum([d for _, d in delay[name]])])
+        runs = np.searchsorted(mv, at, side="right").tolist()  # the first move after each WAIT
         keep = len(mv)
         if pos[name] < len(sync):  # stuck: nothing after the WAIT happens
             i = sync[pos[name]]
@@ -334,9 +353,14 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
             findings.append(Finding("deadlock", name, t, tuple(float(x) for x in where), chunk,
                                     f"WAIT {', '.join(prog.events[prog.event[i]])} (command {i + 1}) never ends: "
                                     f"{', '.join(missing)} is never announced by a robot that can still move"))
-        t0 = before[mv[:keep]] + waited_before[np.searchsorted(at, mv[:keep], side="left")]
-        out[name] = Timeline(name, t0, t0 + dur[:keep], p0[:keep], p1[:keep], on[:keep], mv[:keep], waits[name],
-                             notifies[name], length[:keep])
+        # each move's start: its start without waits plus the delays of the WAITs above it, one
+        # addition per run of moves between two WAITs, in place
+        for a, e, w in zip([0] + runs, runs + [len(mv)], waited_before.tolist()):
+            if w:
+                starts[a:e] += w
+        t0 = starts[:keep]
+        out[name] = Timeline(name, t0, np.add(t0, dur[:keep], out=dur[:keep]), p0[:keep], p1[:keep], on[:keep],
+                             mv[:keep], waits[name], notifies[name], length[:keep])
     return out, findings
 
 
