@@ -7,22 +7,12 @@ import pytest
 
 from cooprint.cli import main
 from cooprint.config import load_settings
-from cooprint.io.bundle import write_stl
 from cooprint.jobs import coop_job, run, write_coop_bundle
-from cooprint.models import car
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, read_coop
 from cooprint.slicing import extrusion_area, iter_layers
 from cooprint.slicing.sections import LayerSlicer
 
 from solids import COARSE
-
-
-@pytest.fixture(scope="module")
-def car_stl(tmp_path_factory):
-    path = tmp_path_factory.mktemp("mesh") / "car.stl"
-    solid = car(420.0)
-    write_stl(path, solid.vertices, solid.faces)
-    return path
 
 
 @pytest.fixture(scope="module")

@@ -13,9 +13,7 @@ from hypothesis import given, settings as hsettings, strategies as st
 
 from cooprint.config import load_settings
 from cooprint.errors import UserError
-from cooprint.io.bundle import write_stl
 from cooprint.jobs import SPOOL, coop_job, run_job, write_coop_bundle
-from cooprint.models import car
 from cooprint.program.build import layer_program
 from cooprint.program.commands import MOVE, TOOL_OFF, Program, program_rows
 from cooprint.program.stream import ChunkStore, canonical_program, entered, hull_points
@@ -41,14 +39,6 @@ def _same_record(a: dict, b: dict) -> None:
         assert x.keys() == y.keys()
         for k in x:
             assert x[k] == pytest.approx(y[k], rel=1e-12, abs=1e-9), k
-
-
-@pytest.fixture(scope="module")
-def car_stl(tmp_path_factory):
-    path = tmp_path_factory.mktemp("mesh") / "car.stl"
-    solid = car(420.0)
-    write_stl(path, solid.vertices, solid.faces)
-    return path
 
 
 @pytest.mark.parametrize("robots, overrides", [(2, COARSE), (4, {**BIG, "chunking.layout": "grid"})],
