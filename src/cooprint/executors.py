@@ -262,12 +262,18 @@ class DaskExecutor(Executor):
     The connection is made here, so that an unreachable scheduler is one line
     (:class:`ExecutorError`) after :data:`CONNECT_TIMEOUT` seconds, before any work. Dask's own
     log messages are silenced while the executor is open (its failures reach the user as
-    :class:`ExecutorError`)."""
+    :class:`ExecutorError`).
+
+    A local cluster runs in a helper process of its own session (:func:`_serve_local`): a
+    Ctrl-C at the terminal goes to this process alone, which closes the cluster (Dask's worker
+    processes, reached by it, would each print a traceback), and the helper and its workers
+    end when this process ends, however it ends."""
 
     name = "dask"
 
-    def __init__(self, address: str, connect_timeout: float = CONNECT_TIMEOUT):
+    def __init__(self, address: str, connect_timeout: float | None = None):
         self.address = address
+        connect_timeout = CONNECT_TIMEOUT if connect_timeout is None else connect_timeout
         kind, where = parse_scheduler(address)
         try:
             with blocked_sigint():
@@ -277,18 +283,14 @@ class DaskExecutor(Executor):
                 from None
         self._distributed = distributed
         self._logs = _quiet_dask_logs()
-        self.cluster = None
+        self.helper: LocalHelper | None = None
+        self.client = None
         try:
-            # the cluster's threads and processes start with SIGINT blocked: a Ctrl-C reaches this
-            # process's main thread, which closes them (their own handlers would print tracebacks)
-            with blocked_sigint():
-                if kind == "local":
-                    self.cluster = distributed.LocalCluster(
-                        n_workers=int(where), threads_per_worker=1, processes=True, host="127.0.0.1",
-                        scheduler_port=0, dashboard_address=":0", silence_logs=logging.CRITICAL)
-                    self.client = distributed.Client(self.cluster, set_as_default=False, timeout=connect_timeout)
-                else:
-                    self.client = distributed.Client(where, set_as_default=False, timeout=connect_timeout)
+            if kind == "local":
+                self.helper = LocalHelper(int(where))
+                where = self.helper.address
+            with blocked_sigint():  # the client's threads start with SIGINT blocked: Ctrl-C goes to the main thread
+                self.client = distributed.Client(where, set_as_default=False, timeout=connect_timeout)
         except OSError as exc:
             self.close()
             raise ExecutorError(f"--scheduler {clip(address)}: no Dask scheduler answered within {connect_timeout:g} s "
@@ -343,19 +345,87 @@ class DaskExecutor(Executor):
 
     def close(self) -> None:
         with deferred_sigint():
-            client, cluster = getattr(self, "client", None), self.cluster
-            self.client = self.cluster = None
+            client, helper = self.client, self.helper
+            self.client = self.helper = None
             try:
                 if client is not None:
                     client.close(timeout=CONNECT_TIMEOUT)
-                if cluster is not None:
-                    cluster.close(timeout=CONNECT_TIMEOUT)
-            except Exception:  # a cluster half gone: what is left dies with this process
+            except Exception:  # a scheduler gone: nothing to close
                 pass
             finally:
+                if helper is not None:
+                    helper.close()
                 logs, self._logs = getattr(self, "_logs", None), None
                 if logs is not None:
                     logs()
+
+
+#: Seconds a local cluster may take to start (its workers are new interpreters importing cooprint).
+LOCAL_START_TIMEOUT = 120.0
+
+
+class LocalHelper:
+    """A helper process serving a ``LocalCluster`` of ``n`` worker processes on 127.0.0.1
+    (:func:`_serve_local`), in a session of its own; :attr:`address` is its scheduler's."""
+
+    def __init__(self, n: int, timeout: float = LOCAL_START_TIMEOUT):
+        import select
+        import subprocess
+        import tempfile
+
+        self.log = tempfile.TemporaryFile()
+        code = f"from cooprint.executors import _serve_local; _serve_local({int(n)}, {os.getpid()})"
+        self.proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=self.log, start_new_session=True)
+        assert self.proc.stdout is not None
+        ready, _, _ = select.select([self.proc.stdout], [], [], timeout)
+        line = self.proc.stdout.readline().decode("ascii", "replace").strip() if ready else ""
+        if not line.startswith("tcp://"):
+            why = self._last_log_line() or (f"no answer within {timeout:g} s" if not ready else "it stopped")
+            self.close()
+            raise ExecutorError(f"--scheduler local:{n}: the local Dask cluster did not start: {why}")
+        self.address = line
+
+    def _last_log_line(self) -> str:
+        self.log.seek(0)
+        lines = [ln for ln in self.log.read().decode("utf-8", "replace").splitlines() if ln.strip()]
+        return clip(lines[-1], 200) if lines else ""
+
+    def close(self) -> None:
+        """Ask the helper to stop its cluster (its standard input closes) and wait for it; kill
+        it if it does not stop within :data:`CONNECT_TIMEOUT` s (its workers follow it)."""
+        import subprocess
+
+        proc, self.proc = getattr(self, "proc", None), None
+        if proc is None:
+            return
+        with deferred_sigint():
+            try:
+                if proc.stdin is not None:
+                    proc.stdin.close()
+                proc.wait(CONNECT_TIMEOUT)
+            except (OSError, subprocess.TimeoutExpired):
+                proc.kill()
+                proc.wait()
+            finally:
+                if proc.stdout is not None:
+                    proc.stdout.close()
+                self.log.close()
+
+
+def _serve_local(n: int, parent: int) -> None:
+    """The helper process of :class:`LocalHelper`: start a ``LocalCluster`` of ``n``
+    single-threaded worker processes on 127.0.0.1, print its scheduler's address, and close it
+    when the standard input closes (the parent closed it, or died). It dies with its parent
+    (``PR_SET_PDEATHSIG``) if it cannot close in time; Dask's workers end with their nanny."""
+    _worker_init(parent)  # SIGINT ignored (inherited by the workers), death signal armed
+    import distributed
+
+    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+    with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  scheduler_port=0, dashboard_address=":0", silence_logs=logging.CRITICAL) as cluster:
+        print(cluster.scheduler_address, flush=True)
+        sys.stdin.buffer.read()
 
 
 def _first_line(exc: BaseException) -> str:
@@ -433,5 +503,5 @@ def make_executor(executor: str | None = None, scheduler: str | None = None) -> 
 
 
 __all__ = ["CONNECT_TIMEOUT", "DEFAULT_EXECUTOR", "EXECUTORS", "DaskExecutor", "Executor", "ExecutorError",
-           "InlineExecutor", "ProcessExecutor", "check_executor_options", "default_workers", "make_executor",
+           "InlineExecutor", "LocalHelper", "ProcessExecutor", "check_executor_options", "default_workers", "make_executor",
            "parse_scheduler", "stop_pool"]
