@@ -136,7 +136,7 @@ def test_run_writes_the_same_bytes_on_every_executor(bar, cluster, tmp_path, wor
     """`cooprint run` of a 7-chunk bar: robots/*.coop, *.gcode and job.json byte for byte the same
     inline, in processes, on a LocalCluster it starts (local:2) and on a running cluster
     (tcp://127.0.0.1:PORT)."""
-    address = cluster.client.scheduler.address
+    address = cluster.scheduler_address
     assert address.startswith("tcp://127.0.0.1:")
     outputs = {}
     for name, flags in (("inline", ["--executor", "inline"]), ("processes", []),

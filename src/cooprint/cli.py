@@ -15,7 +15,7 @@ import functools
 import os
 import signal
 import sys
-from contextlib import ExitStack, contextmanager
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -419,12 +419,14 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
     if strict and not then_simulate:  # --strict judges a simulation: without one it would be ignored
         raise UserError("--strict needs --simulate (it makes warnings of the plan's simulation fail it)")
     check_executor_options(executor, scheduler)
-    with ExitStack() as stack:
 
-        def make(*args: Any) -> Any:  # after the settings' and the destination's checks, before the work
-            return coop_job(*args, executor=stack.enter_context(make_executor(executor, scheduler)))
+    def make(*args: Any) -> Any:
+        # started after the settings' and the destination's checks, before the work; stopped
+        # when the slicing is done (idle workers would hold their memory while the files are written)
+        with make_executor(executor, scheduler) as ex:
+            return coop_job(*args, executor=ex)
 
-        record = _plan(make, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
+    record = _plan(make, write_coop_bundle, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
     if then_simulate:
         from cooprint.jobs import simulate_bundle

@@ -35,6 +35,7 @@ import os
 import re
 import signal
 import sys
+import uuid
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -259,8 +260,10 @@ class DaskExecutor(Executor):
     scheduler``) or ``local:N`` (a ``LocalCluster`` of N single-threaded worker processes on
     127.0.0.1, started here and stopped by :meth:`close`).
 
-    The connection is made here, so that an unreachable scheduler is one line
-    (:class:`ExecutorError`) after :data:`CONNECT_TIMEOUT` seconds, before any work. Dask's own
+    The connection to a running scheduler is made here, so that an unreachable one is one line
+    (:class:`ExecutorError`) after :data:`CONNECT_TIMEOUT` seconds, before any work; a local
+    cluster is started here and connected to when the first tasks come (it starts while
+    cooprint reads and cuts the part). Dask's own
     log messages are silenced while the executor is open (its failures reach the user as
     :class:`ExecutorError`).
 
@@ -285,34 +288,63 @@ class DaskExecutor(Executor):
         self._logs = _quiet_dask_logs()
         self.helper: LocalHelper | None = None
         self.client = None
-        try:
-            if kind == "local":
+        self._timeout = connect_timeout
+        if kind == "local":  # started now, connected to when the first tasks come: it starts while the part is cut
+            try:
                 self.helper = LocalHelper(int(where))
-                where = self.helper.address
+            except BaseException:
+                self.close()
+                raise
+            self.slots = int(where)
+            return
+        self._connect(where)
+        self.slots = max(1, sum(self.client.nthreads().values()))
+
+    def _connect(self, where: str) -> None:
+        """Connect the client to the scheduler at ``where``; one line if none answers."""
+        try:
             with blocked_sigint():  # the client's threads start with SIGINT blocked: Ctrl-C goes to the main thread
-                self.client = distributed.Client(where, set_as_default=False, timeout=connect_timeout)
+                self.client = self._distributed.Client(where, set_as_default=False, timeout=self._timeout)
         except OSError as exc:
             self.close()
-            raise ExecutorError(f"--scheduler {clip(address)}: no Dask scheduler answered within {connect_timeout:g} s "
-                                f"(nothing listening there, or the host cannot be resolved or reached; start one with "
-                                f"`dask scheduler`): {_first_line(exc)}") from None
+            raise ExecutorError(f"--scheduler {clip(self.address)}: no Dask scheduler answered within "
+                                f"{self._timeout:g} s (nothing listening there, or the host cannot be resolved or "
+                                f"reached; start one with `dask scheduler`): {_first_line(exc)}") from None
         except BaseException:
             self.close()
             raise
-        self.slots = max(1, sum(self.client.nthreads().values()))
+
+    @property
+    def scheduler_address(self) -> str:
+        """The scheduler's address (a local cluster's, once it is up)."""
+        return self._ready().scheduler.address
+
+    def _ready(self) -> Any:
+        """The connected client (a local cluster's, once its helper has given its address)."""
+        if self.client is None:
+            if self.helper is None:
+                raise ExecutorError(f"dask at {clip(self.address)}: the executor is closed")
+            try:
+                address = self.helper.wait()
+            except BaseException:
+                self.close()
+                raise
+            self._connect(address)
+        return self.client
 
     def describe(self) -> str:
         return f"dask at {self.address} ({self.slots} worker threads)"
 
     def _results(self, fn, tasks, shared, window):
         distributed = self._distributed
-        client = self.client
+        client = self._ready()
         pending: set[Any] = set()  # submitted, result not taken: cancelled if the map stops early
         try:
             # once per map: every worker gets its copy now, not one per task
             [shared_f] = client.scatter([shared], broadcast=True, hash=False)
             pending.add(shared_f)
-            prefix = f"cooprint-{getattr(fn, '__name__', 'task')}"
+            # keys are the cluster's, shared by its clients: this job's own
+            prefix = f"cooprint-{getattr(fn, '__name__', 'task')}-{uuid.uuid4().hex[:16]}"
 
             def submit(task: Any) -> Any:
                 f = client.submit(_run_dask, fn, shared_f, task, pure=False, key=f"{prefix}-{next(_TOKENS)}")
@@ -366,25 +398,34 @@ LOCAL_START_TIMEOUT = 120.0
 
 class LocalHelper:
     """A helper process serving a ``LocalCluster`` of ``n`` worker processes on 127.0.0.1
-    (:func:`_serve_local`), in a session of its own; :attr:`address` is its scheduler's."""
+    (:func:`_serve_local`), in a session of its own, started at once; :meth:`wait` gives its
+    scheduler's address when it is up."""
 
-    def __init__(self, n: int, timeout: float = LOCAL_START_TIMEOUT):
-        import select
+    def __init__(self, n: int):
         import subprocess
         import tempfile
 
+        self.n = n
+        self.address: str | None = None
         self.log = tempfile.TemporaryFile()
         code = f"from cooprint.executors import _serve_local; _serve_local({int(n)}, {os.getpid()})"
-        self.proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=self.log, start_new_session=True)
-        assert self.proc.stdout is not None
-        ready, _, _ = select.select([self.proc.stdout], [], [], timeout)
-        line = self.proc.stdout.readline().decode("ascii", "replace").strip() if ready else ""
-        if not line.startswith("tcp://"):
-            why = self._last_log_line() or (f"no answer within {timeout:g} s" if not ready else "it stopped")
-            self.close()
-            raise ExecutorError(f"--scheduler local:{n}: the local Dask cluster did not start: {why}")
-        self.address = line
+        self.proc: Any = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                          stderr=self.log, start_new_session=True)
+
+    def wait(self, timeout: float = LOCAL_START_TIMEOUT) -> str:
+        """The scheduler's address, once the cluster is up (at most ``timeout`` s from now)."""
+        import select
+
+        if self.address is None:
+            assert self.proc is not None and self.proc.stdout is not None
+            ready, _, _ = select.select([self.proc.stdout], [], [], timeout)
+            line = self.proc.stdout.readline().decode("ascii", "replace").strip() if ready else ""
+            if not line.startswith("tcp://"):
+                why = self._last_log_line() or (f"no answer within {timeout:g} s" if not ready else "it stopped")
+                self.close()
+                raise ExecutorError(f"--scheduler local:{self.n}: the local Dask cluster did not start: {why}")
+            self.address = line
+        return self.address
 
     def _last_log_line(self) -> str:
         self.log.seek(0)
@@ -419,11 +460,17 @@ def _serve_local(n: int, parent: int) -> None:
     when the standard input closes (the parent closed it, or died). It dies with its parent
     (``PR_SET_PDEATHSIG``) if it cannot close in time; Dask's workers end with their nanny."""
     _worker_init(parent)  # SIGINT ignored (inherited by the workers), death signal armed
+    import dask
     import distributed
 
     logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
+    # on this machine the workers share its cores with cooprint: none of Dask's sampling of
+    # their threads' stacks (every 10 ms) and of their memory (every 100 ms; no memory limit, as
+    # the `processes` executor has none), less often its system monitor
+    dask.config.set({"distributed.worker.profile.enabled": False, "distributed.admin.system-monitor.interval": "2s"})
     with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  scheduler_port=0, dashboard_address=":0", silence_logs=logging.CRITICAL) as cluster:
+                                  scheduler_port=0, dashboard_address=":0", silence_logs=logging.CRITICAL,
+                                  memory_limit=0) as cluster:
         print(cluster.scheduler_address, flush=True)
         sys.stdin.buffer.read()
 
