@@ -229,6 +229,20 @@ def plan_options(command: Any) -> Any:
     return command
 
 
+def executor_options(command: Any) -> Any:
+    """``--executor inline|processes|dask`` and ``--scheduler ADDRESS`` (:mod:`cooprint.executors`),
+    handed to ``command`` as ``executor`` and ``scheduler`` (``None`` when not given)."""
+    command = click.option(
+        "--scheduler", metavar="ADDRESS", default=None,
+        help="With --executor dask: tcp://HOST:PORT of a running `dask scheduler`, or local:N to start N worker "
+             "processes on this machine [local: one per CPU, at most 4].")(command)
+    return click.option(
+        "--executor", type=click.Choice(["inline", "processes", "dask"]), default=None,
+        help="Where the work is done: inline (this process), processes (worker processes on this machine) or dask "
+             "(a Dask cluster, see --scheduler; pip install 'cooprint[dask]') [processes]. Same output "
+             "whichever.")(command)
+
+
 def _plan(make: Any, mesh: str, out: str, config: tuple[str, ...], overrides: dict[str, Any],
           robots: int, force: bool, no_picture: bool, quiet: bool) -> dict[str, Any] | None:
     """Make a job and write its bundle (``make(mesh, settings, out, robots, force, picture,
@@ -310,19 +324,22 @@ def chunk(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: 
               "[the bed centre: build_x/2, build_y/2].")
 @click.option("--force", is_flag=True, help="Replace OUT if it exists.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bars or summary.")
+@executor_options
 def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str, Any], center: str | None,
-              force: bool, quiet: bool) -> None:
+              force: bool, quiet: bool, executor: str | None, scheduler: str | None) -> None:
     """Slice MESH for one printer and write Marlin G-code to OUT (a plain slicer run).
 
     The part is put on the bed: on the floor, centred at the bed centre or --center (PrusaSlicer's
     --center); --no-place keeps its own frame. The same slicer turns every chunk of a cooperative
     job into tool paths.
     """
+    from cooprint.executors import check_executor_options, make_executor
     from cooprint.io.bundle import check_file_destination
     from cooprint.io.outputs import estimate_bytes
     from cooprint.io.place import parse_center
     from cooprint.jobs import slice_to_gcode
 
+    check_executor_options(executor, scheduler)
     _lean_malloc()
     settings = _settings(config, overrides)
     if center is not None and not settings.mesh.place:  # one would be ignored
@@ -331,8 +348,9 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str,
     xy = None if center is None else parse_center(center)
     check_file_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     where: list[Any] = []
-    with stage_progress(not quiet) as progress:
-        n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True, center=xy, placed=where.append)
+    with make_executor(executor, scheduler) as ex, stage_progress(not quiet) as progress:
+        n_layers, used = slice_to_gcode(mesh, out, settings, progress, force=True, center=xy, placed=where.append,
+                                        executor=ex)
     if not quiet:
         click.echo(f"{where[0].describe()}; {n_layers} layers, filament {used / 1000:.2f} m; wrote {out}")
 
@@ -388,8 +406,10 @@ def strict_option(command: Any) -> Any:
 @click.option("--compress", is_flag=True,
               help="Write the robots' programs gzip-compressed: OUT/robots/<robot>.coop.gz and .gcode.gz "
                    "(simulate and render read them as they are).")
+@executor_options
 def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides: dict[str, Any], force: bool,
-            no_picture: bool, quiet: bool, then_simulate: bool, strict: bool, compress: bool) -> None:
+            no_picture: bool, quiet: bool, then_simulate: bool, strict: bool, compress: bool, executor: str | None,
+            scheduler: str | None) -> None:
     """Plan a cooperative print of MESH for a fleet and write the bundle to OUT.
 
     Chunks, assigns, slices every chunk and writes OUT/job.json, OUT/chunks/<id>.stl,
@@ -397,14 +417,18 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
     (with --compress, .coop.gz and .gcode.gz). With --simulate, a plan whose own simulation
     finds errors is reported INVALID (exit 1).
     """
+    from cooprint.executors import check_executor_options, make_executor
     from cooprint.jobs import run_job
 
     if strict and not then_simulate:  # --strict judges a simulation: without one it would be ignored
         raise UserError("--strict needs --simulate (it makes warnings of the plan's simulation fail it)")
+    check_executor_options(executor, scheduler)
 
     def make(mesh: str, settings: Any, out: str, robots: int, force: bool, picture: bool, progress: Any) -> Any:
-        return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress,
-                       on_estimate=estimate_reporter(out, quiet), compress=compress)
+        # the executor starts after the settings' and the destination's checks, before the work
+        with make_executor(executor, scheduler) as ex:
+            return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress,
+                           executor=ex, on_estimate=estimate_reporter(out, quiet), compress=compress)
 
     record = _plan(make, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
@@ -501,9 +525,10 @@ def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
 @click.option("--force", is_flag=True, help="Replace an earlier sim/summary.json (and frames.npz).")
 @click.option("--quiet", "-q", is_flag=True, help="No summary on stdout.")
 @config_option
+@executor_options
 def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, strict: bool, accel: bool,
              frame_step: float | None, perturb: float | None, runs: int | None, seed: int | None, force: bool,
-             quiet: bool, config: tuple[str, ...]) -> None:
+             quiet: bool, config: tuple[str, ...], executor: str | None, scheduler: str | None) -> None:
     """Play a plan in true time and check it: INPUTS is a `cooprint run` folder, G-code files (one
     robot each, M118 NOTIFY / M0 WAIT host lines honoured), or .coop files (one robot each, named by
     the file, the default or --robot profile; or named, placed and profiled by --manifest). Writes
@@ -517,8 +542,14 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     from cooprint.simulation import bound_line, findings_line, frames, simulate as run_sim, summary
     from cooprint.simulation.perturb import check_perturb_options, perturb_runs
 
+    from cooprint.executors import check_executor_options, make_executor
+
     _need_inputs(inputs, manifest)
     monte_carlo = check_perturb_options(perturb, runs, seed)
+    if monte_carlo is None and (executor is not None or scheduler is not None):
+        raise UserError(f"{'--executor' if executor is not None else '--scheduler'} runs the --perturb runs; "
+                        "without --perturb there is nothing to send to it")
+    check_executor_options(executor, scheduler)
     if frame_step is not None and not (math.isfinite(frame_step) and frame_step > 0):
         raise UserError(f"--frames {frame_step:g}: expected a positive number of seconds")
     folder = _sim_folder(inputs, out)
@@ -533,8 +564,10 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         inp = read_with_progress(list(inputs), manifest, _settings(config, {}) if config else None, progress)
         result = run_sim(inp, accel=accel, progress=progress)
         if monte_carlo:
-            perturbed = perturb_runs(inp, *monte_carlo, accel=accel,
-                                     progress=lambda done, total: progress("perturbed runs", done, total))
+            with make_executor(executor, scheduler) as ex:
+                perturbed = perturb_runs(inp, *monte_carlo, accel=accel,
+                                         progress=lambda done, total: progress("perturbed runs", done, total),
+                                         executor=ex)
     record = summary(result, perturbed)
     if frame_step is not None:
         if result.makespan / frame_step > 10_000_000:

@@ -355,11 +355,12 @@ def slice_job(mesh: str | Path | Solid, settings: JobSettings | None = None,
 def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | None = None,
                    progress: Progress | None = None, force: bool = False,
                    center: Sequence[float] | None = None,
-                   placed: Callable[[Placement], None] | None = None) -> tuple[int, float]:
+                   placed: Callable[[Placement], None] | None = None, executor: Any = None) -> tuple[int, float]:
     """Load, place on the bed (at ``center``, default the bed centre: PrusaSlicer's
     ``--center``), slice and write G-code to ``out`` atomically, layer block by layer block (the
     model is never held whole); return the number of layers and the filament used, mm.
-    ``placed(placement)`` is told where the part was put before the slicing starts."""
+    ``placed(placement)`` is told where the part was put before the slicing starts; ``executor``:
+    where the blocks of layers are sliced (:func:`cooprint.slicing.iter_layers`)."""
     from cooprint.io.bundle import atomic_file
     from cooprint.program.build import layer_pieces
     from cooprint.program.gcode import Feeds, write_gcode
@@ -370,7 +371,7 @@ def slice_to_gcode(mesh: str | Path, out: str | Path, settings: JobSettings | No
     if placed:
         placed(placement)
     layer_progress = (lambda d, t: progress("slice", d, t)) if progress else None
-    layers = iter_layers(solid, settings.slicing, layer_progress)
+    layers = iter_layers(solid, settings.slicing, layer_progress, executor=executor)
     counted = _Counted(layers)
     del solid  # iter_layers keeps only what slicing needs, not the whole Solid
     s = settings.slicing

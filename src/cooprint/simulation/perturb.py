@@ -156,7 +156,7 @@ class PerturbResult:
 
 
 def perturb_runs(inp: SimInput, fraction: float, runs: int, seed: int = DEFAULT_SEED, accel: bool = False,
-                 progress=None) -> PerturbResult:
+                 progress=None, executor=None) -> PerturbResult:
     """Play ``inp`` ``runs`` times, each run with every robot's speeds scaled per stretch of its
     program by factors uniform in ``[1 - fraction, 1 + fraction]`` (:func:`run_factors`; with
     ``accel`` the factor scales each move's requested speed, the cap of its trapezoid, and the
@@ -165,9 +165,12 @@ def perturb_runs(inp: SimInput, fraction: float, runs: int, seed: int = DEFAULT_
     A run is as cheap as the checks allow: no pictures, the constant-speed speeds worked out
     once, and only the checks whose findings timing can change (:data:`cooprint.simulation.
     TIME_INVARIANT` are the same at any speed and left to the constant-speed simulation).
-    ``progress(done, total)`` is called after each run."""
-    from cooprint.simulation import play
+    ``progress(done, total)`` is called after each run.
 
+    ``executor`` (:mod:`cooprint.executors`; None: one run after the other here) runs them: the
+    plan and its constant-speed speeds are its ``shared`` data (sent to each worker once), a
+    run is a task ``(number, seed)``, and the runs come back in order. A run depends on its seed
+    alone, so the result is the same whatever the executor."""
     if not 0.0 < fraction < 1.0:
         raise ValueError(f"fraction {fraction!r}: expected 0 < fraction < 1")
     if not 1 <= runs <= MAX_RUNS:
@@ -178,16 +181,48 @@ def perturb_runs(inp: SimInput, fraction: float, runs: int, seed: int = DEFAULT_
     spans = [span_ids(r.program.chunk) for r in robots]
     stretches = [int(s[-1]) + 1 if len(s) else 0 for s in spans]
     seeds = np.random.default_rng(seed).integers(0, SEED_LIMIT, size=runs, dtype=np.int64).tolist()
+    shared = _Plan(inp, robots, base, spans, stretches, float(fraction), accel)
+    if executor is None:
+        from cooprint.executors import InlineExecutor
+
+        executor = InlineExecutor()
     out, checked = [], ()
-    for k, run_seed in enumerate(seeds, start=1):
-        factors = run_factors(stretches, fraction, run_seed)
-        moved = [replace(r, speed=perturbed_speeds(b, s, f)) for r, b, s, f in zip(robots, base, spans, factors)]
-        res = play(inp, moved, accel, checks=True, chunks=None, invariant=False)
-        checked = res.checked
-        out.append(PerturbRun(k, int(run_seed), res.makespan, tuple(res.findings)))
-        if progress is not None:
-            progress(k, runs)
+    results = executor.map(_perturbed_run, list(enumerate(seeds, start=1)), shared=shared)
+    try:
+        for k, (run, checked) in enumerate(results, start=1):
+            out.append(run)
+            if progress is not None:
+                progress(k, runs)
+    finally:  # Ctrl-C or an error: the runs under way stop now
+        results.close()
     return PerturbResult(float(fraction), int(seed), accel, checked, tuple(out))
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What every perturbed run shares: the plan, its robots, their constant-speed speeds, the
+    stretches of their programs, the variation and the time model."""
+
+    inp: SimInput
+    robots: list[SimRobot]
+    base: list[np.ndarray]
+    spans: list[np.ndarray]
+    stretches: list[int]
+    fraction: float
+    accel: bool
+
+
+def _perturbed_run(plan: _Plan, task: tuple[int, int]) -> tuple[PerturbRun, tuple[str, ...]]:
+    """One run (a task of :func:`perturb_runs`): ``task`` is its number and its seed; returns
+    the run and the kinds it checked."""
+    from cooprint.simulation import play
+
+    k, run_seed = task
+    factors = run_factors(plan.stretches, plan.fraction, run_seed)
+    moved = [replace(r, speed=perturbed_speeds(b, s, f))
+             for r, b, s, f in zip(plan.robots, plan.base, plan.spans, factors)]
+    res = play(plan.inp, moved, plan.accel, checks=True, chunks=None, invariant=False)
+    return PerturbRun(k, int(run_seed), res.makespan, tuple(res.findings)), tuple(res.checked)
 
 
 __all__ = ["DEFAULT_RUNS", "DEFAULT_SEED", "MAX_RUNS", "PerturbResult", "PerturbRun", "check_perturb_options",

@@ -2,8 +2,9 @@
 
 from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, ROLE_NAMES, SKIN, TRAVEL,
                                     LayerPaths, extrusion_area, extrusion_spacing)
-from cooprint.slicing.slicer import SlicedModel, iter_layers, layer_tops, slice_chunks, slice_solid
+from cooprint.slicing.slicer import (PackedLayers, SlicedModel, iter_layers, layer_tops, pack_layers, slice_chunks,
+                                     slice_solid, unpack_layers)
 
 __all__ = ["INFILL", "PERIMETER_INNER", "PERIMETER_OUTER", "ROLE_NAMES", "SKIN", "TRAVEL", "LayerPaths",
-           "SlicedModel", "extrusion_area", "extrusion_spacing", "iter_layers", "layer_tops", "slice_chunks",
-           "slice_solid"]
+           "PackedLayers", "SlicedModel", "extrusion_area", "extrusion_spacing", "iter_layers", "layer_tops",
+           "pack_layers", "slice_chunks", "slice_solid", "unpack_layers"]

@@ -18,20 +18,18 @@ Stages, each on whole layers:
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
-import signal
-import sys
-from concurrent.futures import ProcessPoolExecutor
+import threading
+import uuid
+from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator, Mapping
+from typing import Callable, Iterator, Mapping
 
 import manifold3d
 import numpy as np
 
 from cooprint.config import SlicingSettings
+from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, default_workers
 from cooprint.io.mesh import Solid
-from cooprint.interrupts import blocked_sigint, deferred_sigint
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.sections import LayerSlicer
 from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths,
@@ -125,8 +123,15 @@ def layer_range(solid: Solid, settings: SlicingSettings, base: float | None = No
     return int(np.searchsorted(tops, zmin - z0, side="right")), len(tops)
 
 
+def layer_blocks(first: int, end: int) -> list[tuple[int, int]]:
+    """The blocks ``(lo, hi)`` of ``BLOCK`` layers that layers ``first .. end - 1`` are sliced in
+    (the last one shorter): fixed by the layer range alone, whatever runs them."""
+    return [(lo, min(lo + BLOCK, end)) for lo in range(first, end, BLOCK)]
+
+
 def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int, int], None] | None = None,
-                workers: int | None = None, base: float | None = None) -> Iterator[LayerPaths]:
+                workers: int | None = None, base: float | None = None,
+                executor: Executor | None = None) -> Iterator[LayerPaths]:
     """The layers of :func:`slice_solid`, bottom first, as they are ready: a consumer that writes
     them out (G-code) never holds the whole model.
 
@@ -137,117 +142,194 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
         object's grid, so that the layers of neighbouring chunks line up; the layers below the
         chunk are left out (:func:`layer_range` gives the indices of those that are not).
     workers
-        Processes to use (default: one per CPU, at most 4); blocks of ``BLOCK`` layers are sliced
-        independently, so 1 and N workers give identical results.
+        Processes to use when no ``executor`` is given (default: one per CPU, at most 4, from
+        ``PARALLEL_BLOCKS`` blocks on); blocks of ``BLOCK`` layers are sliced independently, so
+        1 and N workers give identical results.
+    executor
+        Where the blocks are sliced (:mod:`cooprint.executors`; default: local processes as
+        ``workers`` says). The mesh prepared for slicing is the executor's ``shared`` data.
     progress
         Called with (layers done, layers in all) after every block.
     """
     first, n = layer_range(solid, settings, base)
-    blocks = [(lo, min(lo + BLOCK, n)) for lo in range(first, n, BLOCK)]
-    if workers is None:  # a pool costs ~0.3 s to start: worth it from a few hundred layers on
-        workers = min(os.cpu_count() or 1, 4) if len(blocks) >= PARALLEL_BLOCKS else 1
-    workers = min(workers, len(blocks))
-    global _WORKER
-    _WORKER = _Job(solid, settings, base)  # forked workers share it (and its arrays) copy-on-write
+    blocks = layer_blocks(first, n)
+    job = _Job(solid.vertices, solid.faces, np.asarray(solid.bounds, dtype=np.float64), settings, base)
     del solid  # the job has what it needs: a caller that let go of the solid gets its memory back
+    own = executor is None
+    if own:
+        if workers is None:  # a pool costs ~0.3 s to start: worth it from a few hundred layers on
+            workers = default_workers() if len(blocks) >= PARALLEL_BLOCKS else 1
+        executor = ProcessExecutor(workers, min_tasks=2) if workers > 1 else InlineExecutor()
+    results = executor.map(_job_block, blocks, shared=job)
+    del job  # the executor holds it while the blocks run
     done = 0
-    pool = None
     try:
-        if workers > 1:
-            with blocked_sigint():  # workers are forked here: none sees a Ctrl-C before it ignores it
-                pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"),
-                                           initializer=_worker_init, initargs=(os.getpid(),))
-                parts = pool.map(_work_block, blocks)
-        else:
-            parts = map(_work_block, blocks)
-        for part in parts:
-            done += len(part)
+        for packed in results:
+            layers = unpack_layers(packed)
+            done += len(layers)
             if progress:
                 progress(done, n - first)
-            yield from part
-    except BaseException:  # Ctrl-C, an error, or the consumer stopped early (GeneratorExit)
-        if pool is not None:
-            _stop_pool(pool)
-            pool = None
-        raise
-    finally:
-        if pool is not None:
-            pool.shutdown(wait=True)
-        _WORKER = None
+            yield from layers
+    finally:  # Ctrl-C, an error, or the consumer stopped early: the workers stop now
+        results.close()
+        if own:
+            executor.close()
 
 
 def slice_chunks(solids: Mapping[str, Solid], settings: SlicingSettings, base: float,
-                 progress: Callable[[int, int], None] | None = None, executor: Any = None
+                 progress: Callable[[int, int], None] | None = None, executor: Executor | None = None
                  ) -> Iterator[tuple[str, list[tuple[int, LayerPaths]]]]:
     """Each chunk's layers in the object's layer grid (``base``: the object's bottom), chunk after
     chunk in the order of ``solids``: ``(chunk id, [(layer index, LayerPaths), ...])``, a chunk
     as soon as all its layers are sliced, so that a consumer that writes each one out and lets
     it go holds one chunk at a time (issue 15: memory bounded by the chunks in flight).
 
-    ``progress(layers done, layers in all)``; ``executor``: where the blocks of layers are sliced
-    (None: :func:`iter_layers`' own pool of worker processes). The layers are the same whatever
-    the executor: every chunk is cut into the same blocks of ``BLOCK`` layers."""
+    The tasks are the blocks of ``BLOCK`` layers of every chunk (:func:`layer_blocks`), all
+    chunks' in one stream, so that every worker is busy even on a job of one chunk and the next
+    chunk starts while the last blocks of one finish. ``executor`` (:mod:`cooprint.executors`;
+    None: local processes) gets the chunk meshes once as its ``shared`` data; each worker
+    prepares a chunk's mesh for slicing once and keeps it for that chunk's next blocks; a block
+    comes back as a few flat arrays (:class:`PackedLayers`). The layers are the same whatever
+    the executor: the blocks are fixed, and each depends on its chunk and its layers alone.
+
+    ``progress(layers done, layers in all)`` after every block."""
     ranges = {cid: layer_range(sol, settings, base) for cid, sol in solids.items()}
+    blocks = {cid: layer_blocks(first, end) for cid, (first, end) in ranges.items()}
     total = sum(end - first for first, end in ranges.values())
+    shared = _Chunks(uuid.uuid4().hex, {cid: (sol.vertices, sol.faces, np.asarray(sol.bounds, dtype=np.float64))
+                                        for cid, sol in solids.items()}, settings, base)
+    tasks = [(cid, lo, hi) for cid, bs in blocks.items() for lo, hi in bs]
+    own = executor is None
+    ex = ProcessExecutor() if own else executor
+    results = ex.map(_chunk_block, tasks, shared=shared)
     done = 0
-    for cid, solid in solids.items():
-        layers = []
-        for layer in iter_layers(solid, settings, base=base):
-            layers.append((ranges[cid][0] + len(layers), layer))
-        done += len(layers)
-        if progress:
-            progress(done, total)
-        yield cid, layers
+    try:
+        for cid in solids:
+            first = ranges[cid][0]
+            layers: list[tuple[int, LayerPaths]] = []
+            for _ in blocks[cid]:
+                for layer in unpack_layers(next(results)):
+                    layers.append((first + len(layers), layer))
+                if progress:
+                    progress(done + len(layers), total)
+            done += len(layers)
+            yield cid, layers
+            del layers
+    finally:  # Ctrl-C, an error, or the consumer stopped early: the workers stop now
+        results.close()
+        _forget(shared.token)
+        if own:
+            ex.close()
 
 
-#: ``prctl`` option: the signal a process gets when its parent dies (Linux).
-_PR_SET_PDEATHSIG = 1
+@dataclass(frozen=True)
+class PackedLayers:
+    """A block of layers as a few flat arrays (what a worker sends back): every layer's ``z``,
+    ``height``, number of paths and of points, and all layers' points, path ends (each layer's
+    ``offsets[1:]``), roles and widths concatenated. :func:`unpack_layers` gives back the
+    :class:`LayerPaths`, equal array for array."""
+
+    z: np.ndarray
+    height: np.ndarray
+    n_paths: np.ndarray
+    n_points: np.ndarray
+    points: np.ndarray
+    ends: np.ndarray
+    role: np.ndarray
+    width: np.ndarray
 
 
-def _worker_init(parent: int) -> None:
-    """Set up a slicing worker: Ctrl-C is the parent's to handle (it stops the pool), and the
-    worker dies with its parent (Linux ``PR_SET_PDEATHSIG``, best effort), so that no worker
-    outlives a parent that was killed."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if hasattr(signal, "pthread_sigmask"):
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
+def pack_layers(layers: list[LayerPaths]) -> PackedLayers:
+    """:class:`PackedLayers` of ``layers``."""
+    def cat(arrays: list[np.ndarray], empty: np.ndarray) -> np.ndarray:
+        return np.concatenate(arrays) if arrays else empty
 
-            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
-        except (OSError, AttributeError):
-            pass
-    if os.getppid() != parent:  # the parent died before the death signal was armed
-        os._exit(1)
+    return PackedLayers(
+        np.array([lp.z for lp in layers], dtype=np.float64), np.array([lp.height for lp in layers], dtype=np.float64),
+        np.array([len(lp.role) for lp in layers], dtype=np.int64),
+        np.array([len(lp.points) for lp in layers], dtype=np.int64),
+        cat([lp.points for lp in layers], np.zeros((0, 2))), cat([lp.offsets[1:] for lp in layers],
+                                                                 np.zeros(0, np.int64)),
+        cat([lp.role for lp in layers], np.zeros(0, np.uint8)), cat([lp.width for lp in layers], np.zeros(0)))
 
 
-def _stop_pool(pool: ProcessPoolExecutor) -> None:
-    """Stop a pool now: cancel what has not started, terminate the workers (a block under way
-    is of no use any more), wait for them and for the pool's thread. Ctrl-C is held meanwhile."""
-    with deferred_sigint():
-        # the pool's own list of its processes (Python < 3.14 has no public way to terminate
-        # them), taken before shutdown() forgets it
-        procs = list((getattr(pool, "_processes", None) or {}).values())
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in procs:
-            if proc.is_alive():
-                proc.terminate()
-        for proc in procs:
-            proc.join(5)
-            if proc.is_alive():
-                proc.kill()
-                proc.join(1)
-        pool.shutdown(wait=True)
+def unpack_layers(p: PackedLayers) -> list[LayerPaths]:
+    """The :class:`LayerPaths` of a :class:`PackedLayers` (their points, roles and widths are
+    views of its arrays)."""
+    out = []
+    a = b = 0
+    for k in range(len(p.z)):
+        m, q = int(p.n_paths[k]), int(p.n_points[k])
+        offsets = np.concatenate([np.zeros(1, np.int64), p.ends[a:a + m]]).astype(np.int64, copy=False)
+        out.append(LayerPaths(float(p.z[k]), float(p.height[k]), p.points[b:b + q], offsets, p.role[a:a + m],
+                              p.width[a:a + m]))
+        a, b = a + m, b + q
+    return out
+
+
+@dataclass(frozen=True)
+class _Chunks:
+    """What every task of :func:`slice_chunks` shares: the chunk meshes ``{id: (vertices,
+    faces, bounds)}``, the settings and the layer grid's base; ``token`` names the job in the
+    workers' caches."""
+
+    token: str
+    meshes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+    settings: SlicingSettings
+    base: float
+
+
+#: Chunks prepared for slicing in this process (a worker's cache): ``(token, chunk id) -> _Job``,
+#: the most recently used last. A worker slices a chunk's blocks one after another (the tasks
+#: come chunk by chunk), so a few entries serve every block; a worker with several threads works
+#: on as many chunks at once at most.
+_PREPARED: OrderedDict[tuple[str, str], "_Job"] = OrderedDict()
+_PREPARED_MAX = 4
+_PREPARED_LOCK = threading.Lock()
+
+
+def _prepared(chunks: _Chunks, cid: str) -> "_Job":
+    """The chunk ``cid`` of ``chunks`` prepared for slicing, made once per process."""
+    key = (chunks.token, cid)
+    with _PREPARED_LOCK:
+        job = _PREPARED.get(key)
+        if job is not None:
+            _PREPARED.move_to_end(key)
+            return job
+        vertices, faces, bounds = chunks.meshes[cid]
+        job = _Job(vertices, faces, bounds, chunks.settings, chunks.base)
+        _PREPARED[key] = job
+        while len(_PREPARED) > _PREPARED_MAX:
+            _PREPARED.popitem(last=False)
+        return job
+
+
+def _forget(token: str) -> None:
+    """Drop this process's prepared chunks of a job (the inline executor's, at its end)."""
+    with _PREPARED_LOCK:
+        for key in [k for k in _PREPARED if k[0] == token]:
+            del _PREPARED[key]
+
+
+def _chunk_block(chunks: _Chunks, task: tuple[str, int, int]) -> PackedLayers:
+    """A task of :func:`slice_chunks`: layers ``lo .. hi - 1`` of chunk ``cid``."""
+    cid, lo, hi = task
+    return pack_layers(_prepared(chunks, cid).block(lo, hi))
+
+
+def _job_block(job: "_Job", block: tuple[int, int]) -> PackedLayers:
+    """A task of :func:`iter_layers`: layers ``lo .. hi - 1`` of its prepared solid."""
+    return pack_layers(job.block(*block))
 
 
 class _Job:
     """Everything a block of layers needs: the mesh prepared for slicing, the layer planes."""
 
-    def __init__(self, solid: Solid, settings: SlicingSettings, base: float | None = None):
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, bounds: np.ndarray, settings: SlicingSettings,
+                 base: float | None = None):
         self.s = settings
-        self.slicer = LayerSlicer(solid.vertices, solid.faces)
-        lo, hi = solid.bounds
+        self.slicer = LayerSlicer(vertices, faces)
+        lo, hi = bounds
         self.zmin = float(lo[2]) if base is None else min(base, float(lo[2]))
         self.tops = layer_tops(float(hi[2]) - self.zmin, settings)
         self.heights = np.where(np.arange(len(self.tops)) == 0, settings.first_layer_height,
@@ -368,14 +450,6 @@ class _Job:
         if paths:
             here = paths[-1][0][-1]
         return here
-
-
-_WORKER: _Job | None = None
-
-
-def _work_block(block: tuple[int, int]) -> list[LayerPaths]:
-    assert _WORKER is not None
-    return _WORKER.block(*block)
 
 
 def _with_travel(z: float, height: float, paths: list[tuple[np.ndarray, int, float]]) -> LayerPaths:
