@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -27,6 +28,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+#: Bytes per command of a Program's columns (kind 1, xyz 24, role 1, width 8, layer 4, height 8,
+#: chunk 2, event 4).
+PROGRAM_BYTES = 52
 WORK = HERE / "_work" / "calibrate"
 #: The large-nozzle profile's slicing settings (as benchmarks/bench_cooperative.py's large parts).
 LARGE = {"slicing.nozzle_diameter": 1.0, "slicing.layer_height": 0.6, "slicing.first_layer_height": 0.6,
@@ -70,7 +74,7 @@ def child(mesh: str, out: str, overrides_json: str, result_path: str) -> None:
     from cooprint.cli import _lean_malloc
     from cooprint.config import load_settings
     from cooprint.io.estimate import chunk_features, estimate_job, features_matrix
-    from cooprint.jobs import coop_job, write_coop_bundle
+    from cooprint.jobs import _stream_commands, coop_job, write_coop_bundle
 
     _lean_malloc()
     t0 = time.perf_counter()
@@ -82,7 +86,11 @@ def child(mesh: str, out: str, overrides_json: str, result_path: str) -> None:
         span[1] = now
 
     settings = load_settings(overrides=json.loads(overrides_json))
-    job = coop_job(mesh, settings, 2, progress)
+    # streamed as `cooprint run` (jobs.run_job): the chunks' commands spooled to disk as they
+    # are sliced, the files written piece by piece from there
+    spool = Path(out).parent / (Path(out).name + ".spool")
+    shutil.rmtree(spool, ignore_errors=True)
+    job = coop_job(mesh, settings, 2, progress, spool=spool)
     t_job = time.perf_counter() - t0
     write_coop_bundle(job, out, True, True, progress)
     t_end = time.perf_counter() - t0
@@ -90,15 +98,15 @@ def child(mesh: str, out: str, overrides_json: str, result_path: str) -> None:
     feats = {c.id: chunk_features(c.vertices, c.faces, s, c.id) for c in job.chunked.chunks.chunks}
     seqs = {r: list(seq) for r, seq in job.chunked.assignment.sequences.items()}
     robots = {}
-    for r, program in job.programs.items():
-        robots[r] = {"commands": int(len(program)), "chunks": seqs.get(r, []),
+    for r, stream in job.streams.items():
+        commands = _stream_commands(stream, job.store)
+        robots[r] = {"commands": int(commands), "chunks": seqs.get(r, []),
                      "features": features_matrix([feats[c] for c in seqs.get(r, [])]).tolist(),
                      "coop_bytes": os.path.getsize(Path(out) / "robots" / f"{r}.coop"),
                      "gcode_bytes": os.path.getsize(Path(out) / "robots" / f"{r}.gcode"),
-                     "program_nbytes": int(sum(getattr(program, a).nbytes for a in
-                                               ("kind", "xyz", "role", "width", "layer", "height", "chunk", "event")))}
-    layer_nbytes = int(sum(lp.points.nbytes + lp.offsets.nbytes + lp.role.nbytes + lp.width.nbytes
-                           for layers in job.layers.values() for _, lp in layers))
+                     "program_nbytes": int(commands * PROGRAM_BYTES)}
+    layer_nbytes = 0  # a streamed job keeps no layers
+    shutil.rmtree(spool, ignore_errors=True)
     sizes = {str(p.relative_to(out)): p.stat().st_size for p in Path(out).rglob("*") if p.is_file()}
     est = estimate_job(job.chunked.chunks, settings, seqs)
     Path(result_path).write_text(json.dumps({
