@@ -79,30 +79,31 @@ class Calibration:
     memory_chunk_command: float
 
 
-#: Fitted by ``benchmarks/calibrate_estimates.py`` on 2026-12-02 (main ddd6d9a: every chunk's
-#: layers and both programs held until the files are written; the writers of that revision), on
-#: this machine (2 cores shared with other jobs: the times are noisy), two robots each, from the
-#: runs of seven generated parts: boxes 300 x 600 x 40, 200 x 1200 x 100 and 150 x 400 x 250 mm, a
-#: hollow box 400 x 600 x 120 mm with 10 mm walls, the car (``cooprint.models.car_manifold(700)``)
-#: with the default profile, and a 600 x 1200 x 200 mm box and a 1500 mm car with a 1.0 mm
-#: nozzle, 0.6 mm layers, 1.1 mm lines. Commands per robot within -13% .. +4% of the runs' (the
-#: hollow box the worst: its thin walls' fill lines are longer than the chord assumes); the
-#: bundle's bytes within -15% .. +5%; peak memory within 8%; the time after chunking within a
-#: factor 0.5 .. 1.5 (box-large's writing took twice the others' per command: machine load).
-#: Checked on the 600 x 4000 x 400 mm beam's bundle made by that revision (``--check``: 47.4 M
-#: commands, 2.44 GB, 8 min 59 s, 10.2 GB peak): commands +5%, bytes +1%, memory 12 GB (+17%),
-#: time 12 min (+33%). The loop and layer terms fitted to 0 (a box's loops are few beside its
-#: fill lines; the simplified sections have fewer vertices than triangle crossings: ``vertex``
-#: 0.24). Memory: the peak fits the whole job's commands (rms 2.7%: 228 bytes a command, the
-#: layers, both programs and the writers' buffers all held) better than the largest chunks in
-#: flight, so ``memory_chunk_command`` is 0; after the streaming ``coop_job`` (issue 15 item 1)
-#: re-run the script: it fits both and keeps the closer.
+#: Fitted by ``benchmarks/calibrate_estimates.py`` on 2026-12-02, first on main ddd6d9a (every
+#: chunk's layers and both programs held until the files were written), then again on the
+#: streamed run (main after the merge of issue 15's parts: chunks spooled as they are sliced,
+#: the files written piece by piece by the fast writers), on this machine (2 cores shared with
+#: other jobs: the times are noisy), two robots each, from the runs of seven generated parts:
+#: boxes 300 x 600 x 40, 200 x 1200 x 100 and 150 x 400 x 250 mm, a hollow box 400 x 600 x 120
+#: mm with 10 mm walls, the car (``cooprint.models.car_manifold(700)``) with the default profile,
+#: and a 600 x 1200 x 200 mm box and a 1500 mm car with a 1.0 mm nozzle, 0.6 mm layers, 1.1 mm
+#: lines. Commands per robot within -13% .. +4% of the runs' (the hollow box the worst: its thin
+#: walls' fill lines are longer than the chord assumes); the bundle's bytes within -15% .. +5%;
+#: the loop and layer terms fitted to 0 (a box's loops are few beside its fill lines; the
+#: simplified sections have fewer vertices than triangle crossings: ``vertex`` 0.24). Streamed,
+#: the peak memory fits the largest chunks in flight (rms 9.0%: 189 MB and 74 bytes a command
+#: of the three largest chunks) better than the whole job (rms 13.1%), so
+#: ``memory_job_command`` is 0; the programs' stage takes no time of its own any more (a chunk's
+#: commands are made as it arrives, inside the slicing stage); writing 1.5 µs a command. The
+#: first fit (whole job held) was checked on the 600 x 4000 x 400 mm beam's bundle of that
+#: revision (``--check``: 47.4 M commands, 2.44 GB, 8 min 59 s, 10.2 GB peak): commands +5%,
+#: bytes +1%.
 CALIBRATION = Calibration(
     vertex=0.24, loop=0.0, line=3.301, layer=0.0,
     coop_bytes=19.64, gcode_bytes=29.74,
-    start_s=0.28, slice_layer_s=5.46e-05, slice_command_s=3.53e-06, program_command_s=1.71e-06,
-    write_command_s=9.71e-06, slice_cores=2,
-    memory_base=153e6, memory_job_command=228.0, memory_chunk_command=0.0,
+    start_s=0.22, slice_layer_s=0.000176, slice_command_s=3.03e-06, program_command_s=2.55e-09,
+    write_command_s=1.51e-06, slice_cores=2,
+    memory_base=189e6, memory_job_command=0.0, memory_chunk_command=74.1,
 )
 
 #: Bytes of ``job.json`` per chunk (its row: bbox, planes, deps, times) and fixed (settings,
