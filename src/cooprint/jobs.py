@@ -823,16 +823,17 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
 
 
 def read_with_progress(inputs: list[str], manifest: str | None, settings: JobSettings | None,
-                       progress: Progress | None) -> Any:
+                       progress: Progress | None, programs: bool = True) -> Any:
     """:func:`cooprint.simulation.load_inputs` as the ``read`` stage of the progress bars, in
-    bytes of the programs (:func:`cooprint.progress.program_bytes`)."""
+    bytes of the programs (:func:`cooprint.progress.program_bytes`); ``programs=False``: a
+    bundle's programs left to the simulation to read piece by piece."""
     from cooprint.progress import program_bytes
     from cooprint.simulation import load_inputs
 
     size = program_bytes(inputs) if progress else 0
     if progress:
         progress("read", 0, size)
-    inp = load_inputs(inputs, manifest, settings)
+    inp = load_inputs(inputs, manifest, settings, programs)
     if progress:
         progress("read", size, size)
     return inp

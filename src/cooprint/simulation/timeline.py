@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -332,6 +332,13 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
         # the time at each NOTIFY and WAIT, without waits (by command index)
         before = dict(zip(sync, starts[np.searchsorted(mv, sync)]))
         prep[r.name] = (r, p0, p1, on, length, dur, mv, starts, before, sync)
+    return _timelines(prep)
+
+
+def _timelines(prep: dict) -> tuple[dict[str, Timeline], list[Finding]]:
+    """:func:`schedule`'s second half: each robot's moves timed without waits (``prep``: per
+    robot ``(robot, p0, p1, on, length, duration, command index, starts without waits (k + 1,),
+    {sync command: time without waits}, sync commands)``), the WAITs resolved and added in."""
     syncs = {name: [(i, float(before[i]), r.program.kind[i] == NOTIFY, r.program.events[r.program.event[i]])
                     for i in sync] for name, (r, *_, before, sync) in prep.items()}
     announced, pos, waited, delay, waits, notifies = _resolve(syncs)
@@ -362,6 +369,112 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
         out[name] = Timeline(name, t0, np.add(t0, dur[:keep], out=dur[:keep]), p0[:keep], p1[:keep], on[:keep],
                              mv[:keep], waits[name], notifies[name], length[:keep])
     return out, findings
+
+
+#: The per-command columns a robot timed from pieces keeps (:func:`schedule_pieces`): what the
+#: timeline's resolution, the checks and the pictures read of a program after it is timed.
+KEPT_COLUMNS = ("kind", "width", "height", "chunk", "event")
+
+
+def schedule_pieces(robots: list[SimRobot], pieces: dict[str, Callable[[], Iterable[Program]]],
+                    print_speed: float, travel_speed: float, room: dict[str, int] | None = None
+                    ) -> tuple[list[SimRobot], dict[str, Timeline], list[Finding]]:
+    """:func:`schedule` at constant speed for robots whose programs come piece by piece
+    (``pieces[name]()``: the program's pieces in order, e.g. :func:`~cooprint.program.commands.iter_coop`;
+    ``room``: at least as many commands as a robot's program holds, by name, where known, so that
+    its columns grow in place): the same timelines and findings to the last bit, without the
+    whole programs. Returns the robots with programs that keep only :data:`KEPT_COLUMNS` (their
+    targets, roles and layers are constant arrays that take no memory: ``xyz`` NaN), which
+    every check and picture reads, but which cannot be timed again (a perturbed or accelerated
+    run reads the programs whole)."""
+    prep, slim = {}, []
+    for r in robots:
+        speeds = (r.profile.print_speed, r.profile.travel_speed) if r.profile is not None else (print_speed,
+                                                                                                 travel_speed)
+        r2, prep[r.name] = _piece_prep(r, pieces[r.name](), *speeds, (room or {}).get(r.name, 0))
+        slim.append(r2)
+    timelines, findings = _timelines(prep)
+    return slim, timelines, findings
+
+
+def _grown(a: np.ndarray, n: int) -> np.ndarray:
+    """``a`` with room for at least ``n`` rows (in place where it can: pages never written are
+    never backed by memory)."""
+    if n <= len(a):
+        return a
+    a.resize((max(n, 2 * len(a)),) + a.shape[1:], refcheck=False)
+    return a
+
+
+def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, travel_speed: float, room: int):
+    """One robot of :func:`schedule_pieces`: its slim program and ``_timelines``' tuple, built a
+    piece at a time with :func:`move_durations`' operations (the moves' table continued from
+    piece to piece, each duration ``length / speed``, the starts one running sum): the same
+    numbers as of the whole program."""
+    from cooprint.simulation.kernels import move_table  # numba: on first use
+
+    if r.start is None:
+        raise ValueError(f"robot {r.name}: a program timed piece by piece needs its start")
+    room = max(room, 1)
+    cols = {"kind": np.empty(room, np.uint8), "width": np.empty(room), "height": np.empty(room),
+            "chunk": np.empty(room, np.int16), "event": np.empty(room, np.int32)}
+    ends, mv = np.empty((room + 1, 3)), np.empty(room, np.int64)
+    on, length, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room), np.empty(room + 1)
+    ends[0] = np.asarray(r.start, dtype=np.float64)
+    starts[0] = 0.0
+    at = k = 0  # commands and moves so far
+    tool = False
+    chunks: list[str] = []
+    events: list[tuple[str, ...]] = []
+    turns: list[tuple[int, float]] = []
+    sync: list[int] = []
+    before: dict[int, float] = {}
+    for piece in pieces:
+        n = len(piece)
+        chunks += [c for c in piece.chunks if c not in chunks]  # in the order they first appear (read_coop's)
+        turns += [(i + at, deg) for i, deg in piece.turns]  # (a piece without commands may hold a turn)
+        if n == 0:
+            continue
+        for f in cols:
+            cols[f] = _grown(cols[f], at + n)
+        remap = np.array([chunks.index(c) for c in piece.chunks] + [-1], dtype=np.int16)
+        cols["kind"][at:at + n] = piece.kind
+        cols["width"][at:at + n] = piece.width
+        cols["height"][at:at + n] = piece.height
+        cols["chunk"][at:at + n] = remap[piece.chunk]  # -1 indexes the appended -1
+        cols["event"][at:at + n] = np.where(piece.event >= 0, piece.event + len(events), -1)
+        events += piece.events
+        m = int(np.count_nonzero(piece.kind == MOVE))
+        ends, starts = _grown(ends, k + m + 1), _grown(starts, k + m + 1)
+        mv, on, length, dur = (_grown(a, k + m) for a in (mv, on, length, dur))
+        pm, pon = mv[k:k + m], on[k:k + m]
+        move_table(piece.kind, piece.xyz, ends[k], True, pm, ends[k:k + m], ends[k + 1:k + m + 1], pon,
+                   length[k:k + m])
+        tool_on = piece.tool_on(tool)
+        np.logical_and(tool_on[pm], length[k:k + m] > 0, out=pon)  # the tool as the pieces before leave it
+        pm += at
+        d = dur[k:k + m]
+        np.divide(length[k:k + m], travel_speed, out=d)
+        np.divide(length[k:k + m], print_speed, out=d, where=pon)
+        # the running sum continued: the same additions in the same order as the whole program's
+        starts[k:k + m + 1] = np.cumsum(np.r_[starts[k], d])
+        for j in np.flatnonzero(piece.kind >= NOTIFY).tolist():  # NOTIFY and WAIT
+            sync.append(at + j)
+            before[at + j] = starts[k + int(np.searchsorted(pm, at + j))]
+        tool = bool(tool_on[-1])
+        at, k = at + n, k + m
+    for f in cols:
+        cols[f].resize(at, refcheck=False)  # in place: the rest goes back
+    ends.resize((k + 1, 3), refcheck=False)
+    starts.resize(k + 1, refcheck=False)
+    for a in (mv, on, length, dur):
+        a.resize(k, refcheck=False)
+    nothing = lambda dtype, value, shape=(at,): np.broadcast_to(np.array(value, dtype), shape)  # noqa: E731
+    program = Program(r.name, cols["kind"], nothing(np.float64, np.nan, (at, 3)), nothing(np.uint8, 0),
+                      cols["width"], nothing(np.int32, -1), cols["height"], cols["chunk"], cols["event"],
+                      chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
+    r2 = replace(r, program=program)
+    return r2, (r2, ends[:-1], ends[1:], on, length, dur, mv, starts, before, sync)
 
 
 def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: float) -> dict[str, list[float]]:
@@ -474,4 +587,4 @@ def _chunk_at(program: Program, i: int) -> str | None:
 
 
 __all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "SimRobot", "Timeline", "WARNING_KINDS",
-           "event_times", "move_durations", "schedule", "severity"]
+           "event_times", "move_durations", "schedule", "schedule_pieces", "severity"]

@@ -1,0 +1,111 @@
+"""Bounded simulation (issue 15, item 3): a bundle's programs read and timed piece by piece
+(``load_inputs(..., programs=False)``, what ``cooprint simulate`` and ``render`` do) give the
+same timelines, findings, summary.json bytes and pictures as the programs read whole, and the
+robots keep only the columns the checks read (no targets, roles, layers)."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import shutil
+from functools import partial
+
+import numpy as np
+import pytest
+
+import solids
+from cooprint import simulation
+from cooprint.cli import main
+from cooprint.io.bundle import write_json
+from cooprint.program.commands import iter_coop
+from cooprint.render import sim as render_sim
+from cooprint.simulation import frames, load_inputs, simulate, summary
+
+
+@pytest.fixture(scope="module")
+def bundle(tmp_path_factory):
+    return solids.bar_bundle(tmp_path_factory.mktemp("pieces"), 6)
+
+
+def _variant(bundle, tmp_path, kind: str):
+    """The bundle as it is, with robot B turned and stuck at a WAIT no one answers half way
+    (a deadlock, a facing turn), or with its programs gzip-compressed."""
+    out = tmp_path / kind
+    shutil.copytree(bundle, out)
+    if kind == "deadlock":
+        path = out / "robots" / "B.coop"
+        lines = path.read_text().splitlines(keepends=True)
+        half = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].startswith("MOVE"))
+        lines[half:half] = [";@facing 45\n", "WAIT nobody:7\n"]
+        path.write_text("".join(lines))
+    elif kind == "gzip":
+        job = json.loads((out / "job.json").read_text())
+        for r in job["robots"]:
+            src = out / r["program"]
+            (out / (r["program"] + ".gz")).write_bytes(gzip.compress(src.read_bytes(), mtime=0))
+            src.unlink()
+            r["program"] += ".gz"
+        write_json(out / "job.json", job)
+    return out
+
+
+def _small_pieces(monkeypatch, piece_bytes: int):
+    """The simulation reads the programs in pieces of ``piece_bytes`` of text: many pieces."""
+    monkeypatch.setattr(simulation, "iter_coop", partial(iter_coop, piece_bytes=piece_bytes))
+
+
+@pytest.mark.parametrize("kind", ["bundle", "deadlock", "gzip"])
+@pytest.mark.parametrize("piece_bytes", [1, 700, 1 << 22])
+def test_programs_timed_piece_by_piece_give_the_same_plan(bundle, tmp_path, monkeypatch, kind, piece_bytes):
+    folder = _variant(bundle, tmp_path, kind) if kind != "bundle" else bundle
+    whole = simulate(load_inputs([str(folder)]))
+    _small_pieces(monkeypatch, piece_bytes)
+    lazy_inp = load_inputs([str(folder)], programs=False)
+    assert all(r.program is None for r in lazy_inp.robots) and lazy_inp.program_files
+    lazy = simulate(lazy_inp)
+    if kind == "deadlock":
+        assert summary(whole)["finding_counts"]["deadlock"] == 1
+    assert json.dumps(summary(lazy)) == json.dumps(summary(whole))
+    for r in whole.robots:
+        a, b = whole.timelines[r.name], lazy.timelines[r.name]
+        for f in ("t0", "t1", "p0", "p1", "on", "index", "length"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), (r.name, f)
+        assert (a.waits, a.notifies) == (b.waits, b.notifies)
+    slim = {r.name: r.program for r in lazy.robots}
+    for r in whole.robots:
+        p = slim[r.name]
+        assert (p.chunks, p.events, p.turns) == (r.program.chunks, r.program.events, r.program.turns)
+        for f in simulation.timeline.KEPT_COLUMNS:
+            assert np.array_equal(getattr(p, f), getattr(r.program, f)), f
+            assert getattr(p, f).dtype == getattr(r.program, f).dtype
+        # the columns no check reads take no memory
+        assert all(s == 0 for f in ("xyz", "role", "layer") for s in getattr(p, f).strides)
+    fw, fl = frames(whole, whole.makespan / 37), frames(lazy, lazy.makespan / 37)
+    for f in ("t", "position", "done", "material", "facing"):
+        assert np.array_equal(getattr(fw, f), getattr(fl, f)), f
+    for tag, res in (("whole", whole), ("lazy", lazy)):
+        render_sim.render_snapshot(res, res.makespan * 0.6, tmp_path / f"{tag}.png", max_segments=500)
+        render_sim.render_gantt(res, tmp_path / f"{tag}_gantt.png")
+    for x in ("", "_gantt"):
+        assert (tmp_path / f"whole{x}.png").read_bytes() == (tmp_path / f"lazy{x}.png").read_bytes()
+
+
+def test_accelerated_runs_read_the_programs_whole(bundle):
+    whole = simulate(load_inputs([str(bundle)]), accel=True)
+    lazy = simulate(load_inputs([str(bundle)], programs=False), accel=True)
+    assert json.dumps(summary(lazy)) == json.dumps(summary(whole))
+    assert all(r.program.xyz.strides != (0, 0) for r in lazy.robots)
+
+
+def test_cli_simulate_and_render_write_what_the_whole_programs_give(bundle, tmp_path, monkeypatch):
+    """``cooprint simulate DIR --out OTHER`` (programs timed piece by piece) writes the summary
+    the whole programs give, byte for byte; ``render --at`` the same picture."""
+    _small_pieces(monkeypatch, 5000)
+    whole = simulate(load_inputs([str(bundle)]))
+    write_json(tmp_path / "expected.json", summary(whole))
+    assert main(["simulate", str(bundle), "--out", str(tmp_path / "sim"), "--quiet"]) in (0, 1)
+    assert (tmp_path / "sim" / "summary.json").read_bytes() == (tmp_path / "expected.json").read_bytes()
+    at = whole.makespan * 0.4
+    render_sim.render_snapshot(whole, at, tmp_path / "expected.png")
+    assert main(["render", str(bundle), "--at", repr(at), "--out", str(tmp_path / "got.png")]) == 0
+    assert (tmp_path / "got.png").read_bytes() == (tmp_path / "expected.png").read_bytes()
