@@ -103,9 +103,38 @@ def test_cli_simulate_and_render_write_what_the_whole_programs_give(bundle, tmp_
     _small_pieces(monkeypatch, 5000)
     whole = simulate(load_inputs([str(bundle)]))
     write_json(tmp_path / "expected.json", summary(whole))
-    assert main(["simulate", str(bundle), "--out", str(tmp_path / "sim"), "--quiet"]) in (0, 1)
-    assert (tmp_path / "sim" / "summary.json").read_bytes() == (tmp_path / "expected.json").read_bytes()
+    assert main(["simulate", str(bundle), "--out", str(tmp_path / "o"), "--quiet"]) in (0, 1)
+    assert (tmp_path / "o" / "sim" / "summary.json").read_bytes() == (tmp_path / "expected.json").read_bytes()
     at = whole.makespan * 0.4
     render_sim.render_snapshot(whole, at, tmp_path / "expected.png")
     assert main(["render", str(bundle), "--at", repr(at), "--out", str(tmp_path / "got.png")]) == 0
     assert (tmp_path / "got.png").read_bytes() == (tmp_path / "expected.png").read_bytes()
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_runs_index_as_the_array_they_stand_for(seed):
+    """A :class:`Runs` column built piece by piece gives what the array gives: indices, slices,
+    arrays of indices, ``np.maximum.reduceat`` (the widest line of a span), its array."""
+    from cooprint.simulation.timeline import Runs, _RunsBuilder, segment_max
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    a = rng.choice([0.0, -0.0, 0.4, 0.45, 2.5], size=n)
+    a = np.repeat(a, rng.integers(1, 6, size=n))[:n]
+    b = _RunsBuilder(np.float64)
+    cuts = np.sort(rng.integers(0, n + 1, size=5))
+    for lo, hi in zip(np.r_[0, cuts], np.r_[cuts, n]):
+        b.add(a[lo:hi])
+    runs = b.runs()
+    assert isinstance(runs, Runs) and len(runs) == n and runs.nbytes < a.nbytes + 16
+    assert np.asarray(runs).tobytes() == a.tobytes()  # -0.0 kept apart from 0.0
+    idx = rng.integers(-n, n, size=50)
+    assert np.asarray(runs[idx]).tobytes() == a[idx].tobytes()
+    assert runs[int(idx[0])] == a[int(idx[0])] and runs[-1] == a[-1]
+    k = int(rng.integers(0, n))
+    assert np.array_equal(runs[k:], a[k:]) and np.array_equal(runs[::3], a[::3])
+    assert np.array_equal(runs[a > 1], a[a > 1])
+    at = np.sort(rng.integers(0, n, size=int(rng.integers(1, 30))))
+    assert np.array_equal(segment_max(runs, at), np.maximum.reduceat(a, at))
+    with pytest.raises(IndexError):
+        runs[n]

@@ -45,7 +45,7 @@ from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.geometry import unit_xy
 from cooprint.simulation import kernels
 from cooprint.simulation.inputs import ChunkMesh
-from cooprint.simulation.timeline import Finding, SimRobot, Timeline
+from cooprint.simulation.timeline import Finding, SimRobot, Timeline, segment_max
 
 #: Spacing of nozzle and material samples, mm.
 STEP = 2.0
@@ -1042,7 +1042,7 @@ def _runs(r: SimRobot, tl: Timeline, xyz: np.ndarray, t: np.ndarray, h: np.ndarr
     start, key = kernels.height_runs(xyz[:, 2], h, cuts, 1024)
     move = np.searchsorted(tl.t1, t[start], side="left")
     run_chunk = prog.chunk[tl.index[move]].astype(np.int64)
-    widest = np.maximum.reduceat(prog.width, tl.index[move]) if len(move) else np.zeros(0)
+    widest = segment_max(prog.width, tl.index[move]) if len(move) else np.zeros(0)
     return start, run_chunk, key, np.where(widest > 0, widest, width) / 2
 
 

@@ -104,14 +104,107 @@ class SimRobot:
         return _or_default(self.program.height, index, height)
 
 
-def _or_default(column: np.ndarray, index: np.ndarray, default: float) -> np.ndarray:
+def _or_default(column: "np.ndarray | Runs", index: np.ndarray, default: float) -> np.ndarray:
     """``column[index]`` where above 0, else ``default``: a new array (filled in place, no
     temporary of the size of ``index``)."""
     out = column[index]
-    if np.may_share_memory(out, column):  # a view (``index`` a slice): not to be written
+    if isinstance(column, np.ndarray) and np.may_share_memory(out, column):  # a view (``index`` a slice)
         out = out.copy()
     np.copyto(out, default, where=~(out > 0))
     return out
+
+
+class Runs:
+    """A per-command column held as runs of equal values (a program's annotations change
+    seldom: a chunk, a layer's height, a path's width hold for many commands): ``values[r]``
+    from command ``starts[r]`` (``starts[0] == 0``, increasing) to the next run's start, ``n``
+    commands in all. Indexed as the array it stands for (an index, a slice, an array of
+    indices give what the array would: new arrays, never views); ``np.asarray`` makes the array."""
+
+    def __init__(self, starts: np.ndarray, values: np.ndarray, n: int) -> None:
+        self.starts, self.values, self.n = starts, values, n
+
+    dtype = property(lambda self: self.values.dtype)
+    shape = property(lambda self: (self.n,))
+    ndim = 1
+
+    @property
+    def nbytes(self) -> int:
+        return self.starts.nbytes + self.values.nbytes
+
+    def __len__(self) -> int:
+        return self.n
+
+    def _runs(self, index: np.ndarray) -> np.ndarray:
+        return np.searchsorted(self.starts, index, side="right") - 1
+
+    def __getitem__(self, key):
+        if isinstance(key, slice):
+            return self.values[self._runs(np.arange(*key.indices(self.n)))]
+        if isinstance(key, (int, np.integer)):
+            i = int(key) + (self.n if key < 0 else 0)
+            if not 0 <= i < self.n:
+                raise IndexError(f"index {int(key)} out of {self.n}")
+            return self.values[self._runs(i)]
+        index = np.asarray(key)
+        if index.dtype == bool:
+            index = np.flatnonzero(index)
+        if index.size and index.min() < 0:
+            index = np.where(index < 0, index + self.n, index)
+        if index.size and not (0 <= index.min() and index.max() < self.n):
+            raise IndexError(f"an index out of {self.n}")
+        return self.values[self._runs(index)]
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        out = np.repeat(self.values, np.diff(np.append(self.starts, self.n)))
+        return out if dtype is None else out.astype(dtype)
+
+    def segment_max(self, at: np.ndarray) -> np.ndarray:
+        """``np.maximum.reduceat`` of the column at ``at`` (command indices, increasing or
+        equal): the largest value of commands ``at[j]`` to ``at[j + 1] - 1`` (to the end for
+        the last; the value at ``at[j]`` where ``at[j + 1] == at[j]``), from the runs."""
+        at = np.asarray(at, dtype=np.int64)
+        ends = np.append(at[1:], self.n)
+        first = self._runs(at)
+        last = np.maximum(self._runs(ends - 1), first)
+        pairs = np.empty(2 * len(at), np.int64)
+        pairs[0::2], pairs[1::2] = first, last + 1
+        values = np.append(self.values, self.values[:1])  # room for an index one past the last run
+        return np.maximum.reduceat(values, pairs)[0::2]
+
+
+def segment_max(column: "np.ndarray | Runs", at: np.ndarray) -> np.ndarray:
+    """``np.maximum.reduceat(column, at)`` of a program's column, an array or :class:`Runs`."""
+    return column.segment_max(at) if isinstance(column, Runs) else np.maximum.reduceat(column, at)
+
+
+class _RunsBuilder:
+    """A :class:`Runs` column made piece by piece: each piece's values cut where they change
+    (by their bits: 0.0 and -0.0 are two runs, as they are two values)."""
+
+    def __init__(self, dtype) -> None:
+        self.dtype = np.dtype(dtype)
+        self.starts: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+        self.last: np.ndarray | None = None
+        self.n = 0
+
+    def add(self, v: np.ndarray) -> None:
+        v = np.ascontiguousarray(v, dtype=self.dtype)
+        if not len(v):
+            return
+        bits = v.view(np.dtype(f"u{self.dtype.itemsize}"))
+        cut = np.flatnonzero(bits[1:] != bits[:-1]) + 1
+        if self.last is None or self.last != bits[0]:
+            cut = np.r_[0, cut]
+        self.starts.append(cut + self.n)
+        self.values.append(v[cut])
+        self.last, self.n = bits[-1], self.n + len(v)
+
+    def runs(self) -> Runs:
+        starts = np.concatenate(self.starts) if self.starts else np.zeros(0, np.int64)
+        values = np.concatenate(self.values) if self.values else np.zeros(0, self.dtype)
+        return Runs(starts.astype(np.int64), values, self.n)
 
 
 @dataclass(frozen=True)
@@ -383,8 +476,9 @@ def schedule_pieces(robots: list[SimRobot], pieces: dict[str, Callable[[], Itera
     (``pieces[name]()``: the program's pieces in order, e.g. :func:`~cooprint.program.commands.iter_coop`;
     ``room``: at least as many commands as a robot's program holds, by name, where known, so that
     its columns grow in place): the same timelines and findings to the last bit, without the
-    whole programs. Returns the robots with programs that keep only :data:`KEPT_COLUMNS` (their
-    targets, roles and layers are constant arrays that take no memory: ``xyz`` NaN), which
+    whole programs. Returns the robots with programs that keep only :data:`KEPT_COLUMNS` (the
+    kinds an array, the others :class:`Runs`; their targets, roles and layers are constant
+    arrays that take no memory: ``xyz`` NaN), which
     every check and picture reads, but which cannot be timed again (a perturbed or accelerated
     run reads the programs whole)."""
     prep, slim = {}, []
@@ -416,8 +510,9 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     if r.start is None:
         raise ValueError(f"robot {r.name}: a program timed piece by piece needs its start")
     room = max(room, 1)
-    cols = {"kind": np.empty(room, np.uint8), "width": np.empty(room), "height": np.empty(room),
-            "chunk": np.empty(room, np.int16), "event": np.empty(room, np.int32)}
+    kind = np.empty(room, np.uint8)  # changes nearly every command: an array
+    cols = {"width": _RunsBuilder(np.float64), "height": _RunsBuilder(np.float64), "chunk": _RunsBuilder(np.int16),
+            "event": _RunsBuilder(np.int32)}  # change seldom: runs
     ends, mv = np.empty((room + 1, 3)), np.empty(room, np.int64)
     on, length, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room), np.empty(room + 1)
     ends[0] = np.asarray(r.start, dtype=np.float64)
@@ -435,14 +530,13 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
         turns += [(i + at, deg) for i, deg in piece.turns]  # (a piece without commands may hold a turn)
         if n == 0:
             continue
-        for f in cols:
-            cols[f] = _grown(cols[f], at + n)
+        kind = _grown(kind, at + n)
         remap = np.array([chunks.index(c) for c in piece.chunks] + [-1], dtype=np.int16)
-        cols["kind"][at:at + n] = piece.kind
-        cols["width"][at:at + n] = piece.width
-        cols["height"][at:at + n] = piece.height
-        cols["chunk"][at:at + n] = remap[piece.chunk]  # -1 indexes the appended -1
-        cols["event"][at:at + n] = np.where(piece.event >= 0, piece.event + len(events), -1)
+        kind[at:at + n] = piece.kind
+        cols["width"].add(piece.width)
+        cols["height"].add(piece.height)
+        cols["chunk"].add(remap[piece.chunk])  # -1 indexes the appended -1
+        cols["event"].add(np.where(piece.event >= 0, piece.event + len(events), -1))
         events += piece.events
         m = int(np.count_nonzero(piece.kind == MOVE))
         ends, starts = _grown(ends, k + m + 1), _grown(starts, k + m + 1)
@@ -463,14 +557,14 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
             before[at + j] = starts[k + int(np.searchsorted(pm, at + j))]
         tool = bool(tool_on[-1])
         at, k = at + n, k + m
-    for f in cols:
-        cols[f].resize(at, refcheck=False)  # in place: the rest goes back
+    kind.resize(at, refcheck=False)  # in place: the rest goes back
+    cols = {f: b.runs() for f, b in cols.items()}
     ends.resize((k + 1, 3), refcheck=False)
     starts.resize(k + 1, refcheck=False)
     for a in (mv, on, length, dur):
         a.resize(k, refcheck=False)
     nothing = lambda dtype, value, shape=(at,): np.broadcast_to(np.array(value, dtype), shape)  # noqa: E731
-    program = Program(r.name, cols["kind"], nothing(np.float64, np.nan, (at, 3)), nothing(np.uint8, 0),
+    program = Program(r.name, kind, nothing(np.float64, np.nan, (at, 3)), nothing(np.uint8, 0),
                       cols["width"], nothing(np.int32, -1), cols["height"], cols["chunk"], cols["event"],
                       chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
     r2 = replace(r, program=program)
@@ -586,5 +680,5 @@ def _chunk_at(program: Program, i: int) -> str | None:
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "SimRobot", "Timeline", "WARNING_KINDS",
-           "event_times", "move_durations", "schedule", "schedule_pieces", "severity"]
+__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "SimRobot", "Timeline", "WARNING_KINDS", "Runs",
+           "event_times", "move_durations", "schedule", "schedule_pieces", "segment_max", "severity"]
