@@ -5,6 +5,7 @@ robots keep only the columns the checks read (no targets, roles, layers)."""
 
 from __future__ import annotations
 
+import dataclasses
 import gzip
 import json
 import shutil
@@ -138,3 +139,45 @@ def test_runs_index_as_the_array_they_stand_for(seed):
     assert np.array_equal(segment_max(runs, at), np.maximum.reduceat(a, at))
     with pytest.raises(IndexError):
         runs[n]
+
+
+def test_timing_programs_piece_by_piece_holds_no_program(tmp_path):
+    """Timing programs from their files piece by piece holds, beyond the timelines it returns,
+    less than half of what the programs read whole would take (52 bytes a command) at any
+    moment, the moves' columns growing as the pieces come (given no room, they double: a
+    resize holds old and new; ``simulate`` gives room for a command every 7 bytes of file,
+    pages never written never backed); the robots it returns keep the kinds (a byte a command)
+    and their annotations as runs."""
+    import tracemalloc
+
+    from test_bounded_sim import _plan
+
+    from cooprint.program.commands import write_coop
+    from cooprint.simulation.timeline import schedule, schedule_pieces
+
+    inp = _plan(300)  # 780,000 commands, 660,000 moves
+    files = {}
+    for r in inp.robots:
+        files[r.name] = tmp_path / f"{r.name}.coop"
+        with open(files[r.name], "w") as f:
+            write_coop(f, r.program)
+    robots, p = inp.fleet(), inp.profile
+    commands = sum(len(r.program) for r in robots)
+    expected, _ = schedule(robots, p.print_speed, p.travel_speed)
+    bare = [dataclasses.replace(r, program=None) for r in robots]
+    pieces = {name: partial(iter_coop, f, name, piece_bytes=256 << 10) for name, f in files.items()}
+    schedule_pieces(bare[:1], pieces, p.print_speed, p.travel_speed)  # the compiled kernels loaded
+    tracemalloc.start()
+    try:
+        slim, timelines, findings = schedule_pieces(bare, pieces, p.print_speed, p.travel_speed)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    held = sum(a.nbytes for tl in timelines.values() for a in (tl.t0, tl.t1, tl.on, tl.index, tl.length))
+    held += sum(tl.p0.nbytes + 24 for tl in timelines.values())  # p0 and p1: views of one array of ends
+    assert peak - held < 26 * commands, f"{(peak - held) / commands:.1f} bytes a command"
+    assert sum(getattr(r.program, f).nbytes for r in slim for f in simulation.timeline.KEPT_COLUMNS) \
+        < 1.1 * commands
+    for r in robots:
+        assert np.array_equal(timelines[r.name].t1, expected[r.name].t1)
+        assert np.array_equal(timelines[r.name].p0, expected[r.name].p0)
