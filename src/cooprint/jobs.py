@@ -801,7 +801,7 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
 
     out = Path(out)
     check_sim_folder(out / "sim")  # before the work, not after
-    inp = read_with_progress([str(out)], None, None, progress)
+    inp = read_with_progress([str(out)], None, None, progress, programs=False)  # timed piece by piece
     result = simulate(inp, progress=progress)
     record = summary(result)
     pictures = 3 if animation else 2
