@@ -116,7 +116,7 @@ def test_cli_simulate_and_render_write_what_the_whole_programs_give(bundle, tmp_
 def test_runs_index_as_the_array_they_stand_for(seed):
     """A :class:`Runs` column built piece by piece gives what the array gives: indices, slices,
     arrays of indices, ``np.maximum.reduceat`` (the widest line of a span), its array."""
-    from cooprint.simulation.timeline import Runs, _RunsBuilder, segment_max
+    from cooprint.simulation.timeline import Runs, _RunsBuilder, changes, segment_max
 
     rng = np.random.default_rng(seed)
     n = int(rng.integers(1, 400))
@@ -137,6 +137,10 @@ def test_runs_index_as_the_array_they_stand_for(seed):
     assert np.array_equal(runs[a > 1], a[a > 1])
     at = np.sort(rng.integers(0, n, size=int(rng.integers(1, 30))))
     assert np.array_equal(segment_max(runs, at), np.maximum.reduceat(a, at))
+    index = np.unique(rng.integers(0, n, size=int(rng.integers(1, n + 1))))  # a timeline's commands
+    assert np.array_equal(changes(runs, index), changes(a, index))
+    c = a[index]
+    assert np.array_equal(changes(a, index), np.flatnonzero(c[1:] != c[:-1]) + 1)
     with pytest.raises(IndexError):
         runs[n]
 

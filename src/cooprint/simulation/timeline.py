@@ -178,6 +178,18 @@ def segment_max(column: "np.ndarray | Runs", at: np.ndarray) -> np.ndarray:
     return column.segment_max(at) if isinstance(column, Runs) else np.maximum.reduceat(column, at)
 
 
+def changes(column: "np.ndarray | Runs", index: np.ndarray) -> np.ndarray:
+    """The positions ``m`` (from 1) where ``column[index[m]] != column[index[m - 1]]``
+    (``index`` increasing: a timeline's moves' commands), as ``np.flatnonzero(c[1:] != c[:-1]) + 1``
+    of ``c = column[index]`` gives them; from :class:`Runs`, looking only where a run begins."""
+    if not isinstance(column, Runs):
+        c = column[index]
+        return np.flatnonzero(c[1:] != c[:-1]) + 1
+    m = np.unique(np.searchsorted(index, column.starts[1:], side="left"))  # the first move of each run
+    m = m[(m > 0) & (m < len(index))]
+    return m[column[index[m]] != column[index[m - 1]]]
+
+
 class _RunsBuilder:
     """A :class:`Runs` column made piece by piece: each piece's values cut where they change
     (by their bits: 0.0 and -0.0 are two runs, as they are two values)."""
@@ -681,4 +693,4 @@ def _chunk_at(program: Program, i: int) -> str | None:
 
 
 __all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "SimRobot", "Timeline", "WARNING_KINDS", "Runs",
-           "event_times", "move_durations", "schedule", "schedule_pieces", "segment_max", "severity"]
+           "event_times", "move_durations", "schedule", "changes", "schedule_pieces", "segment_max", "severity"]
