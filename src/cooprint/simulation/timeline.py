@@ -512,6 +512,11 @@ def _grown(a: np.ndarray, n: int) -> np.ndarray:
     return a
 
 
+def _constant(dtype, value, shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only array of ``shape`` holding ``value`` everywhere, in one element of memory."""
+    return np.broadcast_to(np.array(value, dtype), shape)
+
+
 def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, travel_speed: float, room: int):
     """One robot of :func:`schedule_pieces`: its slim program and ``_timelines``' tuple, built a
     piece at a time with :func:`move_durations`' operations (the moves' table continued from
@@ -575,9 +580,8 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     starts.resize(k + 1, refcheck=False)
     for a in (mv, on, length, dur):
         a.resize(k, refcheck=False)
-    nothing = lambda dtype, value, shape=(at,): np.broadcast_to(np.array(value, dtype), shape)  # noqa: E731
-    program = Program(r.name, kind, nothing(np.float64, np.nan, (at, 3)), nothing(np.uint8, 0),
-                      cols["width"], nothing(np.int32, -1), cols["height"], cols["chunk"], cols["event"],
+    program = Program(r.name, kind, _constant(np.float64, np.nan, (at, 3)), _constant(np.uint8, 0, (at,)),
+                      cols["width"], _constant(np.int32, -1, (at,)), cols["height"], cols["chunk"], cols["event"],
                       chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
     r2 = replace(r, program=program)
     return r2, (r2, ends[:-1], ends[1:], on, length, dur, mv, starts, before, sync)
