@@ -696,5 +696,5 @@ def _chunk_at(program: Program, i: int) -> str | None:
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "SimRobot", "Timeline", "WARNING_KINDS", "Runs",
-           "event_times", "move_durations", "schedule", "changes", "schedule_pieces", "segment_max", "severity"]
+__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "Runs", "SimRobot", "Timeline",
+           "WARNING_KINDS", "event_times", "move_durations", "schedule", "changes", "schedule_pieces", "segment_max", "severity"]
