@@ -697,4 +697,5 @@ def _chunk_at(program: Program, i: int) -> str | None:
 
 
 __all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "Runs", "SimRobot", "Timeline",
-           "WARNING_KINDS", "event_times", "move_durations", "schedule", "changes", "schedule_pieces", "segment_max", "severity"]
+           "WARNING_KINDS", "changes", "event_times", "move_durations", "schedule", "schedule_pieces", "segment_max",
+           "severity"]
