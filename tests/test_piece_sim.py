@@ -177,7 +177,7 @@ def test_timing_programs_piece_by_piece_holds_no_program(tmp_path):
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    held = sum(a.nbytes for tl in timelines.values() for a in (tl.t0, tl.t1, tl.on, tl.index, tl.length))
+    held = sum(a.nbytes for tl in timelines.values() for a in (tl.t0, tl.t1, tl.on, tl.index))  # lengths: not held
     held += sum(tl.p0.nbytes + 24 for tl in timelines.values())  # p0 and p1: views of one array of ends
     assert peak - held < 26 * commands, f"{(peak - held) / commands:.1f} bytes a command"
     assert sum(getattr(r.program, f).nbytes for r in slim for f in simulation.timeline.KEPT_COLUMNS) \
@@ -185,3 +185,30 @@ def test_timing_programs_piece_by_piece_holds_no_program(tmp_path):
     for r in robots:
         assert np.array_equal(timelines[r.name].t1, expected[r.name].t1)
         assert np.array_equal(timelines[r.name].p0, expected[r.name].p0)
+
+
+def test_lengths_computed_when_asked_are_the_move_tables(bundle):
+    """A timeline timed piece by piece computes its moves' lengths from its ends when asked
+    (:class:`Lengths`): the move table's numbers to the last bit (random moves on the 1 µm grid
+    and off it, 0 to 1 km long), whatever the index; ``sum()`` numpy's sum of the array."""
+    from cooprint.simulation.kernels import move_table
+    from cooprint.simulation.timeline import Lengths
+
+    rng = np.random.default_rng(3)
+    n = 200_000
+    xyz = rng.uniform(-500, 500, (n, 3)) * rng.choice([1e-3, 1.0, 1.0], (n, 1))
+    xyz[::2] = np.rint(xyz[::2] * 1000) / 1000
+    xyz[5] = xyz[4]  # a move of length 0
+    kind = np.zeros(n, np.uint8)
+    ends = np.empty((n + 1, 3))
+    mv, on, length = np.empty(n, np.int64), np.empty(n, bool), np.empty(n)
+    move_table(kind, xyz, np.array([1.5, -2.25, 0.2]), True, mv, ends[:-1], ends[1:], on, length)
+    lazy = Lengths(ends[:-1], ends[1:])
+    assert np.asarray(lazy).tobytes() == length.tobytes() and len(lazy) == n
+    sel = rng.integers(0, n, 1000)
+    assert lazy[sel].tobytes() == length[sel].tobytes()
+    assert lazy[length > 3].tobytes() == length[length > 3].tobytes()
+    assert lazy[10:5000].tobytes() == length[10:5000].tobytes()
+    assert lazy.sum() == length.sum()
+    lazy_tl = simulate(load_inputs([str(bundle)], programs=False)).timelines["A"]
+    assert isinstance(lazy_tl.length, Lengths)

@@ -232,6 +232,44 @@ class FacingSpan:
     position: np.ndarray
 
 
+class Lengths:
+    """A timeline's moves' lengths, mm, not held but computed from its ends when asked (an
+    index, a slice, an array of indices or a mask; ``np.asarray`` for all): with the move
+    table's operations (``sqrt(dx*dx + dy*dy + dz*dz)``), so the same numbers as the array it
+    stands for; ``sum()`` is numpy's sum of that array to the last bit (a block at a time). A
+    timeline timed piece by piece keeps this instead of 8 bytes a move."""
+
+    def __init__(self, p0: np.ndarray, p1: np.ndarray) -> None:
+        self.p0, self.p1 = p0, p1
+
+    dtype = np.dtype(np.float64)
+    ndim = 1
+    shape = property(lambda self: (len(self.p0),))
+
+    def __len__(self) -> int:
+        return len(self.p0)
+
+    def __getitem__(self, key):
+        if not isinstance(key, slice):
+            key = np.asarray(key)
+            if key.dtype == bool:
+                key = np.flatnonzero(key)
+        d = self.p1[key] - self.p0[key]
+        out = d[..., 0] * d[..., 0]
+        out += d[..., 1] * d[..., 1]
+        out += d[..., 2] * d[..., 2]
+        return np.sqrt(out, out=out) if isinstance(out, np.ndarray) else np.sqrt(out)
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        out = self[:]
+        return out if dtype is None else out.astype(dtype)
+
+    def sum(self) -> float:
+        from cooprint.simulation.checks import block_sum
+
+        return block_sum(lambda a, e: self[a:e], len(self))
+
+
 @dataclass(frozen=True)
 class Timeline:
     """One robot's moves in time (only MOVE commands; ``index`` maps them back).
@@ -249,8 +287,9 @@ class Timeline:
     waits : list of (start, end, events)
         Each WAIT: when the robot got there, when it went on, what it waited for.
     notifies : list of (time, event)
-    length : (k,) float64
-        Length of each move, mm (computed when not given).
+    length : (k,) float64 or Lengths
+        Length of each move, mm (computed when not given; a timeline timed piece by piece
+        computes them from its ends when asked, :class:`Lengths`).
     """
 
     robot: str
@@ -443,7 +482,8 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
 def _timelines(prep: dict) -> tuple[dict[str, Timeline], list[Finding]]:
     """:func:`schedule`'s second half: each robot's moves timed without waits (``prep``: per
     robot ``(robot, p0, p1, on, length, duration, command index, starts without waits (k + 1,),
-    {sync command: time without waits}, sync commands)``), the WAITs resolved and added in."""
+    {sync command: time without waits}, sync commands)``; lengths ``None``: :class:`Lengths`
+    of the ends), the WAITs resolved and added in."""
     syncs = {name: [(i, float(before[i]), r.program.kind[i] == NOTIFY, r.program.events[r.program.event[i]])
                     for i in sync] for name, (r, *_, before, sync) in prep.items()}
     announced, pos, waited, delay, waits, notifies = _resolve(syncs)
@@ -472,7 +512,8 @@ def _timelines(prep: dict) -> tuple[dict[str, Timeline], list[Finding]]:
                 starts[a:e] += w
         t0 = starts[:keep]
         out[name] = Timeline(name, t0, np.add(t0, dur[:keep], out=dur[:keep]), p0[:keep], p1[:keep], on[:keep],
-                             mv[:keep], waits[name], notifies[name], length[:keep])
+                             mv[:keep], waits[name], notifies[name],
+                             length[:keep] if length is not None else Lengths(p0[:keep], p1[:keep]))
     return out, findings
 
 
@@ -531,7 +572,7 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     cols = {"width": _RunsBuilder(np.float64), "height": _RunsBuilder(np.float64), "chunk": _RunsBuilder(np.int16),
             "event": _RunsBuilder(np.int32)}  # change seldom: runs
     ends, mv = np.empty((room + 1, 3)), np.empty(room, np.int64)
-    on, length, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room), np.empty(room + 1)
+    on, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room + 1)
     ends[0] = np.asarray(r.start, dtype=np.float64)
     starts[0] = 0.0
     at = k = 0  # commands and moves so far
@@ -557,16 +598,15 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
         events += piece.events
         m = int(np.count_nonzero(piece.kind == MOVE))
         ends, starts = _grown(ends, k + m + 1), _grown(starts, k + m + 1)
-        mv, on, length, dur = (_grown(a, k + m) for a in (mv, on, length, dur))
-        pm, pon = mv[k:k + m], on[k:k + m]
-        move_table(piece.kind, piece.xyz, ends[k], True, pm, ends[k:k + m], ends[k + 1:k + m + 1], pon,
-                   length[k:k + m])
+        mv, on, dur = (_grown(a, k + m) for a in (mv, on, dur))
+        pm, pon, length = mv[k:k + m], on[k:k + m], np.empty(m)  # the lengths of the piece's moves only
+        move_table(piece.kind, piece.xyz, ends[k], True, pm, ends[k:k + m], ends[k + 1:k + m + 1], pon, length)
         tool_on = piece.tool_on(tool)
-        np.logical_and(tool_on[pm], length[k:k + m] > 0, out=pon)  # the tool as the pieces before leave it
+        np.logical_and(tool_on[pm], length > 0, out=pon)  # the tool as the pieces before leave it
         pm += at
         d = dur[k:k + m]
-        np.divide(length[k:k + m], travel_speed, out=d)
-        np.divide(length[k:k + m], print_speed, out=d, where=pon)
+        np.divide(length, travel_speed, out=d)
+        np.divide(length, print_speed, out=d, where=pon)
         # the running sum continued: the same additions in the same order as the whole program's
         starts[k:k + m + 1] = np.cumsum(np.r_[starts[k], d])
         for j in np.flatnonzero(piece.kind >= NOTIFY).tolist():  # NOTIFY and WAIT
@@ -578,13 +618,13 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     cols = {f: b.runs() for f, b in cols.items()}
     ends.resize((k + 1, 3), refcheck=False)
     starts.resize(k + 1, refcheck=False)
-    for a in (mv, on, length, dur):
+    for a in (mv, on, dur):
         a.resize(k, refcheck=False)
     program = Program(r.name, kind, _constant(np.float64, np.nan, (at, 3)), _constant(np.uint8, 0, (at,)),
                       cols["width"], _constant(np.int32, -1, (at,)), cols["height"], cols["chunk"], cols["event"],
                       chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
     r2 = replace(r, program=program)
-    return r2, (r2, ends[:-1], ends[1:], on, length, dur, mv, starts, before, sync)
+    return r2, (r2, ends[:-1], ends[1:], on, None, dur, mv, starts, before, sync)  # lengths: computed when asked
 
 
 def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: float) -> dict[str, list[float]]:
@@ -696,6 +736,6 @@ def _chunk_at(program: Program, i: int) -> str | None:
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "Runs", "SimRobot", "Timeline",
+__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "Lengths", "PieceRobot", "Runs", "SimRobot", "Timeline",
            "WARNING_KINDS", "changes", "event_times", "move_durations", "schedule", "schedule_pieces", "segment_max",
            "severity"]
