@@ -212,3 +212,25 @@ def test_lengths_computed_when_asked_are_the_move_tables(bundle):
     assert lazy.sum() == length.sum()
     lazy_tl = simulate(load_inputs([str(bundle)], programs=False)).timelines["A"]
     assert isinstance(lazy_tl.length, Lengths)
+
+
+def test_command_indices_past_int32_are_kept_in_int64(bundle, monkeypatch):
+    """A robot timed piece by piece keeps its moves' command indices in 4 bytes while they fit;
+    past the bound (made small here) in 8, the same numbers."""
+    from cooprint.simulation import timeline
+
+    whole = simulate(load_inputs([str(bundle)]), checks=False)
+    _small_pieces(monkeypatch, 3000)
+    small = simulate(load_inputs([str(bundle)], programs=False), checks=False)
+    monkeypatch.setattr(timeline, "INT32_COMMANDS", 1000)
+    inp = load_inputs([str(bundle)], programs=False)
+    pieces = {r.name: partial(iter_coop, inp.program_files[r.name], r.name, piece_bytes=3000) for r in inp.robots}
+    p = inp.profile
+    # no room given: the columns grow as the pieces come, the indices turn int64 past 1000 commands
+    _, big, _ = timeline.schedule_pieces(inp.fleet(), pieces, p.print_speed, p.travel_speed)
+    for name, tl in whole.timelines.items():
+        assert small.timelines[name].index.dtype == np.int32 and big[name].index.dtype == np.int64
+        assert np.array_equal(small.timelines[name].index, tl.index)
+        for f in ("index", "t0", "t1", "p1"):
+            assert np.array_equal(getattr(big[name], f), getattr(tl, f))
+    assert json.dumps(summary(small)) == json.dumps(summary(whole))

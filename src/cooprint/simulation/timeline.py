@@ -553,6 +553,10 @@ def _grown(a: np.ndarray, n: int) -> np.ndarray:
     return a
 
 
+#: A robot timed piece by piece keeps its moves' command indices in int32 below this many commands.
+INT32_COMMANDS = 2**31 - 1
+
+
 def _constant(dtype, value, shape: tuple[int, ...]) -> np.ndarray:
     """A read-only array of ``shape`` holding ``value`` everywhere, in one element of memory."""
     return np.broadcast_to(np.array(value, dtype), shape)
@@ -571,7 +575,8 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     kind = np.empty(room, np.uint8)  # changes nearly every command: an array
     cols = {"width": _RunsBuilder(np.float64), "height": _RunsBuilder(np.float64), "chunk": _RunsBuilder(np.int16),
             "event": _RunsBuilder(np.int32)}  # change seldom: runs
-    ends, mv = np.empty((room + 1, 3)), np.empty(room, np.int64)
+    # the moves' command indices in 4 bytes while they fit (in 8 past 2^31 commands)
+    ends, mv = np.empty((room + 1, 3)), np.empty(room, np.int32 if room < INT32_COMMANDS else np.int64)
     on, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room + 1)
     ends[0] = np.asarray(r.start, dtype=np.float64)
     starts[0] = 0.0
@@ -589,6 +594,8 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
         if n == 0:
             continue
         kind = _grown(kind, at + n)
+        if mv.dtype == np.int32 and at + n >= INT32_COMMANDS:
+            mv = mv.astype(np.int64)
         remap = np.array([chunks.index(c) for c in piece.chunks] + [-1], dtype=np.int16)
         kind[at:at + n] = piece.kind
         cols["width"].add(piece.width)
