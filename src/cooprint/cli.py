@@ -561,7 +561,9 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     _heap_malloc()
     perturbed = None
     with stage_progress(not quiet) as progress:  # bars on a terminal; Ctrl-C between runs
-        inp = read_with_progress(list(inputs), manifest, _settings(config, {}) if config else None, progress)
+        # a bundle's programs read piece by piece while they are timed (held whole for the Monte-Carlo runs)
+        inp = read_with_progress(list(inputs), manifest, _settings(config, {}) if config else None, progress,
+                                 programs=bool(monte_carlo))
         result = run_sim(inp, accel=accel, progress=progress)
         if monte_carlo:
             with make_executor(executor, scheduler) as ex:
@@ -654,7 +656,7 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
         raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
     with stage_progress(True) as progress:  # bars on a terminal only
-        inp = read_with_progress(list(inputs), manifest, None, progress)
+        inp = read_with_progress(list(inputs), manifest, None, progress, programs=False)
         result = run_sim(inp, checks=False, progress=progress)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:

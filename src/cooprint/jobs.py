@@ -802,7 +802,7 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
 
     out = Path(out)
     check_sim_folder(out / "sim")  # before the work, not after
-    inp = read_with_progress([str(out)], None, None, progress)
+    inp = read_with_progress([str(out)], None, None, progress, programs=False)  # timed piece by piece
     result = simulate(inp, progress=progress)
     record = summary(result)
     pictures = 3 if animation else 2
@@ -824,16 +824,17 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
 
 
 def read_with_progress(inputs: list[str], manifest: str | None, settings: JobSettings | None,
-                       progress: Progress | None) -> Any:
+                       progress: Progress | None, programs: bool = True) -> Any:
     """:func:`cooprint.simulation.load_inputs` as the ``read`` stage of the progress bars, in
-    bytes of the programs (:func:`cooprint.progress.program_bytes`)."""
+    bytes of the programs (:func:`cooprint.progress.program_bytes`); ``programs=False``: a
+    bundle's programs left to the simulation to read piece by piece."""
     from cooprint.progress import program_bytes
     from cooprint.simulation import load_inputs
 
     size = program_bytes(inputs) if progress else 0
     if progress:
         progress("read", 0, size)
-    inp = load_inputs(inputs, manifest, settings)
+    inp = load_inputs(inputs, manifest, settings, programs)
     if progress:
         progress("read", size, size)
     return inp

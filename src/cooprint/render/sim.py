@@ -533,7 +533,7 @@ def _chunk_spans(robot, tl) -> list[tuple[str, float, float]]:
         return []
     first, last = {}, {}  # per chunk: its earliest print start and latest print end, a block of moves at a time
     for a in range(0, len(tl.index), BLOCK_MOVES):
-        chunk = np.asarray(prog.chunk)[tl.index[a:a + BLOCK_MOVES]]
+        chunk = prog.chunk[tl.index[a:a + BLOCK_MOVES]]
         sel = tl.on[a:a + BLOCK_MOVES] & (chunk >= 0)
         k, t0, t1 = chunk[sel], tl.t0[a:a + BLOCK_MOVES][sel], tl.t1[a:a + BLOCK_MOVES][sel]
         for c in np.unique(k).tolist():

@@ -12,6 +12,7 @@ import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
@@ -19,9 +20,11 @@ import numpy as np
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation.checks import (STEP, Material, below_floor, block_sum, chunk_order, footprint_checks,
                                         material_checks, outside_part, overhangs, robots_collide)
-from cooprint.simulation.inputs import ScheduleEstimate, SimInput, SimInputError, load_inputs, read_chunk_meshes
+from cooprint.program.commands import iter_coop
+from cooprint.simulation.inputs import (ScheduleEstimate, SimInput, SimInputError, own_chunks, load_inputs,
+                                        read_chunk_meshes)
 from cooprint.simulation.kinematics import MachineLimits
-from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, severity
+from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, schedule_pieces, severity
 
 #: Finding kinds, in the order summaries list them: the robot's outline against material and
 #: other robots, the nozzle and the material it lays (in material, twice, in the chunks' order,
@@ -65,6 +68,8 @@ def simulate(inp: SimInput, checks: bool = True, accel: bool = False,
     ``progress(stage, done, total)``: the ``timelines`` (robots) and the ``checks`` as they end.
     """
     chunks = read_chunk_meshes(inp) if checks else None  # a bundle's part, read (and refused) before the work
+    if accel:  # the acceleration model times whole programs
+        inp = inp.with_programs()
     result = play(inp, inp.fleet(), accel, checks=checks, chunks=chunks, progress=progress)
     if checks and inp.estimate is not None and inp.estimate.lower_bound_s is not None and not accel:
         found = bound_findings(result, inp.estimate.lower_bound_s)
@@ -92,7 +97,15 @@ def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: boo
               if accel else None)
     if progress:
         progress("timelines", 0, len(robots))
-    timelines, findings = schedule(robots, p.print_speed, p.travel_speed, limits)
+    if inp.program_files is not None:  # a bundle's programs, read and timed piece by piece (not held whole)
+        if limits is not None:
+            raise ValueError("the acceleration model times whole programs: read them first (SimInput.with_programs)")
+        pieces = {r.name: partial(iter_coop, inp.program_files[r.name], r.name) for r in robots}
+        room = {r.name: inp.program_files[r.name].stat().st_size // 7 + 1 for r in robots}  # read_coop's bound
+        robots, timelines, findings = schedule_pieces(robots, pieces, p.print_speed, p.travel_speed, room)
+        inp = replace(inp, robot_chunks=own_chunks(inp.robot_chunks, robots))
+    else:
+        timelines, findings = schedule(robots, p.print_speed, p.travel_speed, limits)
     if progress:
         progress("timelines", len(robots), len(robots))
     checked = ["deadlock"]

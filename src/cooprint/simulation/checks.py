@@ -45,7 +45,7 @@ from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.geometry import unit_xy
 from cooprint.simulation import kernels
 from cooprint.simulation.inputs import ChunkMesh
-from cooprint.simulation.timeline import Finding, SimRobot, Timeline
+from cooprint.simulation.timeline import Finding, SimRobot, Timeline, changes, segment_max
 
 #: Spacing of nozzle and material samples, mm.
 STEP = 2.0
@@ -1035,14 +1035,12 @@ def _runs(r: SimRobot, tl: Timeline, xyz: np.ndarray, t: np.ndarray, h: np.ndarr
     commands from its first move to the next run's, ``width`` where the program gives none). A
     point lies on the first move to end at or after its time."""
     prog = r.program
-    chunk = prog.chunk[tl.index]  # per move
-    first = np.flatnonzero(chunk[1:] != chunk[:-1]) + 1  # the moves that begin a chunk's span
+    first = changes(prog.chunk, tl.index)  # the moves that begin a chunk's span
     cuts = np.searchsorted(t, tl.t1[first - 1], side="right")  # their first points
-    del chunk
     start, key = kernels.height_runs(xyz[:, 2], h, cuts, 1024)
     move = np.searchsorted(tl.t1, t[start], side="left")
     run_chunk = prog.chunk[tl.index[move]].astype(np.int64)
-    widest = np.maximum.reduceat(prog.width, tl.index[move]) if len(move) else np.zeros(0)
+    widest = segment_max(prog.width, tl.index[move]) if len(move) else np.zeros(0)
     return start, run_chunk, key, np.where(widest > 0, widest, width) / 2
 
 

@@ -57,6 +57,17 @@ class SimInput:
     #: The schedule's critical path (job.json ``schedule.critical_path``, chunk ids), for the
     #: Gantt chart; ``None``: not in the bundle.
     critical_path: tuple[str, ...] | None = None
+    #: A bundle read without its programs (``load_inputs(..., programs=False)``): each robot's
+    #: ``.coop`` file by name, its ``program`` ``None`` until :func:`cooprint.simulation.simulate`
+    #: times it piece by piece (or :meth:`with_programs` reads it whole).
+    program_files: dict[str, Path] | None = None
+
+    def with_programs(self) -> "SimInput":
+        """This input with every robot's program read whole (itself when they are)."""
+        if self.program_files is None:
+            return self
+        robots = [replace(r, program=read_coop(self.program_files[r.name], r.name)) for r in self.robots]
+        return replace(self, robots=robots, program_files=None, robot_chunks=own_chunks(self.robot_chunks, robots))
 
     @property
     def lower_bound(self) -> float | None:
@@ -187,9 +198,20 @@ def _program_in(folder: Path, value: Any, where: str, path: str, what: str = "pr
     return full
 
 
-def load_bundle(folder: str | Path) -> SimInput:
+def own_chunks(robot_chunks: dict[str, tuple[str, ...] | None] | None, robots: list[SimRobot]
+                ) -> dict[str, tuple[str, ...]] | None:
+    """Each robot's chunk ids, those job.json does not state (``None``) from its program."""
+    if robot_chunks is None:
+        return None
+    return {name: ids if ids is not None else tuple(next(r for r in robots if r.name == name).program.chunks)
+            for name, ids in robot_chunks.items()}
+
+
+def load_bundle(folder: str | Path, programs: bool = True) -> SimInput:
     """A ``cooprint run`` bundle: ``job.json`` and the ``robots/*.coop`` it names, each field
-    checked (docs/simulator.md, "Inputs")."""
+    checked (docs/simulator.md, "Inputs"). ``programs=False``: the programs are not read (their
+    files in :attr:`SimInput.program_files`, each robot's ``program`` ``None``): the simulation
+    reads them piece by piece."""
     d = Path(folder)
     path = d / "job.json"
     if not path.exists():
@@ -217,7 +239,7 @@ def load_bundle(folder: str | Path) -> SimInput:
     chunk_files = _chunk_files(record, d, where)
     settings = check_settings(record["settings"], where, "settings")
     entries = check_list(record["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="robot objects")
-    robots, names, robot_chunks = [], set(), {}
+    robots, names, robot_chunks, files = [], set(), {}, {}
     for n, e in enumerate(entries):
         at = key_path("robots", n)
         check_object(e, where, at, required=BUNDLE_ROBOT_REQUIRED, optional=BUNDLE_ROBOT_OPTIONAL, unknown="typo")
@@ -232,14 +254,17 @@ def load_bundle(folder: str | Path) -> SimInput:
                               unit="degrees")
         _check_robot_record(e, facing, chunk_ids, where, at)
         profile = _bundle_profile(e.get("profile"), settings.robot, where, at)
-        program = read_coop(program_path, name)
+        program = read_coop(program_path, name) if programs else None
+        files[name] = program_path
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing),
                                profile=profile))
-        robot_chunks[name] = tuple(e["chunks"]) if "chunks" in e else tuple(program.chunks)
+        robot_chunks[name] = (tuple(e["chunks"]) if "chunks" in e else
+                              tuple(program.chunks) if program is not None else None)
     critical = _critical_path(record, chunk_ids, where)
     return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
                     estimate=_schedule_estimate(record, where), chunk_files=chunk_files,
-                    robot_chunks=robot_chunks if chunk_files is not None else None, critical_path=critical)
+                    robot_chunks=robot_chunks if chunk_files is not None else None, critical_path=critical,
+                    program_files=None if programs else files)
 
 
 def _critical_path(record: dict[str, Any], chunk_ids: set[str] | None, where: str) -> tuple[str, ...] | None:
@@ -688,12 +713,14 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
 GCODE_SUFFIXES = (".gcode", ".gco", ".g")
 
 
-def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSettings | None = None) -> SimInput:
+def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSettings | None = None,
+                programs: bool = True) -> SimInput:
     """A bundle folder (alone), ``.coop`` files with or without a manifest, or G-code files.
     ``.coop`` and G-code files are not mixed: a G-code file's robot stands nowhere known and
     moves at its file's feed rates, a ``.coop`` robot at the profile's speeds where it is placed;
     simulating both kinds together would compare two different time and body models. ``settings``
-    (``--robot``/``--config``) give the profile of ``.coop`` and G-code robots."""
+    (``--robot``/``--config``) give the profile of ``.coop`` and G-code robots. ``programs=False``:
+    a bundle's programs are left to be read piece by piece (:func:`load_bundle`)."""
     found = {x: path_kind(x, SimInputError) for x in paths}  # file, folder, missing or other
     if settings is not None and (manifest or "folder" in found.values()):
         raise SimInputError("--robot/--config apply to .coop and G-code files; a bundle or a manifest "
@@ -708,7 +735,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
         if len(paths) > 1:
             raise SimInputError(f"{dirs[0]}: a bundle folder is simulated alone (one bundle at a time), "
                                  "not with other inputs")
-        return load_bundle(paths[0])
+        return load_bundle(paths[0], programs)
     missing = [x for x in paths if found[x] == "missing"]
     if missing:
         raise SimInputError(f"{missing[0]}: no such file or folder")

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -104,14 +104,119 @@ class SimRobot:
         return _or_default(self.program.height, index, height)
 
 
-def _or_default(column: np.ndarray, index: np.ndarray, default: float) -> np.ndarray:
+def _or_default(column: "np.ndarray | Runs", index: np.ndarray, default: float) -> np.ndarray:
     """``column[index]`` where above 0, else ``default``: a new array (filled in place, no
     temporary of the size of ``index``)."""
     out = column[index]
-    if np.may_share_memory(out, column):  # a view (``index`` a slice): not to be written
+    if isinstance(column, np.ndarray) and np.may_share_memory(out, column):  # a view (``index`` a slice)
         out = out.copy()
     np.copyto(out, default, where=~(out > 0))
     return out
+
+
+class Runs:
+    """A per-command column held as runs of equal values (a program's annotations change
+    seldom: a chunk, a layer's height, a path's width hold for many commands): ``values[r]``
+    from command ``starts[r]`` (``starts[0] == 0``, increasing) to the next run's start, ``n``
+    commands in all. Indexed as the array it stands for (an index, a slice, an array of
+    indices give what the array would: new arrays, never views); ``np.asarray`` makes the array."""
+
+    def __init__(self, starts: np.ndarray, values: np.ndarray, n: int) -> None:
+        self.starts, self.values, self.n = starts, values, n
+
+    dtype = property(lambda self: self.values.dtype)
+    shape = property(lambda self: (self.n,))
+    ndim = 1
+
+    @property
+    def nbytes(self) -> int:
+        return self.starts.nbytes + self.values.nbytes
+
+    def __len__(self) -> int:
+        return self.n
+
+    def _runs(self, index: np.ndarray) -> np.ndarray:
+        return np.searchsorted(self.starts, index, side="right") - 1
+
+    def __getitem__(self, key):
+        if isinstance(key, slice):
+            return self.values[self._runs(np.arange(*key.indices(self.n)))]
+        if isinstance(key, (int, np.integer)):
+            i = int(key) + (self.n if key < 0 else 0)
+            if not 0 <= i < self.n:
+                raise IndexError(f"index {int(key)} out of {self.n}")
+            return self.values[self._runs(i)]
+        index = np.asarray(key)
+        if index.dtype == bool:
+            index = np.flatnonzero(index)
+        if index.size and index.min() < 0:
+            index = np.where(index < 0, index + self.n, index)
+        if index.size and not (0 <= index.min() and index.max() < self.n):
+            raise IndexError(f"an index out of {self.n}")
+        return self.values[self._runs(index)]
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        out = np.repeat(self.values, np.diff(np.append(self.starts, self.n)))
+        return out if dtype is None else out.astype(dtype)
+
+    def segment_max(self, at: np.ndarray) -> np.ndarray:
+        """``np.maximum.reduceat`` of the column at ``at`` (command indices, increasing or
+        equal): the largest value of commands ``at[j]`` to ``at[j + 1] - 1`` (to the end for
+        the last; the value at ``at[j]`` where ``at[j + 1] == at[j]``), from the runs."""
+        at = np.asarray(at, dtype=np.int64)
+        ends = np.append(at[1:], self.n)
+        first = self._runs(at)
+        last = np.maximum(self._runs(ends - 1), first)
+        pairs = np.empty(2 * len(at), np.int64)
+        pairs[0::2], pairs[1::2] = first, last + 1
+        values = np.append(self.values, self.values[:1])  # room for an index one past the last run
+        return np.maximum.reduceat(values, pairs)[0::2]
+
+
+def segment_max(column: "np.ndarray | Runs", at: np.ndarray) -> np.ndarray:
+    """``np.maximum.reduceat(column, at)`` of a program's column, an array or :class:`Runs`."""
+    return column.segment_max(at) if isinstance(column, Runs) else np.maximum.reduceat(column, at)
+
+
+def changes(column: "np.ndarray | Runs", index: np.ndarray) -> np.ndarray:
+    """The positions ``m`` (from 1) where ``column[index[m]] != column[index[m - 1]]``
+    (``index`` increasing: a timeline's moves' commands), as ``np.flatnonzero(c[1:] != c[:-1]) + 1``
+    of ``c = column[index]`` gives them; from :class:`Runs`, looking only where a run begins."""
+    if not isinstance(column, Runs):
+        c = column[index]
+        return np.flatnonzero(c[1:] != c[:-1]) + 1
+    m = np.unique(np.searchsorted(index, column.starts[1:], side="left"))  # the first move of each run
+    m = m[(m > 0) & (m < len(index))]
+    return m[column[index[m]] != column[index[m - 1]]]
+
+
+class _RunsBuilder:
+    """A :class:`Runs` column made piece by piece: each piece's values cut where they change
+    (by their bits: 0.0 and -0.0 are two runs, as they are two values)."""
+
+    def __init__(self, dtype) -> None:
+        self.dtype = np.dtype(dtype)
+        self.starts: list[np.ndarray] = []
+        self.values: list[np.ndarray] = []
+        self.last: np.ndarray | None = None
+        self.n = 0
+
+    def add(self, v: np.ndarray) -> None:
+        v = np.ascontiguousarray(v, dtype=self.dtype)
+        if not len(v):
+            return
+        bits = v.view(np.dtype(f"u{self.dtype.itemsize}"))
+        cut = np.flatnonzero(bits[1:] != bits[:-1]) + 1
+        if self.last is None or self.last != bits[0]:
+            cut = np.r_[0, cut]
+        self.starts.append(cut + self.n)
+        self.values.append(v[cut])
+        self.last, self.n = bits[-1], self.n + len(v)
+
+    def runs(self) -> Runs:
+        starts = np.concatenate(self.starts) if self.starts else np.zeros(0, np.int64)
+        values = np.concatenate(self.values) if self.values else np.zeros(0, self.dtype)
+        return Runs(starts.astype(np.int64), values, self.n)
 
 
 @dataclass(frozen=True)
@@ -125,6 +230,44 @@ class FacingSpan:
     facing: np.ndarray
     time: float
     position: np.ndarray
+
+
+class Lengths:
+    """A timeline's moves' lengths, mm, not held but computed from its ends when asked (an
+    index, a slice, an array of indices or a mask; ``np.asarray`` for all): with the move
+    table's operations (``sqrt(dx*dx + dy*dy + dz*dz)``), so the same numbers as the array it
+    stands for; ``sum()`` is numpy's sum of that array to the last bit (a block at a time). A
+    timeline timed piece by piece keeps this instead of 8 bytes a move."""
+
+    def __init__(self, p0: np.ndarray, p1: np.ndarray) -> None:
+        self.p0, self.p1 = p0, p1
+
+    dtype = np.dtype(np.float64)
+    ndim = 1
+    shape = property(lambda self: (len(self.p0),))
+
+    def __len__(self) -> int:
+        return len(self.p0)
+
+    def __getitem__(self, key):
+        if not isinstance(key, slice):
+            key = np.asarray(key)
+            if key.dtype == bool:
+                key = np.flatnonzero(key)
+        d = self.p1[key] - self.p0[key]
+        out = d[..., 0] * d[..., 0]
+        out += d[..., 1] * d[..., 1]
+        out += d[..., 2] * d[..., 2]
+        return np.sqrt(out, out=out) if isinstance(out, np.ndarray) else np.sqrt(out)
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        out = self[:]
+        return out if dtype is None else out.astype(dtype)
+
+    def sum(self) -> float:
+        from cooprint.simulation.checks import block_sum
+
+        return block_sum(lambda a, e: self[a:e], len(self))
 
 
 @dataclass(frozen=True)
@@ -144,8 +287,9 @@ class Timeline:
     waits : list of (start, end, events)
         Each WAIT: when the robot got there, when it went on, what it waited for.
     notifies : list of (time, event)
-    length : (k,) float64
-        Length of each move, mm (computed when not given).
+    length : (k,) float64 or Lengths
+        Length of each move, mm (computed when not given; a timeline timed piece by piece
+        computes them from its ends when asked, :class:`Lengths`).
     """
 
     robot: str
@@ -332,6 +476,14 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
         # the time at each NOTIFY and WAIT, without waits (by command index)
         before = dict(zip(sync, starts[np.searchsorted(mv, sync)]))
         prep[r.name] = (r, p0, p1, on, length, dur, mv, starts, before, sync)
+    return _timelines(prep)
+
+
+def _timelines(prep: dict) -> tuple[dict[str, Timeline], list[Finding]]:
+    """:func:`schedule`'s second half: each robot's moves timed without waits (``prep``: per
+    robot ``(robot, p0, p1, on, length, duration, command index, starts without waits (k + 1,),
+    {sync command: time without waits}, sync commands)``; lengths ``None``: :class:`Lengths`
+    of the ends), the WAITs resolved and added in."""
     syncs = {name: [(i, float(before[i]), r.program.kind[i] == NOTIFY, r.program.events[r.program.event[i]])
                     for i in sync] for name, (r, *_, before, sync) in prep.items()}
     announced, pos, waited, delay, waits, notifies = _resolve(syncs)
@@ -360,8 +512,126 @@ def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
                 starts[a:e] += w
         t0 = starts[:keep]
         out[name] = Timeline(name, t0, np.add(t0, dur[:keep], out=dur[:keep]), p0[:keep], p1[:keep], on[:keep],
-                             mv[:keep], waits[name], notifies[name], length[:keep])
+                             mv[:keep], waits[name], notifies[name],
+                             length[:keep] if length is not None else Lengths(p0[:keep], p1[:keep]))
     return out, findings
+
+
+#: The per-command columns a robot timed from pieces keeps (:func:`schedule_pieces`): what the
+#: timeline's resolution, the checks and the pictures read of a program after it is timed.
+KEPT_COLUMNS = ("kind", "width", "height", "chunk", "event")
+
+
+def schedule_pieces(robots: list[SimRobot], pieces: dict[str, Callable[[], Iterable[Program]]],
+                    print_speed: float, travel_speed: float, room: dict[str, int] | None = None
+                    ) -> tuple[list[SimRobot], dict[str, Timeline], list[Finding]]:
+    """:func:`schedule` at constant speed for robots whose programs come piece by piece
+    (``pieces[name]()``: the program's pieces in order, e.g. :func:`~cooprint.program.commands.iter_coop`;
+    ``room``: at least as many commands as a robot's program holds, by name, where known, so that
+    its columns grow in place): the same timelines and findings to the last bit, without the
+    whole programs. Returns the robots with programs that keep only :data:`KEPT_COLUMNS` (the
+    kinds an array, the others :class:`Runs`; their targets, roles and layers are constant
+    arrays that take no memory: ``xyz`` NaN), which
+    every check and picture reads, but which cannot be timed again (a perturbed or accelerated
+    run reads the programs whole)."""
+    prep, slim = {}, []
+    for r in robots:
+        speeds = (r.profile.print_speed, r.profile.travel_speed) if r.profile is not None else (print_speed,
+                                                                                                 travel_speed)
+        r2, prep[r.name] = _piece_prep(r, pieces[r.name](), *speeds, (room or {}).get(r.name, 0))
+        slim.append(r2)
+    timelines, findings = _timelines(prep)
+    return slim, timelines, findings
+
+
+def _grown(a: np.ndarray, n: int) -> np.ndarray:
+    """``a`` with room for at least ``n`` rows (in place where it can: pages never written are
+    never backed by memory)."""
+    if n <= len(a):
+        return a
+    a.resize((max(n, 2 * len(a)),) + a.shape[1:], refcheck=False)
+    return a
+
+
+#: A robot timed piece by piece keeps its moves' command indices in int32 below this many commands.
+INT32_COMMANDS = 2**31 - 1
+
+
+def _constant(dtype, value, shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only array of ``shape`` holding ``value`` everywhere, in one element of memory."""
+    return np.broadcast_to(np.array(value, dtype), shape)
+
+
+def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, travel_speed: float, room: int):
+    """One robot of :func:`schedule_pieces`: its slim program and ``_timelines``' tuple, built a
+    piece at a time with :func:`move_durations`' operations (the moves' table continued from
+    piece to piece, each duration ``length / speed``, the starts one running sum): the same
+    numbers as of the whole program."""
+    from cooprint.simulation.kernels import move_table  # numba: on first use
+
+    if r.start is None:
+        raise ValueError(f"robot {r.name}: a program timed piece by piece needs its start")
+    room = max(room, 1)
+    kind = np.empty(room, np.uint8)  # changes nearly every command: an array
+    cols = {"width": _RunsBuilder(np.float64), "height": _RunsBuilder(np.float64), "chunk": _RunsBuilder(np.int16),
+            "event": _RunsBuilder(np.int32)}  # change seldom: runs
+    # the moves' command indices in 4 bytes while they fit (in 8 past 2^31 commands)
+    ends, mv = np.empty((room + 1, 3)), np.empty(room, np.int32 if room < INT32_COMMANDS else np.int64)
+    on, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room + 1)
+    ends[0] = np.asarray(r.start, dtype=np.float64)
+    starts[0] = 0.0
+    at = k = 0  # commands and moves so far
+    tool = False
+    chunks: list[str] = []
+    events: list[tuple[str, ...]] = []
+    turns: list[tuple[int, float]] = []
+    sync: list[int] = []
+    before: dict[int, float] = {}
+    for piece in pieces:
+        n = len(piece)
+        chunks += [c for c in piece.chunks if c not in chunks]  # in the order they first appear (read_coop's)
+        turns += [(i + at, deg) for i, deg in piece.turns]  # (a piece without commands may hold a turn)
+        if n == 0:
+            continue
+        kind = _grown(kind, at + n)
+        if mv.dtype == np.int32 and at + n >= INT32_COMMANDS:
+            mv = mv.astype(np.int64)
+        remap = np.array([chunks.index(c) for c in piece.chunks] + [-1], dtype=np.int16)
+        kind[at:at + n] = piece.kind
+        cols["width"].add(piece.width)
+        cols["height"].add(piece.height)
+        cols["chunk"].add(remap[piece.chunk])  # -1 indexes the appended -1
+        cols["event"].add(np.where(piece.event >= 0, piece.event + len(events), -1))
+        events += piece.events
+        m = int(np.count_nonzero(piece.kind == MOVE))
+        ends, starts = _grown(ends, k + m + 1), _grown(starts, k + m + 1)
+        mv, on, dur = (_grown(a, k + m) for a in (mv, on, dur))
+        pm, pon, length = mv[k:k + m], on[k:k + m], np.empty(m)  # the lengths of the piece's moves only
+        move_table(piece.kind, piece.xyz, ends[k], True, pm, ends[k:k + m], ends[k + 1:k + m + 1], pon, length)
+        tool_on = piece.tool_on(tool)
+        np.logical_and(tool_on[pm], length > 0, out=pon)  # the tool as the pieces before leave it
+        pm += at
+        d = dur[k:k + m]
+        np.divide(length, travel_speed, out=d)
+        np.divide(length, print_speed, out=d, where=pon)
+        # the running sum continued: the same additions in the same order as the whole program's
+        starts[k:k + m + 1] = np.cumsum(np.r_[starts[k], d])
+        for j in np.flatnonzero(piece.kind >= NOTIFY).tolist():  # NOTIFY and WAIT
+            sync.append(at + j)
+            before[at + j] = starts[k + int(np.searchsorted(pm, at + j))]
+        tool = bool(tool_on[-1])
+        at, k = at + n, k + m
+    kind.resize(at, refcheck=False)  # in place: the rest goes back
+    cols = {f: b.runs() for f, b in cols.items()}
+    ends.resize((k + 1, 3), refcheck=False)
+    starts.resize(k + 1, refcheck=False)
+    for a in (mv, on, dur):
+        a.resize(k, refcheck=False)
+    program = Program(r.name, kind, _constant(np.float64, np.nan, (at, 3)), _constant(np.uint8, 0, (at,)),
+                      cols["width"], _constant(np.int32, -1, (at,)), cols["height"], cols["chunk"], cols["event"],
+                      chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
+    r2 = replace(r, program=program)
+    return r2, (r2, ends[:-1], ends[1:], on, None, dur, mv, starts, before, sync)  # lengths: computed when asked
 
 
 def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: float) -> dict[str, list[float]]:
@@ -473,5 +743,6 @@ def _chunk_at(program: Program, i: int) -> str | None:
     return program.chunks[program.chunk[i + after[0]]] if len(after) else None
 
 
-__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "PieceRobot", "SimRobot", "Timeline", "WARNING_KINDS",
-           "event_times", "move_durations", "schedule", "severity"]
+__all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "Lengths", "PieceRobot", "Runs", "SimRobot", "Timeline",
+           "WARNING_KINDS", "changes", "event_times", "move_durations", "schedule", "schedule_pieces", "segment_max",
+           "severity"]
