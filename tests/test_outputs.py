@@ -375,3 +375,32 @@ def test_an_mp4_that_ffmpeg_cannot_write_is_one_line(planned, tmp_path, capfd, m
     err = capfd.readouterr().err
     assert code == 2 and err.splitlines() == [f"cooprint: error: {tmp_path / 'out'}/{expected}"], err
     assert os.listdir(tmp_path / "out") == []
+
+
+def test_ctrl_c_waits_for_numba_to_compile():
+    """While numba compiles a kernel (its compiler lock held), SIGINT is blocked in the main
+    thread (a KeyboardInterrupt inside the compiler left a half-made function: a segmentation
+    fault instead of exit 130); after it, it is not."""
+    import numba
+    from numba.core import event
+
+    from cooprint.interrupts import hold_compiles
+
+    hold_compiles()
+    seen = []
+
+    class Watch(event.Listener):
+        def on_start(self, ev):
+            seen.append(signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, set()))
+
+        def on_end(self, ev):
+            pass
+
+    watch = Watch()
+    event.register("numba:compile", watch)
+    try:
+        numba.njit(lambda x: x * 3 + 1)(2)  # a new function: compiled now
+    finally:
+        event.unregister("numba:compile", watch)
+    assert seen and all(seen)
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())

@@ -2,7 +2,7 @@
 
 The command line turns Ctrl-C into exit code 130 and one line (:mod:`cooprint.cli`); the atomic
 writers remove their temporary files on the way out (:mod:`cooprint.io.bundle`); the slicer
-stops its worker processes (:mod:`cooprint.slicing.slicer`). Two kinds of code must not be cut
+stops its worker processes (:mod:`cooprint.executors`). Three kinds of code must not be cut
 in half, and hold a Ctrl-C until they are done, then raise it:
 
 * :func:`deferred_sigint`: a sequence of renames (swapping a bundle in), a clean-up;
@@ -15,7 +15,9 @@ in half, and hold a Ctrl-C until they are done, then raise it:
   7 of 160 interrupts of `slice` and `run` in their first second ended so before the imports
   were held. These imports run with SIGINT *blocked* (:func:`blocked_sigint`): no handler
   runs, no system call is interrupted, the signal waits in the kernel and is delivered when
-  the import is done; the modules they made are kept alive.
+  the import is done; the modules they made are kept alive;
+* :func:`hold_compiles`: numba compiling a kernel (or loading it from its cache), SIGINT
+  blocked the same way while numba holds its compiler lock.
 
 Blocking works for the thread that blocks; a signal sent to the process goes to any thread that
 does not block it. Threads inherit the mask of the thread that starts them, so the threads
@@ -75,6 +77,49 @@ def deferred_sigint() -> Iterator[None]:
                 previous(signal.SIGINT, None)
             elif previous == signal.SIG_DFL:
                 raise KeyboardInterrupt
+
+
+class _CompileHold:
+    """SIGINT blocked in the main thread while numba holds its compiler lock (compiling a kernel
+    or loading it from its cache), delivered when it lets go (:func:`hold_compiles`). A
+    ``KeyboardInterrupt`` raised inside numba's compiler leaves the half-made function in its
+    tables; a Ctrl-C during a kernel's first call, under load, ended ``run`` and ``slice`` with a
+    segmentation fault instead of exit 130 (twice in about six runs of the test suite)."""
+
+    def __init__(self) -> None:
+        self.depth = 0
+        self.old: Any = None
+
+    def on_start(self, event: Any) -> None:
+        if threading.current_thread() is threading.main_thread():
+            if self.depth == 0:
+                self.old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            self.depth += 1
+
+    def on_end(self, event: Any) -> None:
+        if threading.current_thread() is threading.main_thread() and self.depth:
+            self.depth -= 1
+            if self.depth == 0:
+                signal.pthread_sigmask(signal.SIG_SETMASK, self.old)
+
+
+_COMPILES: list[Any] = []
+
+
+def hold_compiles() -> None:
+    """Hold Ctrl-C while numba compiles (:class:`_CompileHold`, as a numba event listener); once
+    per process. The modules that define kernels call it when they are imported (numba is
+    loaded by then)."""
+    if _COMPILES or not hasattr(signal, "pthread_sigmask"):
+        return
+    from numba.core import event
+
+    class Hold(_CompileHold, event.Listener):
+        pass
+
+    hold = Hold()
+    event.register("numba:compiler_lock", hold)
+    _COMPILES.append(hold)
 
 
 #: Modules made by a held loader, kept alive: the Ctrl-C held during an import is raised when

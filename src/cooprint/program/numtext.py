@@ -23,6 +23,10 @@ from typing import Sequence
 import numba
 import numpy as np
 
+from cooprint.interrupts import hold_compiles
+
+hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+
 _FIELD = re.compile(r"%\.(\d)f")
 #: Beyond this, ``|v| * 10**N`` is not known to within 1e-6 of its rounding (doubles there are
 #: 2**-23 apart) and the value is formatted by ``%``.

@@ -14,6 +14,10 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from cooprint.interrupts import hold_compiles
+
+hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+
 
 @dataclass(frozen=True)
 class MachineLimits:
