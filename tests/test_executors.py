@@ -212,6 +212,51 @@ def test_a_scheduler_that_does_not_answer_is_one_line_within_seconds(bar, tmp_pa
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("answer", [None, b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n"],
+                         ids=["silent", "web-server"])
+def test_something_that_is_not_a_scheduler_is_one_line_not_a_hang(bar, tmp_path, capsys, answer, monkeypatch):
+    """A port that takes the connection and stays silent (Dask's handshake waits for ever) or
+    answers as a web server does (Dask reads its bytes as a message length): one line, exit 2,
+    nothing written, within the timeout and its margin."""
+    import socket
+    import threading
+
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(executors, "CONNECT_MARGIN", 1.0)
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    held = []
+
+    def serve():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            held.append(conn)
+            if answer is not None:
+                try:
+                    conn.recv(64)
+                    conn.sendall(answer)
+                    conn.close()
+                except OSError:
+                    pass
+
+    threading.Thread(target=serve, daemon=True).start()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    start = time.monotonic()
+    try:
+        line = assert_rejected(["run", str(bar), "--out", tmp_path / "out", "--executor", "dask", "--scheduler",
+                                address], capsys, watch=[tmp_path])
+    finally:
+        server.close()
+        for conn in held:
+            conn.close()
+    assert f"--scheduler {address}:" in line and ("not a Dask scheduler" in line or "not answer as a Dask" in line)
+    assert time.monotonic() - start < 10
+
+
 def test_without_dask_installed_the_dask_executor_says_how_to_get_it(bar, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
     assert_rejected(["run", str(bar), "--out", tmp_path / "out", "--executor", "dask"], capsys, watch=[tmp_path],

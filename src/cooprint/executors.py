@@ -35,6 +35,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import uuid
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
@@ -50,6 +51,9 @@ EXECUTORS = ("inline", "processes", "dask")
 DEFAULT_EXECUTOR = "processes"
 #: Seconds to wait for a Dask scheduler to answer (``--scheduler tcp://...``) before giving up.
 CONNECT_TIMEOUT = 5.0
+#: How much longer than its own timeout cooprint waits for Dask's client to connect, s (a
+#: handshake with something that is not a scheduler may never end).
+CONNECT_MARGIN = 3.0
 #: Most workers of ``--scheduler local:N`` (and of ``processes``).
 MAX_LOCAL_WORKERS = 64
 #: A ``processes`` executor forks a pool only from this many tasks on: a pool costs ~0.3 s to
@@ -301,18 +305,42 @@ class DaskExecutor(Executor):
         self.slots = max(1, sum(self.client.nthreads().values()))
 
     def _connect(self, where: str) -> None:
-        """Connect the client to the scheduler at ``where``; one line if none answers."""
-        try:
-            with blocked_sigint():  # the client's threads start with SIGINT blocked: Ctrl-C goes to the main thread
-                self.client = self._distributed.Client(where, set_as_default=False, timeout=self._timeout)
-        except OSError as exc:
-            self.close()
-            raise ExecutorError(f"--scheduler {clip(self.address)}: no Dask scheduler answered within "
-                                f"{self._timeout:g} s (nothing listening there, or the host cannot be resolved or "
-                                f"reached; start one with `dask scheduler`): {_first_line(exc)}") from None
-        except BaseException:
-            self.close()
-            raise
+        """Connect the client to the scheduler at ``where``; one line if none answers.
+
+        The client is made on a thread of its own (started with SIGINT blocked, so that the
+        client's threads leave Ctrl-C to the main thread), which the main thread waits for at
+        most the timeout and a margin: something at that address that is not a Dask scheduler
+        (a web server, a port that accepts and stays silent) can keep Dask's handshake waiting
+        for ever, or fail it in any way; either is one line, and Ctrl-C works meanwhile."""
+        made: dict[str, Any] = {}
+
+        def connect() -> None:
+            try:
+                made["client"] = self._distributed.Client(where, set_as_default=False, timeout=self._timeout)
+            except BaseException as exc:  # reported by the main thread
+                made["error"] = exc
+
+        with blocked_sigint():
+            thread = threading.Thread(target=connect, name="cooprint-dask-connect", daemon=True)
+            thread.start()
+        thread.join(self._timeout + CONNECT_MARGIN)
+        if "client" in made:
+            self.client = made["client"]
+            return
+        self.close()
+        exc = made.get("error")
+        what = (f"no Dask scheduler answered within {self._timeout:g} s (nothing listening there, or the host "
+                f"cannot be resolved or reached; start one with `dask scheduler`)")
+        if exc is None:
+            raise ExecutorError(f"--scheduler {clip(self.address)}: something there took the connection but did "
+                                f"not answer as a Dask scheduler within {self._timeout + CONNECT_MARGIN:g} s (the "
+                                "scheduler's port, 8786 by default, not its dashboard's?)") from None
+        if isinstance(exc, OSError):
+            raise ExecutorError(f"--scheduler {clip(self.address)}: {what}: {_first_line(exc)}") from None
+        if isinstance(exc, Exception):
+            raise ExecutorError(f"--scheduler {clip(self.address)}: not a Dask scheduler there (its answer could "
+                                f"not be read: {type(exc).__name__}: {_first_line(exc)})") from None
+        raise exc
 
     @property
     def scheduler_address(self) -> str:
