@@ -195,3 +195,20 @@ def test_describe_names_the_largest_robots_of_a_big_fleet():
     assert est.bytes == 550_000_000 + 5_000_000
     assert est.describe(robots_shown=3) == ("estimate: 555 MB of output (R10 100 MB, R9 90 MB, R8 80 MB, 7 more), "
                                             "about 3.2 GB of memory, about 1.5 h on 4 cores")
+
+
+def test_a_line_said_while_bars_are_drawn_goes_above_them(capsys):
+    """The estimate is said through the progress: on the bars' console when they are drawn (a line
+    on stdout would be erased by their next redraw, on a terminal), else on stdout."""
+    from rich.console import Console
+
+
+    buf = io.StringIO()
+    with stage_progress(True, console=Console(file=buf, force_terminal=True, width=100)) as progress:
+        progress("slice", 1, 4)
+        progress.say("estimate: 1 MB of output")
+    assert "estimate: 1 MB of output" in _bars(buf)
+    assert capsys.readouterr().out == ""
+    with stage_progress(False) as progress:
+        progress.say("estimate: 2 MB of output")
+    assert capsys.readouterr().out == "estimate: 2 MB of output\n"

@@ -33,10 +33,15 @@ def stage_progress(enabled: bool, console: Any = None) -> Iterator[Any]:
     chunks/s, MB/s; :mod:`cooprint.progress`) and the time left. ``console``: draw on this rich
     Console instead (tests); ``COOPRINT_PROGRESS=1`` in the environment draws on stderr even when
     it is not a terminal. Either way it raises a Ctrl-C that some code swallowed
-    (:func:`cooprint.interrupts.check_interrupt`): the stages call it as they advance."""
+    (:func:`cooprint.interrupts.check_interrupt`): the stages call it as they advance. Its
+    ``say(text)`` prints a line for the user: above the bars, or on stdout when there are none."""
     forced = os.environ.get("COOPRINT_PROGRESS", "") not in ("", "0")
     if not enabled or (console is None and not forced and not sys.stderr.isatty()):
-        yield lambda stage, done, total: check_interrupt()
+        def quiet(stage: str, done: int, total: int) -> None:
+            check_interrupt()
+
+        quiet.say = click.echo  # type: ignore[attr-defined]
+        yield quiet
         return
     from cooprint.progress import rich_bars
 
@@ -52,6 +57,9 @@ def stage_progress(enabled: bool, console: Any = None) -> Iterator[Any]:
             check_interrupt()
             draw(stage, done, total)
 
+        # a line for the user while the bars are drawn goes above them (printed on stdout, the
+        # next redraw of the bars on stderr would erase it)
+        update.say = lambda text: console.print(text, markup=False, highlight=False)  # type: ignore[attr-defined]
         yield update
 
 
@@ -428,7 +436,7 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         # the executor starts after the settings' and the destination's checks, before the work
         with make_executor(executor, scheduler) as ex:
             return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress,
-                           executor=ex, on_estimate=estimate_reporter(out, quiet), compress=compress)
+                           executor=ex, on_estimate=estimate_reporter(out, quiet, progress), compress=compress)
 
     record = _plan(make, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
@@ -449,7 +457,7 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         _judge(sim, strict, quiet, "its own simulation", Path(out) / "sim" / "summary.json")
 
 
-def estimate_reporter(out: str, quiet: bool) -> Any:
+def estimate_reporter(out: str, quiet: bool, progress: Any = None) -> Any:
     """``coop_job``'s ``on_estimate`` for ``cooprint run``: refuse the run when the estimated
     output does not fit in the free space of OUT's file system (before slicing: a clear line, not
     a full disk an hour later), then print the estimate on stderr unless ``quiet``."""
@@ -457,8 +465,9 @@ def estimate_reporter(out: str, quiet: bool) -> Any:
         from cooprint.io.estimate import check_room
 
         check_room(out, estimate)
-        if not quiet:  # on stdout, with the plan's lines: stderr is a failed run's one error line
-            click.echo(estimate.describe())
+        if not quiet:  # above the bars on a terminal; else on stdout, with the plan's lines (stderr is a
+            # failed run's one error line)
+            getattr(progress, "say", click.echo)(estimate.describe())
     return report
 
 
