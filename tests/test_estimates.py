@@ -212,3 +212,24 @@ def test_a_line_said_while_bars_are_drawn_goes_above_them(capsys):
     with stage_progress(False) as progress:
         progress.say("estimate: 2 MB of output")
     assert capsys.readouterr().out == "estimate: 2 MB of output\n"
+
+
+def test_the_disk_a_run_needs_counts_the_spool_and_compression(parts, tmp_path, monkeypatch):
+    """A streamed run spools its chunks' commands beside the bundle until it is complete: the
+    free-space check wants both; --compress shrinks the programs' share (COMPRESSED)."""
+    from cooprint.errors import OutputError
+    from cooprint.io import estimate as est_mod
+    from cooprint.jobs import chunk_job
+
+    mesh, overrides = parts["box"]
+    chunked = chunk_job(mesh, load_settings(overrides=overrides), 2)
+    est = est_mod.estimate_job(chunked.chunks, chunked.settings, chunked.assignment.sequences)
+    assert est.spool_bytes == est_mod.PROGRAM_BYTES * sum(est.commands.values()) > 0
+    small = est.compressed()
+    assert small.chunk_bytes == est.chunk_bytes
+    assert sum(small.robot_bytes.values()) == pytest.approx(est_mod.COMPRESSED * sum(est.robot_bytes.values()), rel=1e-3)
+    real = shutil.disk_usage(tmp_path)
+    free = int((est.bytes + est.spool_bytes / 2))  # room for the bundle, not for the spool beside it
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: real._replace(free=free))
+    with pytest.raises(OutputError, match="to spool"):
+        est_mod.check_room(tmp_path / "job", est)

@@ -436,7 +436,7 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         # the executor starts after the settings' and the destination's checks, before the work
         with make_executor(executor, scheduler) as ex:
             return run_job(mesh, settings, out, robots, force=force, picture=picture, progress=progress,
-                           executor=ex, on_estimate=estimate_reporter(out, quiet, progress), compress=compress)
+                           executor=ex, on_estimate=estimate_reporter(out, quiet, progress, compress), compress=compress)
 
     record = _plan(make, mesh, out, config, overrides, robots, force, no_picture, quiet)
     sim = None
@@ -457,13 +457,16 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
         _judge(sim, strict, quiet, "its own simulation", Path(out) / "sim" / "summary.json")
 
 
-def estimate_reporter(out: str, quiet: bool, progress: Any = None) -> Any:
+def estimate_reporter(out: str, quiet: bool, progress: Any = None, compress: bool = False) -> Any:
     """``coop_job``'s ``on_estimate`` for ``cooprint run``: refuse the run when the estimated
     output does not fit in the free space of OUT's file system (before slicing: a clear line, not
-    a full disk an hour later), then print the estimate on stderr unless ``quiet``."""
+    a full disk an hour later; with ``compress`` the programs' bytes compressed, and the spool
+    beside them), then say the estimate unless ``quiet`` (``progress.say``: above the bars)."""
     def report(estimate: Any) -> None:
         from cooprint.io.estimate import check_room
 
+        if compress:
+            estimate = estimate.compressed()
         check_room(out, estimate)
         if not quiet:  # above the bars on a terminal; else on stdout, with the plan's lines (stderr is a
             # failed run's one error line)
@@ -488,7 +491,8 @@ def _report_run(record: dict[str, Any], out: str, no_picture: bool) -> None:
                    f"{st['commands']:,} commands, {st['print_mm'] / 1000:.1f} m printed, "
                    f"{st['volume_mm3'] / 1000:.1f} cm3, {st['wait']} WAIT, {st['notify']} NOTIFY")
     _idle_line(record)
-    click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl, {out}/robots/*.coop, {out}/robots/*.gcode"
+    gz = ".gz" if any(str(r.get("program", "")).endswith(".gz") for r in record["robots"]) else ""
+    click.echo(f"wrote {out}/job.json, {out}/chunks/*.stl, {out}/robots/*.coop{gz}, {out}/robots/*.gcode{gz}"
                + ("" if no_picture else f", {out}/chunks.png"))
 
 

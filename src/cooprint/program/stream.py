@@ -184,9 +184,12 @@ class ChunkStore:
             self._mem[cid] = canon
         else:
             path = self.folder / f"{len(self._files):06d}.npy"
-            with open(path, "wb") as fh:
-                for f in COLUMNS:
-                    _save(fh, getattr(canon, f))
+            try:
+                with open(path, "wb") as fh:
+                    for f in COLUMNS:
+                        _save(fh, getattr(canon, f))
+            except OSError as exc:  # a full disk: named with the file (the bundle's error says which)
+                raise OSError(exc.errno, exc.strerror, str(path)) from None
             self._files[cid] = path
             self._last = (cid, canon)
         return canon
