@@ -439,7 +439,6 @@ class _Fleet:
                 firsts[r] = (self.first[c], dag.facing[self.idx[c]])
         self.rings = parking(self.robots, firsts, self.bodies, allp.min(0), allp.max(0), self.clearance)
         self.items: list[Item] = []
-        self._times: dict = {}
         self._feet = np.zeros((0, NDIR))  # the footprints of the placed prints, in self.printed's order
         self._boxes = np.zeros((0, 5))  # and their material boxes (xmin, ymin, xmax, ymax, top)
         self._parts = np.zeros((0, 3, NDIR))
@@ -567,12 +566,12 @@ class _Fleet:
         it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.travel_speed  # duration, for now
         return it
 
-    def _pieces(self, r: str, cid: str) -> list[tuple[ChunkPiece, np.ndarray, float, int, np.ndarray | None]]:
+    def _pieces(self, r: str, cid: str) -> list[tuple[ChunkPiece, np.ndarray, float, np.ndarray | None]]:
         """Chunk ``cid``'s commands for robot ``r`` (every layer, from above its first point) cut
         into at most ``PIECES`` pieces of about as many moves, each cut right after a TOOL OFF
         (a robot that waits between two pieces does so with its tool off): each piece, the
-        support of its nozzle positions (from where the piece before ends), its nominal time,
-        its length in commands and where its last move ends. Kept in the store for every robot
+        support of its nozzle positions (from where the piece before ends), its nominal time and
+        where its last move ends. Kept in the store for every robot
         of the same speeds (the chunk's commands are read once)."""
         b = self.bodies[r]
         key = ("fleet-pieces", cid, b.print_speed, b.travel_speed)
@@ -595,8 +594,7 @@ class _Fleet:
                 k0, k1 = np.searchsorted(mv, c0), np.searchsorted(mv, c1)
                 pts = xyz[max(k0 - 1, 0):max(k1, 1), :2]  # from where the piece before ends
                 last = xyz[k1 - 1].copy() if k1 > k0 else None
-                out.append((ChunkPiece(cid, int(c0), int(c1)), point_support(pts), float(dur[k0:k1].sum()),
-                            int(c1 - c0), last))
+                out.append((ChunkPiece(cid, int(c0), int(c1)), point_support(pts), float(dur[k0:k1].sum()), last))
             self.store.memo[key] = out
         return self.store.memo[key]  # type: ignore[return-value]
 
@@ -608,12 +606,12 @@ class _Fleet:
         pieces = self._pieces(r, cid)
         first = self.first[cid]
         items = []
-        for k, (piece, support, dur, _, end_at) in enumerate(pieces):
+        for k, (piece, support, dur, end_at) in enumerate(pieces):
             it = Item(r, "print", support[None] + rects, chunk=cid, program=piece, end_at=end_at)
             it.end = dur + (float(np.linalg.norm(np.asarray(here, float) - first)) / b.travel_speed if k == 0 else 0.0)
             items.append(it)
         items[-1].last = True
-        end_at = pieces[-1][4]
+        end_at = pieces[-1][3]
         return items, end_at if end_at is not None else np.asarray(here, float)
 
     # --- a job ---------------------------------------------------------------------------------
