@@ -114,9 +114,10 @@ def _array_bytes(obj) -> int:
 
 
 def test_memory_is_bounded_by_the_chunks_in_flight(tmp_path, monkeypatch):
-    """A streamed run of a part of many chunks holds one chunk's commands at a time, not the
-    job's: the job it plans keeps only small summaries of its chunks (the commands are on disk),
-    and writing the robots' files reads one chunk's commands, lets it go, then reads the next."""
+    """A streamed run of a part of many chunks (17) holds one chunk's commands at a time, not
+    the job's: the job it plans keeps only small summaries of its chunks (the commands are on
+    disk), and writing the robots' files reads one chunk's commands, lets it go, then reads the
+    next; the files are those of the job made in memory, byte for byte."""
     solid = as_solid(box(60.0, 4800.0, 10.0), "long")
     settings = load_settings(overrides={**COARSE, "slicing.infill_density": 0.5})
     memory = coop_job(solid, settings, robots=2)
@@ -138,11 +139,15 @@ def test_memory_is_bounded_by_the_chunks_in_flight(tmp_path, monkeypatch):
         most[0] = max(most[0], len(live))
         return prog
 
+    write_coop_bundle(memory, tmp_path / "memory", picture=False)
     monkeypatch.setattr(ChunkStore, "program", counted)
     del memory
     gc.collect()
     write_coop_bundle(spooled, tmp_path / "out", picture=False)
     assert 1 <= most[0] <= 2
+    # and a job of many chunks streamed writes the bytes the job in memory writes
+    for name in ("A.coop", "A.gcode", "B.coop", "B.gcode"):
+        assert (tmp_path / "out" / "robots" / name).read_bytes() == (tmp_path / "memory" / "robots" / name).read_bytes()
 
 
 def test_entered_is_layer_program_from_there():
