@@ -35,6 +35,7 @@ import errno
 import gzip
 import json
 import math
+import mmap
 import os
 import queue
 import re
@@ -587,6 +588,30 @@ def read_output(path: str | Path, error: type[Exception] = OutputError) -> bytes
         return gzip.decompress(data)
     except (OSError, EOFError, zlib.error) as exc:  # gzip.BadGzipFile is an OSError
         raise error(f"{path}: not a valid gzip file ({exc or type(exc).__name__})") from None
+
+
+def map_input(path: str | Path, error: type[Exception] = OutputError) -> "bytes | mmap.mmap":
+    """The bytes of a file to read: mapped, not copied (its pages stay the page cache's); read
+    when it cannot be mapped (an empty file, a pipe); read and decompressed when it is gzip
+    (:func:`read_output`). OS errors are the caller's to word; :func:`release` it when done."""
+    with open(path, "rb") as f:
+        try:
+            data: bytes | mmap.mmap = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        except (OSError, ValueError):  # empty, or not a regular file: read it
+            data = f.read()
+    if bytes(data[:2]) == GZIP_MAGIC:
+        release(data)
+        data = read_output(path, error)
+    return data
+
+
+def release(data: "bytes | mmap.mmap") -> None:
+    """Close what :func:`map_input` mapped (nothing to do for bytes)."""
+    if isinstance(data, mmap.mmap):
+        try:
+            data.close()
+        except BufferError:  # a view still held (by a traceback): the collector closes it
+            pass
 
 
 def plain_name(path: str | Path) -> Path:

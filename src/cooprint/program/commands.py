@@ -704,7 +704,7 @@ def iter_coop(path: str | Path, robot: str | None = None, piece_bytes: int = PIE
     NOTIFYs and the line numbers of error messages carry over). The file is mapped, and the
     pages of each piece are given back once it is read: reading a program of any size holds a
     piece of its text and the piece's program at a time."""
-    from cooprint.io.bundle import plain_name
+    from cooprint.io.bundle import plain_name, release
 
     p = Path(path)
     name = robot or plain_name(p).stem
@@ -727,37 +727,21 @@ def iter_coop(path: str | Path, robot: str | None = None, piece_bytes: int = PIE
             a = b
             yield program
     finally:
-        _close(data)
+        release(data)
 
 
 def _open_coop(p: Path):
     """A command file mapped (or read: an empty file, a pipe; read and decompressed: a gzip
-    file), or a one-line error."""
-    from cooprint.io.bundle import GZIP_MAGIC, read_output
+    file; :func:`cooprint.io.bundle.map_input`), or a one-line error."""
+    from cooprint.io.bundle import map_input
 
     regular_file(p, "command file", ProgramError)  # a FIFO would block the read for ever
     try:
-        with open(p, "rb") as f:
-            try:
-                data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
-            except (OSError, ValueError):  # empty, or not a regular file (a pipe): read it
-                data = f.read()
-        if bytes(data[:2]) == GZIP_MAGIC:
-            _close(data)
-            data = read_output(p, ProgramError)
-        return data
+        return map_input(p, ProgramError)
     except FileNotFoundError:
         raise ProgramError(f"{p}: no such command file") from None
     except OSError as exc:
         raise ProgramError(f"{p}: cannot read ({exc})") from None
-
-
-def _close(data) -> None:
-    if isinstance(data, mmap.mmap):
-        try:
-            data.close()
-        except BufferError:  # a view still held (by a traceback): the collector closes it
-            pass
 
 
 __all__ = ["CoopWriter", "FORMAT", "KIND_NAMES", "MOVE", "NOTIFY", "Program", "ProgramError", "RESOLUTION",

@@ -7,7 +7,6 @@ import difflib
 import io
 import json
 import math
-import mmap
 import re
 import tomllib
 from dataclasses import dataclass, fields, replace
@@ -20,7 +19,7 @@ from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_set
 from cooprint.geometry import unit_deg
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path, shown_key)
-from cooprint.io.bundle import GZIP_MAGIC, plain_name, read_output
+from cooprint.io.bundle import map_input, plain_name, release
 from cooprint.io.files import path_kind, regular_file
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
@@ -574,15 +573,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     p = Path(path)
     regular_file(p, "G-code file", SimInputError)  # a FIFO would block the read for ever
     try:
-        with open(p, "rb") as f:  # mapped, not copied: its pages stay the page cache's
-            try:
-                data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
-            except (OSError, ValueError):  # empty, or not a regular file: read it
-                data = f.read()
-        if bytes(data[:2]) == GZIP_MAGIC:  # compressed: read and decompressed
-            if isinstance(data, mmap.mmap):
-                data.close()
-            data = read_output(p, SimInputError)
+        data = map_input(p, SimInputError)  # mapped, not copied (decompressed if gzip)
     except FileNotFoundError:
         raise SimInputError(f"{p}: no such G-code file") from None
     except IsADirectoryError:
@@ -594,11 +585,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
         if rows is None:
             return _read_gcode_lines(p, _gcode_text(bytes(data)), filament_diameter)
     finally:
-        if isinstance(data, mmap.mmap):
-            try:
-                data.close()
-            except BufferError:  # a view still held (by a traceback): the collector closes it
-                pass
+        release(data)
     prog = make_program(plain_name(p).stem, rows.kind, rows.xyz if len(rows.kind) else None,
                         role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height,
                         events=rows.events)
