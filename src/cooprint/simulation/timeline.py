@@ -562,13 +562,47 @@ def _constant(dtype, value, shape: tuple[int, ...]) -> np.ndarray:
     return np.broadcast_to(np.array(value, dtype), shape)
 
 
+def _timed_pieces(pieces: Iterable[Program], start: np.ndarray, print_speed: float, travel_speed: float,
+                  speed: Callable[[Program, bool], np.ndarray] | None = None):
+    """A program's pieces in order, each with its moves timed as :func:`move_durations` times the
+    whole program: the moves' table continued from piece to piece (the first move from
+    ``start``, the tool as the pieces before leave it), each duration ``length / speed`` (the
+    profile's ``print_speed`` for a move that deposits, else ``travel_speed``; or
+    ``speed(piece, tool on before it)[move]``), the starts one running sum, the same additions in
+    the same order as the whole program's. Yields ``(at, k, piece, mv, ends, on, dur, starts)``:
+    the commands and moves before the piece, the piece, its moves' command indices in it,
+    their ends ``(m + 1, 3)`` (move j from row j to row j + 1), whether they deposit, their
+    durations and the time each starts without waits ``(m + 1,)`` (the last: the piece's end)."""
+    from cooprint.simulation.kernels import move_table  # numba: on first use
+
+    at = k = 0
+    t, tool = 0.0, False
+    pos = np.asarray(start, dtype=np.float64)
+    for piece in pieces:
+        m = int(np.count_nonzero(piece.kind == MOVE))
+        ends, mv, on, length = np.empty((m + 1, 3)), np.empty(m, np.int64), np.empty(m, bool), np.empty(m)
+        ends[0] = pos
+        move_table(piece.kind, piece.xyz, pos, True, mv, ends[:-1], ends[1:], on, length)
+        tool_on = piece.tool_on(tool)
+        np.logical_and(tool_on[mv], length > 0, out=on)
+        if speed is None:
+            dur = np.divide(length, travel_speed)
+            np.divide(length, print_speed, out=dur, where=on)
+        else:
+            dur = length / speed(piece, tool)[mv]
+        starts = np.cumsum(np.r_[t, dur])
+        yield at, k, piece, mv, ends, on, dur, starts
+        t, pos = float(starts[-1]), ends[-1].copy()
+        if len(piece):
+            tool = bool(tool_on[-1])
+        at, k = at + len(piece), k + m
+
+
 def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, travel_speed: float, room: int):
     """One robot of :func:`schedule_pieces`: its slim program and ``_timelines``' tuple, built a
     piece at a time with :func:`move_durations`' operations (the moves' table continued from
     piece to piece, each duration ``length / speed``, the starts one running sum): the same
     numbers as of the whole program."""
-    from cooprint.simulation.kernels import move_table  # numba: on first use
-
     if r.start is None:
         raise ValueError(f"robot {r.name}: a program timed piece by piece needs its start")
     room = max(room, 1)
@@ -580,15 +614,15 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     on, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room + 1)
     ends[0] = np.asarray(r.start, dtype=np.float64)
     starts[0] = 0.0
-    at = k = 0  # commands and moves so far
-    tool = False
+    commands = moves = 0  # in all
     chunks: list[str] = []
     events: list[tuple[str, ...]] = []
     turns: list[tuple[int, float]] = []
     sync: list[int] = []
     before: dict[int, float] = {}
-    for piece in pieces:
-        n = len(piece)
+    for at, k, piece, pm, p_ends, p_on, p_dur, p_starts in _timed_pieces(pieces, r.start, print_speed, travel_speed):
+        n, m = len(piece), len(pm)
+        commands, moves = at + n, k + m
         chunks += [c for c in piece.chunks if c not in chunks]  # in the order they first appear (read_coop's)
         turns += [(i + at, deg) for i, deg in piece.turns]  # (a piece without commands may hold a turn)
         if n == 0:
@@ -603,24 +637,14 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
         cols["chunk"].add(remap[piece.chunk])  # -1 indexes the appended -1
         cols["event"].add(np.where(piece.event >= 0, piece.event + len(events), -1))
         events += piece.events
-        m = int(np.count_nonzero(piece.kind == MOVE))
         ends, starts = _grown(ends, k + m + 1), _grown(starts, k + m + 1)
         mv, on, dur = (_grown(a, k + m) for a in (mv, on, dur))
-        pm, pon, length = mv[k:k + m], on[k:k + m], np.empty(m)  # the lengths of the piece's moves only
-        move_table(piece.kind, piece.xyz, ends[k], True, pm, ends[k:k + m], ends[k + 1:k + m + 1], pon, length)
-        tool_on = piece.tool_on(tool)
-        np.logical_and(tool_on[pm], length > 0, out=pon)  # the tool as the pieces before leave it
-        pm += at
-        d = dur[k:k + m]
-        np.divide(length, travel_speed, out=d)
-        np.divide(length, print_speed, out=d, where=pon)
-        # the running sum continued: the same additions in the same order as the whole program's
-        starts[k:k + m + 1] = np.cumsum(np.r_[starts[k], d])
+        mv[k:k + m], on[k:k + m], dur[k:k + m] = pm + at, p_on, p_dur
+        ends[k + 1:k + m + 1], starts[k + 1:k + m + 1] = p_ends[1:], p_starts[1:]
         for j in np.flatnonzero(piece.kind >= NOTIFY).tolist():  # NOTIFY and WAIT
             sync.append(at + j)
-            before[at + j] = starts[k + int(np.searchsorted(pm, at + j))]
-        tool = bool(tool_on[-1])
-        at, k = at + n, k + m
+            before[at + j] = p_starts[int(np.searchsorted(pm, j))]
+    at, k = commands, moves
     kind.resize(at, refcheck=False)  # in place: the rest goes back
     cols = {f: b.runs() for f, b in cols.items()}
     ends.resize((k + 1, 3), refcheck=False)
@@ -681,44 +705,26 @@ def event_times(robots: list[PieceRobot]) -> EventTimes:
     """The constant-speed times of :func:`schedule` for programs given piece by piece, one piece
     in memory at a time: each robot's end and its WAITs' durations, the same numbers as
     :func:`schedule` of the whole programs (the times add up in the same order)."""
-    from cooprint.simulation.kernels import move_table  # numba: on first use
-
     syncs: dict[str, list] = {}
     lasts: dict[str, list] = {}  # per robot: the last move before each sync, and the last of all
     counts: dict[str, int] = {}
     for r in robots:
-        t, offset, tool, n_waits = 0.0, 0, False, 0
-        pos = np.asarray(r.start, dtype=np.float64)
+        n_waits = 0
         sync: list = []
         last_before: list = []
         last = None  # (command index, time at its start without waits, duration)
-        for piece in r.pieces():
-            n = len(piece)
-            if n == 0:
-                continue
+        for at, _, piece, mv, _, _, dur, starts in _timed_pieces(r.pieces(), r.start, r.print_speed,
+                                                                  r.travel_speed, r.speed):
             kind = piece.kind
-            k = int(np.count_nonzero(kind == MOVE))
-            ends = np.empty((k + 1, 3))
-            mv, on, length = np.empty(k, np.int64), np.empty(k, bool), np.empty(k)
-            move_table(kind, piece.xyz, pos, True, mv, ends[:-1], ends[1:], on, length)
-            tool_on = piece.tool_on(tool)
-            on = tool_on[mv] & (length > 0)
-            v = np.where(on, r.print_speed, r.travel_speed) if r.speed is None else r.speed(piece, tool)[mv]
-            dur = length / v
-            cmd_dur = np.zeros(n)
-            cmd_dur[mv] = dur
-            before = np.cumsum(np.r_[t, cmd_dur])  # the whole program's running sum, continued
             for j in np.flatnonzero((kind == NOTIFY) | (kind == WAIT)).tolist():
-                m = int(np.searchsorted(mv, j)) - 1
-                if m >= 0:
-                    last = (offset + int(mv[m]), float(before[mv[m]]), float(dur[m]))
-                sync.append((offset + j, float(before[j]), kind[j] == NOTIFY, piece.events[piece.event[j]]))
+                m = int(np.searchsorted(mv, j))  # moves before it
+                if m:
+                    last = (at + int(mv[m - 1]), float(starts[m - 1]), float(dur[m - 1]))
+                sync.append((at + j, float(starts[m]), kind[j] == NOTIFY, piece.events[piece.event[j]]))
                 last_before.append(last)
                 n_waits += int(kind[j] == WAIT)
-            if k:
-                last = (offset + int(mv[-1]), float(before[mv[-1]]), float(dur[-1]))
-                pos = ends[-1].copy()
-            t, offset, tool = float(before[-1]), offset + n, bool(tool_on[-1])
+            if len(mv):
+                last = (at + int(mv[-1]), float(starts[-2]), float(dur[-1]))
         syncs[r.name], lasts[r.name], counts[r.name] = sync, last_before + [last], n_waits
     announced, pos_, waited, delay, waits, notifies = _resolve(syncs)
     ends, durations = {}, {}
