@@ -723,7 +723,6 @@ def view(folder: str, open_page: bool, force: bool) -> None:
     if not root.is_dir():
         raise UserError(f"{folder}: {'not a folder' if root.exists() else 'no such folder'}; expected a `cooprint run` "
                         "bundle or a folder written by `cooprint simulate ... --out`")
-    check_assets()
     summary_path = root / "sim" / "summary.json"
     target = root / "sim" / "viewer.html"
     bundle = is_bundle(root)
@@ -731,6 +730,7 @@ def view(folder: str, open_page: bool, force: bool) -> None:
     if not bundle and record is None:
         raise UserError(f"{folder}: neither a cooprint bundle (job.json) nor a simulated folder (sim/summary.json); "
                         "run `cooprint run MESH --out FOLDER` or `cooprint simulate FILES --out FOLDER` first")
+    check_assets()
     if record is None:  # a bundle not simulated yet: its simulation writes the viewer too
         check_file_destination(target, force, create_parents=1)
         click.echo(f"{folder} has no simulation yet (sim/summary.json): simulating it first")
