@@ -15,7 +15,9 @@ import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { colourTable, TRAVEL_COLOUR } from './colours.js';
 
 // While the camera moves, at most this many segments are drawn a frame (the rest when it rests).
-const COARSE_SEGMENTS = 250_000;
+const COARSE_SEGMENTS = 150_000;
+// A frame adds at most this many segments to the target (about 0.1-0.2 s of software GL).
+const FRAME_SEGMENTS = 200_000;
 
 
 // A box's 12 edges over the unit cube [0,1]^3, and its 6 faces (for a translucent fill).
@@ -179,8 +181,9 @@ export class View {
       if (this.meta.placed && rec.outline) {
         view.body = part(edges, line);
         view.bodyFill = new THREE.Mesh(faces, new THREE.MeshBasicMaterial({ color: colour, transparent: true,
-                                                                            opacity: 0.12, depthWrite: false }));
+                                                                            opacity: 0.1, depthWrite: false }));
         group.add(view.bodyFill);
+        view.column = part(edges, line);
         view.frame = part(edges, line);
         view.head = part(edges, line);
         view.mast = part(new THREE.BufferGeometry().setAttribute('position',
@@ -325,6 +328,22 @@ export class View {
     this.invalidate();
   }
 
+  // Lines have no surface to light: each segment is shaded by how its horizontal normal (across
+  // it) faces a light from the front right, so that walls read as lit from one side; most keep
+  // their full colour (the palette's exact colour on screen), the others are darker, down to 55 %.
+  shading(m) {
+    if (m.shade) return m.shade;
+    const out = new Float32Array(m.count), span = this.geo.span, L = [0.8, -0.6];
+    for (let s = 0; s < m.count; s++) {
+      const a = m.start[s] * 3;
+      const dx = (m.pos[a + 3] - m.pos[a]) * span[0], dy = (m.pos[a + 4] - m.pos[a + 1]) * span[1];
+      const len = Math.hypot(dx, dy);
+      out[s] = len > 0 ? Math.min(1, 0.55 + 0.7 * Math.abs(-dy * L[0] + dx * L[1]) / len) : 1;
+    }
+    m.shade = out;
+    return out;
+  }
+
   setColours(mode, colours) {
     this.colourMode = mode;
     for (const r of this.robots) {
@@ -332,9 +351,12 @@ export class View {
       const out = attr.array;
       const table = colourTable(mode, r.index, r.data.material, colours);
       const per = table.per;
+      const shade = this.shading(r.data.material);
       for (let s = 0; s < r.data.material.count; s++) {
-        const c = per(s), o = s * 6;
-        out[o] = out[o + 3] = c[0]; out[o + 1] = out[o + 4] = c[1]; out[o + 2] = out[o + 5] = c[2];
+        const c = per(s), o = s * 6, f = shade[s];
+        out[o] = out[o + 3] = Math.round(c[0] * f);
+        out[o + 1] = out[o + 4] = Math.round(c[1] * f);
+        out[o + 2] = out[o + 5] = Math.round(c[2] * f);
       }
       attr.needsUpdate = true;
       r.coarse = null;
@@ -440,45 +462,64 @@ export class View {
     return r.coarse;
   }
 
-  // Draw the frame at time t: returns the segments drawn into the target this frame.
+  // Draw the frame at time t. The target catches up with t by at most FRAME_SEGMENTS segments a
+  // frame (the material up to an earlier time t' first: the print grows to t over a few frames,
+  // and the page answers meanwhile); returns whether it has (else the caller draws again).
   render(t) {
     const renderer = this.renderer;
     const coarse = this.moving && this.robots.some((r) => this.coarseOf(r));
-    const counts = this.robots.map((r) => r.data.material.ended(t));
-    const tcounts = this.robots.map((r) => (this.showTravel ? r.data.travel.ended(t) : 0));
-    let drawn = 0;
-    const full = !this.acc || this.acc.coarse !== coarse || counts.some((c, i) => c < this.acc.counts[i])
-      || tcounts.some((c, i) => c < this.acc.tcounts[i]);
+    const want = this.robots.map((r) => r.data.material.ended(t));
+    const full = !this.acc || this.acc.coarse !== coarse || want.some((c, i) => c < this.acc.counts[i])
+      || this.robots.some((r, i) => this.showTravel && r.data.travel.ended(t) < this.acc.tcounts[i])
+      || (!this.showTravel && this.acc.tcounts.some((c) => c > 0));
     renderer.setRenderTarget(this.target);
     if (full) {
       renderer.clear(true, true, true);
       renderer.render(this.accScene, this.camera);
+      this.acc = { t: 0, counts: this.robots.map(() => 0), tcounts: this.robots.map(() => 0), coarse };
     }
-    const scene = new THREE.Scene();
+    const acc = this.acc;
+    const have = acc.counts.reduce((a, b) => a + b, 0);
+    const ended = (x) => this.robots.reduce((a, r) => a + r.data.material.ended(x), 0);
+    let upTo = t;
+    if (!coarse && ended(t) - have > FRAME_SEGMENTS) { // the latest time within the frame's share
+      let lo = acc.t, hi = t;
+      for (let k = 0; k < 60 && hi - lo > 1e-9 * Math.max(t, 1); k++) {
+        const mid = (lo + hi) / 2;
+        if (ended(mid) - have > FRAME_SEGMENTS) hi = mid; else lo = mid;
+      }
+      upTo = lo;
+    }
+    const counts = this.robots.map((r) => r.data.material.ended(upTo));
+    const tcounts = this.robots.map((r) => (this.showTravel ? r.data.travel.ended(upTo) : 0));
+    const added = new THREE.Scene();
+    let drawn = 0;
     this.robots.forEach((r, i) => {
-      const from = full ? 0 : this.acc.counts[i], to = counts[i];
+      const from = acc.counts[i], to = counts[i];
       if (coarse && r.coarse) {
         const a = r.coarse.below(from), b = r.coarse.below(to);
-        if (b > a) { r.coarse.object.geometry.setDrawRange(a * 2, (b - a) * 2); scene.add(r.coarse.object); drawn += b - a; }
+        if (b > a) { r.coarse.object.geometry.setDrawRange(a * 2, (b - a) * 2); added.add(r.coarse.object); drawn += b - a; }
       } else if (to > from) {
         r.material.geometry.setDrawRange(from * 2, (to - from) * 2);
-        scene.add(r.material);
+        added.add(r.material);
         drawn += to - from;
       }
-      const tf = full ? 0 : this.acc.tcounts[i], tt = tcounts[i];
+      const tf = acc.tcounts[i], tt = tcounts[i];
       if (tt > tf) {
         r.travel.geometry.setDrawRange(tf * 2, (tt - tf) * 2);
-        scene.add(r.travel);
+        added.add(r.travel);
+        drawn += tt - tf;
       }
     });
-    if (scene.children.length) renderer.render(scene, this.camera);
-    this.acc = { counts, tcounts, coarse };
-    this.present(t, counts, full, scene);
+    if (added.children.length) renderer.render(added, this.camera);
+    this.acc = { t: upTo, counts, tcounts, coarse };
+    // a little new material is drawn onto the canvas too; much of it, the canvas is copied whole
+    this.present(t, want, full || drawn > FRAME_SEGMENTS / 10, added);
     for (const r of this.robots) { // back to where they belong (an object has one parent)
       r.material.removeFromParent(); r.travel.removeFromParent();
       if (r.coarse) r.coarse.object.removeFromParent();
     }
-    return drawn;
+    return upTo >= t;
   }
 
   updateLive(t, counts) {
@@ -527,8 +568,10 @@ export class View {
           obj.position.set(u0, v0, z0);
           obj.scale.set(Math.max(u1 - u0, 1e-3), Math.max(v1 - v0, 1e-3), Math.max(z1 - z0, 1e-3));
         };
-        box(v.body, o.body, 0, zh);
-        box(v.bodyFill, o.body, 0, zh);
+        const hb = Math.min(zh, 0.35 * (o.body[3] - o.body[2])); // the body: a low box on its wheels
+        box(v.body, o.body, 0, hb);
+        box(v.bodyFill, o.body, 0, hb);
+        box(v.column, [o.body[1] - 1, o.body[1], o.frame[2], o.frame[3]], hb, zh); // up to the frame
         box(v.frame, o.frame, zh, zh + v.rec.nozzle_height * 0.08);
         box(v.head, o.printhead, zh, zh + v.rec.nozzle_height * 0.5);
         v.mast.position.set(0, 0, z);
