@@ -8,14 +8,16 @@
 // segments ended since the last one; the target is copied to the screen with its depth and the
 // moving parts (robots, the segments under way, the marker) are drawn over it, hidden where
 // material is in front. A camera move, a filter or colour change, or going back in time redraws
-// the target whole (while the camera moves, from a coarse subset when the plan is large).
+// the target whole, a share a frame (while the camera moves, a coarse picture at half the
+// resolution, from every k-th layer of a large plan).
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { colourTable, TRAVEL_COLOUR } from './colours.js';
 
 // While the camera moves, at most this many segments are drawn a frame (the rest when it rests).
-const COARSE_SEGMENTS = 150_000;
+const COARSE_SEGMENTS = 60_000;
+const COARSE_MIN = 30_000;
 // A frame adds at most this many segments to the target (about 0.1-0.2 s of software GL).
 const FRAME_SEGMENTS = 200_000;
 
@@ -67,10 +69,16 @@ export class View {
     this.controls = new OrbitControls(this.camera, renderer.domElement);
     this.controls.enableDamping = false;
     this.controls.screenSpacePanning = true;
+    // the camera moves from the first change until 250 ms after the last (a wheel turn is many
+    // small changes); meanwhile frames are coarse, then the whole picture is drawn again
     this.moving = false;
-    this.controls.addEventListener('start', () => { this.moving = true; });
-    this.controls.addEventListener('end', () => { this.moving = false; this.invalidate(); });
-    this.controls.addEventListener('change', () => this.invalidate());
+    this.controls.addEventListener('change', () => {
+      if (this.placing) return; // the view buttons and the findings place the camera: no motion
+      this.moving = true;
+      clearTimeout(this.still);
+      this.still = setTimeout(() => { this.moving = false; this.invalidate(); }, 250);
+      this.invalidate();
+    });
 
     this.accScene = new THREE.Scene(); // drawn into the target: grid, outlines
     this.liveScene = new THREE.Scene(); // drawn each frame over it
@@ -83,7 +91,7 @@ export class View {
     this.buildComposite();
     this.showTravel = false; // as slicers show a preview: travel on demand
     this.colourMode = 'robot';
-    this.acc = null; // what the target holds: {t, counts, travel counts, coarse}
+    this.acc = null; // what the target holds: {t, counts, tcounts} (material and travel drawn)
     this.onInvalidate = () => {};
     this.resize();
     this.resetView('reset');
@@ -232,15 +240,16 @@ export class View {
   // Copy a target's colour, depth and stencil to another, or to the canvas (null): a blit of the
   // rectangle [x0, y0, x1, y1] (pixels from the bottom left; all by default). Returns whether it
   // worked (a canvas whose depth format differs from the target's refuses it).
-  blit(src, dst, depth, rect = null) {
+  blit(src, dst, depth, rect = null, scaled = false) {
     const gl = this.renderer.getContext(), props = this.renderer.properties;
     const fb = (t) => (t ? props.get(t).__webglFramebuffer : null);
     const [x0, y0, x1, y1] = rect || [0, 0, src.width, src.height];
+    const [w, h] = scaled ? [this.target.width, this.target.height] : [x1, y1]; // a coarse frame: stretched
     const check = this.direct === undefined; // asking for errors waits for the GPU: only the first time
     if (check) gl.getError();
     gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb(src));
     gl.bindFramebuffer(gl.DRAW_FRAMEBUFFER, fb(dst));
-    gl.blitFramebuffer(x0, y0, x1, y1, x0, y0, x1, y1,
+    gl.blitFramebuffer(x0, y0, x1, y1, scaled ? 0 : x0, scaled ? 0 : y0, w, h,
                        gl.COLOR_BUFFER_BIT | (depth ? gl.DEPTH_BUFFER_BIT : 0), gl.NEAREST);
     const ok = !check || gl.getError() === gl.NO_ERROR;
     this.renderer.resetState();
@@ -252,23 +261,24 @@ export class View {
   // copy covers just where the moving parts were (their old places restored from the target),
   // the new material is drawn onto the canvas too, then the moving parts where they are now.
   // A canvas that cannot take the target's depth goes through a second target (two copies).
-  present(t, counts, full, added) {
+  present(t, counts, full, added, source = this.target) {
     const renderer = this.renderer;
+    const scaled = source !== this.target;
     this.updateLive(t, counts);
     if (this.direct !== false) {
       renderer.setRenderTarget(null);
-      const whole = full || !this.liveRect;
-      const ok = this.blit(this.target, null, true, whole ? null : this.liveRect);
+      const whole = full || !this.liveRect || scaled;
+      const ok = this.blit(source, null, true, whole ? null : this.liveRect, scaled);
       if (this.direct === undefined) this.direct = ok;
       if (ok) {
-        if (!whole && added.children.length) renderer.render(added, this.camera);
+        if (!whole && added && added.children.length) renderer.render(added, this.camera);
         renderer.render(this.liveScene, this.camera);
-        this.liveRect = this.screenRect();
+        this.liveRect = scaled ? null : this.screenRect();
         return;
       }
     }
     if (!this.frameTarget) this.frameTarget = this.makeTarget();
-    this.blit(this.target, this.frameTarget, true);
+    this.blit(source, this.frameTarget, true, null, scaled);
     renderer.setRenderTarget(this.frameTarget);
     renderer.render(this.liveScene, this.camera);
     renderer.setRenderTarget(null);
@@ -303,10 +313,10 @@ export class View {
             Math.min(h, Math.ceil(y1) + m)];
   }
 
-  makeTarget() {
+  makeTarget(divisor = 1) {
     const px = new THREE.Vector2();
     this.renderer.getDrawingBufferSize(px);
-    const t = new THREE.WebGLRenderTarget(px.x, px.y, { depthBuffer: true, stencilBuffer: true,
+    const t = new THREE.WebGLRenderTarget(Math.ceil(px.x / divisor), Math.ceil(px.y / divisor), { depthBuffer: true, stencilBuffer: true,
                                                         minFilter: THREE.NearestFilter, magFilter: THREE.NearestFilter });
     this.renderer.setRenderTarget(t); // made now: its framebuffer exists for the blits
     this.renderer.setRenderTarget(null);
@@ -321,9 +331,10 @@ export class View {
     this.renderer.setSize(w, h);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
-    for (const t of [this.target, this.frameTarget]) if (t) t.dispose();
+    for (const t of [this.target, this.frameTarget, this.coarseTarget]) if (t) t.dispose();
     this.target = this.makeTarget();
     this.frameTarget = null;
+    this.coarseTarget = null;
     this.liveRect = null; // the canvas is cleared: copied whole next
     this.invalidate();
   }
@@ -388,8 +399,7 @@ export class View {
     this.controls.target.copy(c);
     this.camera.position.copy(c).addScaledVector(dir, d);
     this.camera.lookAt(c);
-    this.controls.update();
-    this.invalidate();
+    this.place();
   }
 
   lookAt(point) { // keep the camera's direction and distance, centred on point
@@ -398,7 +408,13 @@ export class View {
     offset.setLength(close);
     this.controls.target.set(...point);
     this.camera.position.copy(this.controls.target).add(offset);
+    this.place();
+  }
+
+  place() { // the camera set from code: one full frame, not a motion
+    this.placing = true;
     this.controls.update();
+    this.placing = false;
     this.invalidate();
   }
 
@@ -409,13 +425,15 @@ export class View {
   }
 
   // --- drawing ----------------------------------------------------------------------------
-  // While the camera moves, a large plan is drawn from every k-th layer (its heights ranked), at
-  // most COARSE_SEGMENTS segments: the part keeps its shape, a frame takes a fraction of a full one.
+  // While the camera moves, a plan of more than COARSE_MIN segments is drawn at half the
+  // resolution (a quarter of the pixels: long lines cost by their pixels) and, above
+  // COARSE_SEGMENTS, from every k-th layer (its heights ranked): the part keeps its shape, a
+  // frame takes a fraction of a full one. Returns k (0: no coarse frames).
   coarseLayers() {
     if (this.coarseK !== undefined) return this.coarseK;
     const total = this.robots.reduce((a, x) => a + x.data.material.count, 0);
-    this.coarseK = 0;
-    if (total <= COARSE_SEGMENTS) return 0;
+    this.coarseK = total > COARSE_MIN ? 1 : 0;
+    if (total <= COARSE_SEGMENTS) return this.coarseK;
     const perZ = new Float64Array(65536);
     for (const r of this.robots) {
       const m = r.data.material;
@@ -434,7 +452,7 @@ export class View {
 
   coarseOf(r) {
     const k = this.coarseLayers();
-    if (!k) return null;
+    if (k === 1) return { below: (c) => c, object: r.material };
     if (!r.coarse) {
       const m = r.data.material, rank = this.zRank;
       let n = 0;
@@ -462,27 +480,50 @@ export class View {
     return r.coarse;
   }
 
+  // A frame while the camera moves: the material up to t from the coarse subset, at half the
+  // resolution, stretched onto the canvas; the target is drawn again once the camera rests.
+  renderCoarse(t, want) {
+    const renderer = this.renderer;
+    if (!this.coarseTarget) this.coarseTarget = this.makeTarget(2);
+    renderer.setRenderTarget(this.coarseTarget);
+    renderer.clear(true, true, true);
+    renderer.render(this.accScene, this.camera);
+    const scene = new THREE.Scene();
+    const used = [];
+    this.robots.forEach((r, i) => {
+      const c = this.coarseOf(r), b = c.below(want[i]);
+      if (b > 0) { c.object.geometry.setDrawRange(0, b * 2); scene.add(c.object); used.push(c.object); }
+    });
+    if (scene.children.length) renderer.render(scene, this.camera);
+    used.forEach((o) => o.removeFromParent());
+    this.acc = null;
+    this.present(t, want, true, null, this.coarseTarget);
+  }
+
   // Draw the frame at time t. The target catches up with t by at most FRAME_SEGMENTS segments a
   // frame (the material up to an earlier time t' first: the print grows to t over a few frames,
   // and the page answers meanwhile); returns whether it has (else the caller draws again).
   render(t) {
     const renderer = this.renderer;
-    const coarse = this.moving && this.robots.some((r) => this.coarseOf(r));
     const want = this.robots.map((r) => r.data.material.ended(t));
-    const full = !this.acc || this.acc.coarse !== coarse || want.some((c, i) => c < this.acc.counts[i])
+    if (this.moving && this.coarseLayers()) {
+      this.renderCoarse(t, want);
+      return true;
+    }
+    const full = !this.acc || want.some((c, i) => c < this.acc.counts[i])
       || this.robots.some((r, i) => this.showTravel && r.data.travel.ended(t) < this.acc.tcounts[i])
       || (!this.showTravel && this.acc.tcounts.some((c) => c > 0));
     renderer.setRenderTarget(this.target);
     if (full) {
       renderer.clear(true, true, true);
       renderer.render(this.accScene, this.camera);
-      this.acc = { t: 0, counts: this.robots.map(() => 0), tcounts: this.robots.map(() => 0), coarse };
+      this.acc = { t: 0, counts: this.robots.map(() => 0), tcounts: this.robots.map(() => 0) };
     }
     const acc = this.acc;
     const have = acc.counts.reduce((a, b) => a + b, 0);
     const ended = (x) => this.robots.reduce((a, r) => a + r.data.material.ended(x), 0);
     let upTo = t;
-    if (!coarse && ended(t) - have > FRAME_SEGMENTS) { // the latest time within the frame's share
+    if (ended(t) - have > FRAME_SEGMENTS) { // the latest time within the frame's share
       let lo = acc.t, hi = t;
       for (let k = 0; k < 60 && hi - lo > 1e-9 * Math.max(t, 1); k++) {
         const mid = (lo + hi) / 2;
@@ -496,10 +537,7 @@ export class View {
     let drawn = 0;
     this.robots.forEach((r, i) => {
       const from = acc.counts[i], to = counts[i];
-      if (coarse && r.coarse) {
-        const a = r.coarse.below(from), b = r.coarse.below(to);
-        if (b > a) { r.coarse.object.geometry.setDrawRange(a * 2, (b - a) * 2); added.add(r.coarse.object); drawn += b - a; }
-      } else if (to > from) {
+      if (to > from) {
         r.material.geometry.setDrawRange(from * 2, (to - from) * 2);
         added.add(r.material);
         drawn += to - from;
@@ -512,13 +550,10 @@ export class View {
       }
     });
     if (added.children.length) renderer.render(added, this.camera);
-    this.acc = { t: upTo, counts, tcounts, coarse };
+    this.acc = { t: upTo, counts, tcounts };
     // a little new material is drawn onto the canvas too; much of it, the canvas is copied whole
     this.present(t, want, full || drawn > FRAME_SEGMENTS / 10, added);
-    for (const r of this.robots) { // back to where they belong (an object has one parent)
-      r.material.removeFromParent(); r.travel.removeFromParent();
-      if (r.coarse) r.coarse.object.removeFromParent();
-    }
+    for (const r of this.robots) { r.material.removeFromParent(); r.travel.removeFromParent(); } // (one parent each)
     return upTo >= t;
   }
 
