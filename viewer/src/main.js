@@ -175,7 +175,10 @@ async function start() {
     if (!MODES.some(([m]) => m === mode)) throw new Error(`colour mode ${mode}: expected one of ${MODES.map(([m]) => m)}`);
     view.setColours(mode, ctx);
     ui.mode.value = mode;
-    const entries = legend(mode, ctx, geo);
+    showLegend();
+  }
+  function showLegend() {
+    const entries = legend(view.colourMode, ctx, geo);
     if (view.showTravel) entries.push({ label: 'travel', colour: [(TRAVEL_COLOUR >> 16) & 255, (TRAVEL_COLOUR >> 8) & 255, TRAVEL_COLOUR & 255] });
     ui.legend.replaceChildren(...entries.map((e) => {
       const row = document.createElement('div');
@@ -202,7 +205,7 @@ async function start() {
   ui.prev.addEventListener('click', () => step(-1));
   ui.next.addEventListener('click', () => step(1));
   ui.mode.addEventListener('change', () => setColourMode(ui.mode.value));
-  ui.travel.addEventListener('change', () => { view.setTravel(ui.travel.checked); setColourMode(view.colourMode); });
+  ui.travel.addEventListener('change', () => { view.setTravel(ui.travel.checked); showLegend(); });
   ui.outlines.addEventListener('change', () => view.setOutlines(ui.outlines.checked));
   const layers = () => {
     let lo = Number(ui.layerLo.value), hi = Number(ui.layerHi.value);
@@ -225,7 +228,7 @@ async function start() {
 
   const th = header.thinned;
   const notes = [];
-  if (th) notes.push(`Showing ${th.shown.toLocaleString('en')} of ${th.total.toLocaleString('en')} material segments, thinned evenly: the plan has more than this page can draw.`);
+  if (th) notes.push(`Thinned: showing ${th.shown.toLocaleString('en')} of ${th.total.toLocaleString('en')} material segments, evenly spread: the plan has more than this page holds.`);
   if (header.travel_thinned) notes.push(`Travel: ${header.travel_thinned.shown.toLocaleString('en')} of ${header.travel_thinned.total.toLocaleString('en')} moves shown.`);
   if (notes.length) { ui.notice.hidden = false; ui.notice.textContent = notes.join(' '); }
 
