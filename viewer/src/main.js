@@ -189,14 +189,20 @@ async function start() {
       return row;
     }));
   }
+  let selecting = false;
   function selectFinding(i) {
     const f = (meta.findings || [])[i];
-    if (!f) return;
-    selected = i;
-    view.showMarker(f.position);
-    view.lookAt(f.position);
-    findings.select(i);
-    seek(f.time_s);
+    if (!f || selecting) return; // (the list's select(i) may call back)
+    selecting = true;
+    try {
+      selected = i;
+      view.showMarker(f.position);
+      view.lookAt(f.position);
+      findings.select(i);
+      seek(f.time_s);
+    } finally {
+      selecting = false;
+    }
   }
 
   ui.play.addEventListener('click', () => setPlaying(!playing));
