@@ -547,19 +547,6 @@ def _outline_at(result: SimResult, r, nozzle: np.ndarray, t: float) -> dict[str,
     return {part: nozzle[:2] + c for part, c in outline_corners(r.profile or result.profile, facing, 0.0).items()}
 
 
-def _footprint(result: SimResult, r, nozzle: np.ndarray, t: float) -> np.ndarray:
-    """(4, 3) corners of a robot's body on the floor with its nozzle at ``nozzle`` at time ``t``."""
-    return np.column_stack([_outline_at(result, r, nozzle, t)["body"], np.zeros(4)])
-
-
-def _upper_parts(result: SimResult, r, nozzle: np.ndarray, t: float) -> list[np.ndarray]:
-    """(4, 3) corners of a robot's frame and printhead at the height of the printhead's underside
-    (``nozzle_height`` above the tip), with its nozzle at ``nozzle`` at time ``t``."""
-    parts = _outline_at(result, r, nozzle, t)
-    z = float(nozzle[2]) + (r.profile or result.profile).nozzle_height
-    return [np.column_stack([parts[p], np.full(4, z)]) for p in ("frame", "printhead")]
-
-
 @dataclass(frozen=True)
 class OverlayCell:
     """One robot's place in the overlay: ``text`` (its name) written at ``at`` (left, top) in a
