@@ -410,6 +410,10 @@ class Mp4Encoder:
     system, a permission or quota problem when ffmpeg names one; the atomic writer turns it
     into ``OUT: cannot write: ...`` naming the user's file."""
 
+    #: x264's speed preset: ``faster`` encodes benchy's 120 frames (the part filling the picture,
+    #: the floor grid, the robots' faces) in 1.7 s where ``medium`` (the default) takes 2.7 s,
+    #: for a file 8 % larger at the same quality (crf); the encoder is what an MP4 waits for.
+    PRESET = "faster"
     #: The OS errors ffmpeg reports by their text (``No space left on device``).
     ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EFBIG, errno.EIO)
 
@@ -419,7 +423,7 @@ class Mp4Encoder:
         w, h = size
         cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-f", "rawvideo", "-vcodec", "rawvideo",
                "-s", f"{w}x{h}", "-pix_fmt", "rgb24", "-r", f"{fps:.02f}", "-i", "-", "-an",
-               "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf)]
+               "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf), "-preset", self.PRESET]
         if w % 8 or h % 8:  # players want whole macro blocks (as imageio-ffmpeg's default)
             cmd += ["-vf", f"scale={-(-w // 8) * 8}:{-(-h // 8) * 8}"]
         cmd += ["-v", "error", "-f", "mp4", str(path)]
