@@ -5,8 +5,9 @@ The geometry (material, travel, the robots' tracks) goes into binary buffers (``
 this record stays small whatever the plan's size: the Gantt chart's bars are merged at
 ``GANTT_BINS`` across the makespan (as the PNG Gantt chart merges them at its pixels) and their
 ends rounded to a tenth of that resolution; what each robot does within a bar (printing or
-travelling, in percent) is kept at ``SHARE_BINS`` across the makespan, for the chart's tooltip.
-Nefertiti's two-robot plan (3.3 M commands): about 20 kB, 0.1 s.
+travelling, in percent) is kept at ``SHARE_BINS`` across the makespan (fewer for a large fleet),
+for the chart's travelling strip and tooltip. Nefertiti's two-robot plan (3.3 M commands):
+17 kB, 0.1 s.
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from cooprint.simulation.timeline import Timeline, severity
 
 #: The Gantt chart's resolution: intervals closer than makespan / GANTT_BINS are merged.
 GANTT_BINS = 4000
-#: Bins across the makespan of each robot's printing and travelling shares (percent).
-SHARE_BINS = 1000
+#: Bins across the makespan of each robot's printing and travelling shares (percent): at most
+#: SHARE_BINS, fewer from 17 robots on (SHARE_BUDGET over the fleet, never under SHARE_MIN_BINS).
+SHARE_BINS, SHARE_BUDGET, SHARE_MIN_BINS = 1000, 16000, 250
 
 
 def robot_record(result: SimResult, i: int) -> dict[str, Any]:
@@ -67,13 +69,19 @@ def busy_seconds(tl: Timeline, edges: np.ndarray, on: bool) -> np.ndarray:
     return out
 
 
-def gantt_rows(result: SimResult, bins: int = GANTT_BINS, share_bins: int = SHARE_BINS) -> list[dict[str, Any]]:
+def fleet_share_bins(robots: int) -> int:
+    """The share bins of a fleet of ``robots``: :data:`SHARE_BINS`, fewer from 17 robots on."""
+    return max(SHARE_MIN_BINS, min(SHARE_BINS, SHARE_BUDGET // max(robots, 1)))
+
+
+def gantt_rows(result: SimResult, bins: int = GANTT_BINS, share_bins: int | None = None) -> list[dict[str, Any]]:
     """Per robot: ``print`` and ``travel`` intervals ``[a, b]`` s merged where closer than
     makespan / ``bins`` (ends rounded to a tenth of that), ``wait`` ``[a, b, "event, event"]``,
     ``chunks`` ``[id, first print start, last print end]`` (ms) and ``share``: ``print`` and
     ``travel``, the percent of each of ``share_bins`` equal bins across the makespan spent so
-    (``bin_s`` wide)."""
+    (``bin_s`` wide; default :func:`fleet_share_bins`)."""
     span = max(result.makespan, 1e-9)
+    share_bins = share_bins or fleet_share_bins(len(result.robots))
     scale = bins / span  # _runs merges within 1 unit
     places = _decimals(span / bins / 10)
     edges = np.linspace(0.0, span, share_bins + 1)
