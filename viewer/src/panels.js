@@ -6,8 +6,8 @@
 // each as a share of the makespan, also drawn as a bar), its material, the findings counted by
 // kind. The findings: one item per meta.findings entry (data-index = its index), its severity's
 // colour, kind, robot, time, chunk, count and detail; a click selects it (highlighted, onSelect).
-// A long list shows its first PAGE items and a button for the next ones, so that 10,000
-// findings cost what 500 do.
+// A long list shows PAGE items at a time (buttons show the next or the earlier ones; selecting a
+// finding elsewhere shows its page), so that 10,000 findings cost what 500 do.
 import { clock, css, escapeHtml, gapText, injectStyle, num, percent, robotColours, stateColours } from './format.js';
 
 const STYLE = `
@@ -34,7 +34,8 @@ const STYLE = `
 .cp-sum-notes { margin: 4px 0 0; padding-left: 16px; color: #555; }
 .cp-findings-head { padding: 4px 10px; color: #444; font-weight: 600; }
 .cp-findings-list { display: flex; flex-direction: column; }
-.cp-finding { position: relative; padding: 4px 8px 4px 14px; border-bottom: 1px solid #eee; cursor: pointer; outline: none; }
+.cp-finding { position: relative; padding: 4px 8px 4px 14px; border-bottom: 1px solid #eee; cursor: pointer; outline: none;
+  content-visibility: auto; contain-intrinsic-size: auto 44px; }
 .cp-finding::before { content: ""; position: absolute; left: 4px; top: 5px; bottom: 5px; width: 4px; border-radius: 2px;
   background: var(--cp-sev); }
 .cp-finding:hover { background: #f4f6fa; }
@@ -47,6 +48,7 @@ const STYLE = `
 .cp-f-detail { color: #666; font-size: 11.5px; }
 .cp-findings-more { padding: 6px 10px; color: #555; display: flex; gap: 8px; align-items: center; }
 .cp-findings-more button { font: inherit; padding: 1px 8px; cursor: pointer; }
+.cp-findings-more:empty { display: none; }
 .cp-findings-empty { padding: 6px 10px; color: #2e7d32; }
 `;
 
@@ -152,14 +154,17 @@ export function createFindings(el, meta, { onSelect } = {}) {
   head.className = 'cp-findings-head';
   head.textContent = `${num(findings.length)} finding${findings.length === 1 ? '' : 's'}`
     + ` (${num(errors)} error${errors === 1 ? '' : 's'}, ${num(findings.length - errors)} warning${findings.length - errors === 1 ? '' : 's'})`;
+  const before = document.createElement('div'); // "N earlier" over the list when it starts further down
+  before.className = 'cp-findings-more';
   const list = document.createElement('div');
   list.className = 'cp-findings-list';
   list.setAttribute('role', 'list');
   const more = document.createElement('div');
   more.className = 'cp-findings-more';
-  el.append(head, list, more);
+  el.append(head, before, list, more);
 
-  let shown = 0;
+  let lo = 0; // the findings shown: lo to hi (not included), at most a few pages
+  let hi = 0;
   let selected = null;
 
   function itemHtml(f, i) {
@@ -176,34 +181,43 @@ export function createFindings(el, meta, { onSelect } = {}) {
       + `title="${escapeHtml(sev)}"><div class="cp-f-top">${bits.join('')}</div>${detail}</div>`;
   }
 
-  // renders the findings up to (not including) `upto`, then says how many are left
-  function render(upto) {
-    upto = Math.min(findings.length, upto);
-    if (upto > shown) {
-      let html = '';
-      for (let i = shown; i < upto; i++) html += itemHtml(findings[i], i);
-      list.insertAdjacentHTML('beforeend', html);
-      shown = upto;
-    }
-    const left = findings.length - shown;
-    if (left > 0) {
-      more.innerHTML = `<span>${num(left)} more not shown</span><button type="button">show ${num(Math.min(PAGE, left))} more</button>`;
+  const items = (a, b) => {
+    let html = '';
+    for (let i = a; i < b; i++) html += itemHtml(findings[i], i);
+    return html;
+  };
+
+  // shows findings a to b (not included): appended when they follow the list, else instead of it
+  function show(a, b) {
+    a = Math.max(0, a);
+    b = Math.min(findings.length, b);
+    if (a === hi && a >= lo) {
+      list.insertAdjacentHTML('beforeend', items(a, b));
     } else {
-      more.replaceChildren();
+      selected = null;
+      list.innerHTML = items(a, b);
+      lo = a;
     }
+    hi = b;
+    before.innerHTML = lo > 0 ? `<span>${num(lo)} earlier not shown</span><button type="button">show ${num(Math.min(PAGE, lo))} earlier</button>` : '';
+    const left = findings.length - hi;
+    more.innerHTML = left > 0 ? `<span>${num(left)} more not shown</span><button type="button">show ${num(Math.min(PAGE, left))} more</button>` : '';
   }
 
   function highlight(index, scroll) {
     if (selected) selected.classList.remove('cp-selected');
     selected = null;
-    if (!Number.isInteger(index) || index < 0 || index >= findings.length) return null;
-    if (index >= shown) render(Math.ceil((index + 1) / PAGE) * PAGE);
-    selected = list.children[index] || list.querySelector(`[data-index="${index}"]`);
+    if (!Number.isInteger(index) || index < 0 || index >= findings.length) return;
+    if (index >= hi && index < hi + PAGE) show(hi, hi + PAGE); // just after the list: one page more
+    else if (index < lo || index >= hi) { // elsewhere: the page that holds it
+      const a = Math.floor(index / PAGE) * PAGE;
+      show(a, a + PAGE);
+    }
+    selected = list.children[index - lo];
     if (selected) {
       selected.classList.add('cp-selected');
       if (scroll) selected.scrollIntoView({ block: 'nearest' });
     }
-    return selected;
   }
 
   function choose(item) {
@@ -229,9 +243,15 @@ export function createFindings(el, meta, { onSelect } = {}) {
     }
   });
   more.addEventListener('click', (e) => {
-    if (e.target.closest('button')) render(shown + PAGE);
+    if (e.target.closest('button')) show(hi, hi + PAGE);
   });
-  render(PAGE);
+  before.addEventListener('click', (e) => {
+    if (!e.target.closest('button')) return;
+    const keep = selected ? Number(selected.dataset.index) : null;
+    show(lo - PAGE, hi);
+    if (keep !== null) highlight(keep, false);
+  });
+  show(0, PAGE);
 
   return {
     select(index) {
