@@ -1,7 +1,9 @@
 // The Gantt chart under the 3D view:
 //   createGantt(el, meta, {onSeek(t)}) -> {setTime(t)}
-// el: a <div> to fill; meta: the page's JSON record (render/viewer/meta.py: meta.gantt rows,
-// meta.robots colours, meta.makespan, meta.critical_path, meta.lower_bound, meta.colours).
+// el: a <div> to fill (its width: the chart follows it; its height: the chart's own, a header,
+// the rows and the axis, so the page should let it grow or scroll); meta: the page's JSON record
+// (render/viewer/meta.py: meta.gantt rows, meta.robots colours, meta.makespan,
+// meta.critical_path, meta.lower_bound, meta.colours, meta.gantt_resolution_s).
 //
 // One row per robot (its name in its colour; rows thin out down to 10 px for 64 robots): its
 // printing in its colour, its travelling as a grey strip along the bar's foot (seen at any zoom,
