@@ -304,10 +304,10 @@ def chunk_picture(chunks: ChunkSet, size: tuple[int, int] = (1200, 800),
     if left_out:
         _footnote(draw, left_out, margin, w - 2 * margin, h - 28)
     if title is None:
-        title = (f"{n} chunks   theta {plan.theta_deg:.1f} deg   shift {plan.shift:.1f} mm"
+        title = (f"{_count(n, 'chunk')}   theta {plan.theta_deg:.1f} deg   shift {plan.shift:.1f} mm"
                  f"   centre base {2 * plan.half_base:.1f} mm   build depth {plan.build_depth:g} mm")
         if schedule is not None:
-            title = f"{n} chunks, {len(robots)} robots, schedule {schedule.strategy}" + (
+            title = f"{_count(n, 'chunk')}, {_count(len(robots), 'robot')}, schedule {schedule.strategy}" + (
                 f", makespan {schedule.makespan / 3600:.2f} h (LB {schedule.lower_bound / 3600:.2f} h)"
                 if getattr(schedule, "makespan", 0.0) else "")
     draw.text((margin, 24), title, fill=(20, 20, 20), font=_font(20))
@@ -398,6 +398,11 @@ def _footnote(draw: ImageDraw.ImageDraw, texts: list[str], x: float, width: floa
     draw.text((x, y), line, fill=(90, 90, 90), font=font)
 
 
+def _count(k: int, thing: str) -> str:
+    """"1 chunk", "3 chunks"."""
+    return f"{k} {thing}{'s' if k != 1 else ''}"
+
+
 def _legend_lines(robots: list[str], schedule: "Assignment", width: float,
                   font: ImageFont.ImageFont | ImageFont.FreeTypeFont) -> list[list[tuple[float, str, str]]]:
     """The robot legend, wrapped into lines of at most ``width`` pixels: per line ``(x offset
@@ -408,7 +413,7 @@ def _legend_lines(robots: list[str], schedule: "Assignment", width: float,
     x = 0.0
     for r in robots:
         k = len(schedule.sequences[r])
-        text = f"robot {r}: {k} chunk{'s' if k != 1 else ''}" if len(robots) <= 12 else r
+        text = f"robot {r}: {_count(k, 'chunk')}" if len(robots) <= 12 else r
         step = 22 + probe.textlength(text, font=font) + 18
         if lines[-1] and x + step > width:
             lines.append([])
