@@ -144,8 +144,8 @@ class ChunkPicture:
     image
         The picture (RGB).
     ids
-        ``(height, width)`` int array: the index (in ``chunks.chunks``) of the chunk each pixel
-        shows, -1 where none (background, title, legend).
+        ``(height, width)`` int array: the index (in ``chunks.chunks``) of the chunk drawn at
+        each pixel (under the labels too), -1 where none (background, title, legend, footnote).
     labels
         The labels drawn: ``(chunk id, text, (x0, y0, x1, y1))``, the frame's pixel box (inclusive).
     left_out
