@@ -731,8 +731,8 @@ def _render_format(fmt: str | None, out: str | None) -> tuple[str, bool]:
     if suffix in PICTURE_SUFFIXES:
         other = {".png": " or --format png", ".mp4": " or --format mp4", ".gif": " or --format gif"}.get(suffix, "")
         raise UserError(f"--format {fmt} writes {what} but --out {name} is named as {PICTURE_SUFFIXES[suffix]}: "
-                        f"name it {Path(name).stem}{want}{other}")
-    raise UserError(f"--format {fmt} writes {what}: name --out {name} with {want}")
+                        f"give --out {Path(name).stem}{want}{other}")
+    raise UserError(f"--format {fmt} writes {what}: give --out {name}{want}")
 
 
 def _check_render_options(fmt: str, inferred: bool, at: float | None, duration: float | None,

@@ -210,11 +210,13 @@ def animation_length(makespan: float, duration: float | None = None, speedup: fl
 
 
 def length_text(seconds: float) -> str:
-    """An animation's length for people: ``20.0 s``, ``14 min 24 s``, ``2 h 05 min``."""
+    """An animation's length for people: ``20.0 s``, ``14 min 24 s``, ``10 min``, ``2 h 05 min``."""
     if seconds < 60:
         return f"{seconds:.1f} s"
     s = int(round(seconds))
-    return f"{s // 60} min {s % 60:02d} s" if s < 3600 else f"{s // 3600} h {s % 3600 // 60:02d} min"
+    if s >= 3600:
+        return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    return f"{s // 60} min" + (f" {s % 60:02d} s" if s % 60 else "")
 
 
 def frame_count(makespan: float, fps: float, duration: float | None = None, speedup: float | None = None,
@@ -237,8 +239,8 @@ def frame_count(makespan: float, fps: float, duration: float | None = None, spee
     if speedup is not None and length > MAX_SPEEDUP_LENGTH:
         x = makespan / MAX_SPEEDUP_LENGTH
         need = math.ceil(x) if x >= 1 else math.ceil(x * 1000) / 1000
-        raise UserError(f"--speedup {speedup:g} over the {_hms(makespan)} plan makes a {length_text(length)} "
-                        f"animation ({frames:,.0f} frames at {fps:g} fps), longer than "
+        raise UserError(f"--speedup {speedup:g} over the {_hms(makespan)} plan makes an animation of "
+                        f"{length_text(length)} ({frames:,.0f} frames at {fps:g} fps), longer than "
                         f"{length_text(MAX_SPEEDUP_LENGTH)}: take --speedup {need:g} or more, or give the "
                         f"length you want with --duration")
     limit = MAX_GIF_FRAMES if gif else MAX_FRAMES
@@ -674,8 +676,11 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     # time axis: labels centred on their ticks, the last kept inside the picture
     y = top + pitch * rows
     draw.line([(left, y), (right, y)], fill=(60, 60, 60))
-    step = _nice_step(span / 8)
     axis_font = _font(13)
+    step = _nice_step(span / 8)  # about 8 labels, fewer where they would touch (a narrow picture)
+    while step < span and step / span * cols < 16 + max(
+            draw.textlength(_axis_label(k * step, span), font=axis_font) for k in range(int(span // step) + 1)):
+        step = _nice_step(step * 1.001)
     for k in range(int(span // step) + 1):
         t = k * step
         xt = float(x(t))
