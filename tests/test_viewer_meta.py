@@ -14,8 +14,8 @@ from cooprint.jobs import robot_names
 from cooprint.program.commands import parse_coop
 from cooprint.render.palette import robot_colour
 from cooprint.render.sim import BOUND_COLOUR, CRITICAL_COLOUR, TRAVEL_COLOUR, WAIT_COLOUR
-from cooprint.render.viewer.meta import (GANTT_BINS, SHARE_BINS, SHARE_MIN_BINS, busy_seconds, fleet_share_bins,
-                                         gantt_rows, viewer_meta)
+from cooprint.render.viewer.meta import (GANTT_BINS, SHARE_BINS, SHARE_MIN_BINS, fleet_share_bins, gantt_rows,
+                                         viewer_meta)
 from cooprint.simulation import SimInput, simulate, summary
 from cooprint.simulation.timeline import SimRobot
 
@@ -108,14 +108,13 @@ def test_shares_add_up_to_the_summary(plan, meta):
     assert meta["summary"]["robots"][1]["share"]["waiting"] > 0
 
 
-def test_busy_seconds_counts_part_of_a_move_cut_by_an_edge_across_blocks(plan, monkeypatch):
-    tl = plan.timelines["A"]
-    edges = np.sort(np.concatenate([[0.0, plan.makespan], (tl.t0[100:110] + tl.t1[100:110]) / 2]))
-    whole = busy_seconds(tl, edges, True)
-    monkeypatch.setattr("cooprint.render.viewer.meta.BLOCK_MOVES", 7)  # the moves 7 at a time
-    assert np.allclose(busy_seconds(tl, edges, True), whole)
-    brute = [float(np.clip(e - tl.t0, 0, tl.t1 - tl.t0)[tl.on].sum()) for e in edges]
-    assert np.allclose(whole, brute)
+def test_shares_are_each_bins_time_printing_and_travelling(plan, meta):
+    for row, r in zip(meta["gantt"], plan.robots):
+        tl = plan.timelines[r.name]
+        edges = np.arange(len(row["share"]["print"]) + 1) * row["share"]["bin_s"]
+        for key, on in (("print", tl.on), ("travel", ~tl.on)):
+            done = np.clip(edges[:, None] - tl.t0[on], 0, tl.t1[on] - tl.t0[on]).sum(axis=1)  # by each edge
+            assert np.abs(np.array(row["share"][key]) - 100 * np.diff(done) / row["share"]["bin_s"]).max() <= 0.5 + 1e-6
 
 
 def test_robot_colours_are_the_palettes_and_the_record_is_json(plan, meta):

@@ -3,11 +3,11 @@ colours, the findings, the NOTIFY/WAIT events, the Gantt chart's bars), as one J
 
 The geometry (material, travel, the robots' tracks) goes into binary buffers (``geometry.py``);
 this record stays small whatever the plan's size: the Gantt chart's bars are merged at
-``GANTT_BINS`` across the makespan (as the PNG Gantt chart merges them at its pixels) and their
-ends rounded to a tenth of that resolution; what each robot does within a bar (printing or
-travelling, in percent) is kept at ``SHARE_BINS`` across the makespan (fewer for a large fleet),
-for the chart's travelling strip and tooltip. Nefertiti's two-robot plan (3.3 M commands):
-17 kB, 0.1 s.
+``GANTT_BINS`` across the makespan and their ends rounded to a tenth of that resolution; the
+share of each of ``SHARE_BINS`` bins (fewer for a large fleet) each robot spends printing and
+travelling is kept in percent, for the chart's travelling strip and tooltip (as the PNG chart's
+columns, ``render.sim._column_shares``). Nefertiti's two-robot plan (3.3 M commands): 17 kB,
+0.1-0.25 s.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ import numpy as np
 
 from cooprint.render.palette import robot_colour
 from cooprint.render.sim import (BLOCK_MOVES, BOUND_COLOUR, CRITICAL_COLOUR, TRAVEL_COLOUR, WAIT_COLOUR,
-                                 _chunk_spans, _runs)
+                                 _chunk_spans, _column_shares, _runs)
 from cooprint.simulation import KINDS, SimResult
-from cooprint.simulation.timeline import Timeline, severity
+from cooprint.simulation.timeline import severity
 
 #: The Gantt chart's resolution: intervals closer than makespan / GANTT_BINS are merged.
 GANTT_BINS = 4000
@@ -53,22 +53,6 @@ def _decimals(step: float) -> int:
     return -math.floor(math.log10(step))
 
 
-def busy_seconds(tl: Timeline, edges: np.ndarray, on: bool) -> np.ndarray:
-    """Seconds the robot spends printing (``on``) or travelling from 0 to each of ``edges``
-    (sorted), a block of moves at a time: the moves one after the other, each edge's count is
-    the whole moves started before it plus the part of the last one done by then."""
-    out = np.zeros(len(edges))
-    for c in range(0, len(tl.t0), BLOCK_MOVES):
-        t0, t1 = tl.t0[c:c + BLOCK_MOVES], tl.t1[c:c + BLOCK_MOVES]
-        dur = np.where(tl.on[c:c + BLOCK_MOVES] == on, t1 - t0, 0.0)
-        done = np.concatenate([[0.0], np.cumsum(dur)])
-        k = np.searchsorted(t0, edges, side="right")  # moves started by each edge
-        last = np.maximum(k - 1, 0)
-        part = np.clip(edges - t0[last], 0.0, dur[last]) if len(t0) else 0.0
-        out += np.where(k > 0, done[last] + part, 0.0)
-    return out
-
-
 def fleet_share_bins(robots: int) -> int:
     """The share bins of a fleet of ``robots``: :data:`SHARE_BINS`, fewer from 17 robots on."""
     return max(SHARE_MIN_BINS, min(SHARE_BINS, SHARE_BUDGET // max(robots, 1)))
@@ -84,17 +68,17 @@ def gantt_rows(result: SimResult, bins: int = GANTT_BINS, share_bins: int | None
     share_bins = share_bins or fleet_share_bins(len(result.robots))
     scale = bins / span  # _runs merges within 1 unit
     places = _decimals(span / bins / 10)
-    edges = np.linspace(0.0, span, share_bins + 1)
     rows = []
     for r in result.robots:
         tl = result.timelines[r.name]
         row: dict[str, Any] = {"name": r.name}
-        share: dict[str, Any] = {"bin_s": span / share_bins}
         for key, on in (("print", True), ("travel", False)):
             bars = ((tl.t0[c:c + BLOCK_MOVES][sel] * scale, tl.t1[c:c + BLOCK_MOVES][sel] * scale)
                     for c in range(0, len(tl.t0), BLOCK_MOVES) for sel in [tl.on[c:c + BLOCK_MOVES] == on])
             row[key] = [[round(a / scale, places), round(b / scale, places)] for a, b in _runs(bars)]
-            share[key] = np.rint(np.diff(busy_seconds(tl, edges, on)) * (100.0 / share["bin_s"])).astype(int).tolist()
+        printing, travel = _column_shares(tl, span, share_bins)  # as the PNG chart's columns
+        share = {"bin_s": span / share_bins, "print": np.rint(100 * printing).astype(int).tolist(),
+                 "travel": np.rint(100 * travel).astype(int).tolist()}
         row["wait"] = [[float(a), float(b), ", ".join(ev)] for a, b, ev in tl.waits]
         row["chunks"] = [[cid, round(a, 3), round(b, 3)] for cid, a, b in _chunk_spans(r, tl)]
         row["share"] = share
