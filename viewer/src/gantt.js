@@ -6,8 +6,8 @@
 // meta.critical_path, meta.lower_bound, meta.colours, meta.gantt_resolution_s).
 //
 // One row per robot (its name in its colour; rows thin out down to 10 px for 64 robots): its
-// printing in its colour, its travelling as a grey strip along the bar's foot (seen at any zoom,
-// also between prints), its waits in yellow (what it waits for in the tooltip), each chunk's id on
+// printing in its colour, its travelling as a grey strip under it, as tall as the share of the
+// time it travels (as the PNG chart's; at least a pixel wherever it travels, at any zoom), its waits in yellow (what it waits for in the tooltip), each chunk's id on
 // its bar where it fits, the critical path's chunks framed in red, the lower bound as a dashed
 // line, a time axis in h:mm ("1d 04:00" from a day on). The chart is drawn on one canvas when the
 // width, the zoom or the pixel ratio change; the time cursor on a second canvas over it, where
@@ -40,8 +40,6 @@ const RIGHT_PAD = 14;
 const GUTTER_MIN = 36;
 const GUTTER_MAX = 160;
 const TICK_SPACING = 96; // the least room between two axis labels, px
-const ALPHAS = 6; // the travelling strip's opacity levels
-const MIN_ALPHA = 0.3; // ... the faintest
 const MAX_BIN_PX = 40; // the wheel zooms in until one merged bin of the record (meta.gantt_resolution_s) is this wide
 
 export function createGantt(el, meta, { onSeek } = {}) {
@@ -81,9 +79,10 @@ export function createGantt(el, meta, { onSeek } = {}) {
   // rows: 28 px up to 6 robots, then thinner (64 robots: 10 px), bars with a gap between rows
   const pitch = n <= 6 ? 28 : Math.max(10, Math.min(28, Math.floor(300 / n)));
   const bar = pitch - Math.max(2, Math.round(pitch * 0.22));
-  const strip = Math.max(2, Math.round(bar * 0.22)); // the travelling strip at the bar's foot
+  const strip = Math.max(2, Math.round(bar / 4)); // the travelling strip at the bar's foot
+  const lane = bar - strip - 1; // the printing above it
   const nameFont = `600 ${Math.max(8, Math.min(12, pitch - 3))}px system-ui, sans-serif`;
-  const labelFont = `${Math.max(8, Math.min(11, bar - strip - 3))}px system-ui, sans-serif`;
+  const labelFont = `${Math.max(8, Math.min(11, lane - 3))}px system-ui, sans-serif`;
   const rowsBottom = TOP + n * pitch;
   const height = rowsBottom + AXIS_H;
   plot.style.height = `${height}px`;
@@ -138,14 +137,14 @@ export function createGantt(el, meta, { onSeek } = {}) {
     }
     g.save();
     g.beginPath();
-    g.rect(left - 3, 0, right - left + 6, rowsBottom);
+    g.rect(left - 4, 0, right - left + 8, rowsBottom);
     g.clip();
     const tol = (v1 - v0) / (right - left); // a px in s: bars narrower are drawn 1 px wide
     for (let i = 0; i < n; i++) {
       const row = rows[i];
       const y0 = rowTop(i);
-      bars(g, row.print, y0, bar, css(robotColour(i)), tol);
-      travel(g, row, y0 + bar - strip, tol);
+      bars(g, row.print, y0, lane, css(robotColour(i)), tol);
+      travel(g, row, y0, tol);
       bars(g, row.wait, y0, bar, css(colours.waiting), tol);
       chunks(g, row.chunks || [], y0);
     }
@@ -182,38 +181,37 @@ export function createGantt(el, meta, { onSeek } = {}) {
     g.fill();
   }
 
-  // the travelling strip: where the robot travels (the merged intervals), each piece as opaque
-  // as the share of travel in its share bin (a robot that travels 5% of the time shows a faint
-  // strip, a long drive a solid one; never fainter than MIN_ALPHA)
+  // the travelling strip under the printing, as the PNG chart's: where the robot travels (the
+  // merged intervals), each piece as tall as the share of travel in its share bin (at least
+  // 1 px: a short drive between long prints still shows)
   function travel(g, row, y0, tol) {
     const sh = row.share;
     const list = row.travel || [];
+    const bottom = y0 + bar;
     if (!sh || !sh.bin_s || !sh.travel || !sh.travel.length) {
-      bars(g, list, y0, strip, css(colours.travelling), tol);
+      bars(g, list, bottom - strip, strip, css(colours.travelling), tol);
       return;
     }
     const last = sh.travel.length - 1;
-    const levels = Array.from({ length: ALPHAS }, () => []);
+    const byHeight = Array.from({ length: strip + 1 }, () => []);
     for (const [a, b] of list) {
       if (b < v0 - tol || a > v1 + tol) continue;
       const ka = Math.min(last, Math.max(0, Math.floor(a / sh.bin_s)));
       const kb = Math.min(last, Math.max(ka, Math.floor(b / sh.bin_s)));
       for (let k = ka; k <= kb; k++) {
-        const f = sh.travel[k] / 100;
-        levels[Math.min(ALPHAS - 1, Math.floor(Math.sqrt(Math.max(f, 0)) * ALPHAS))]
-          .push(Math.max(a, k * sh.bin_s), Math.min(b, (k + 1) * sh.bin_s));
+        const h = Math.max(1, Math.min(strip, Math.ceil((sh.travel[k] / 100) * strip - 1e-9)));
+        byHeight[h].push(Math.max(a, k * sh.bin_s), Math.min(b, (k + 1) * sh.bin_s));
       }
     }
-    levels.forEach((ends, j) => {
-      if (!ends.length) return;
-      g.fillStyle = css(colours.travelling, MIN_ALPHA + ((1 - MIN_ALPHA) * (j + 1)) / ALPHAS);
-      g.beginPath();
+    g.fillStyle = css(colours.travelling);
+    g.beginPath();
+    byHeight.forEach((ends, h) => {
       for (let m = 0; m < ends.length; m += 2) {
         const xa = x(ends[m]);
-        g.rect(xa, y0, Math.max(x(ends[m + 1]) - xa, 1), strip);
+        g.rect(xa, bottom - h, Math.max(x(ends[m + 1]) - xa, 1), h);
       }
-      g.fill();
     });
+    g.fill();
   }
 
   // each chunk's id on its bar (on the part in view) where it fits; the critical path's framed
@@ -225,26 +223,24 @@ export function createGantt(el, meta, { onSeek } = {}) {
       if (b < v0 || a > v1) continue;
       const xa = x(a);
       const xb = Math.max(x(b), xa + 2);
-      if (critical.has(id)) {
+      if (critical.has(id)) { // around the bar and its strip, a white line apart from a red robot's bar
         g.lineWidth = 2;
         g.strokeStyle = css(colours.critical);
-        g.strokeRect(xa - 1, y0 - 1.5, xb - xa + 2, bar + 3);
-        if (xb - xa > 6 && bar > 8) { // white inside: apart from a red robot's bar
-          g.lineWidth = 1;
-          g.strokeStyle = '#fff';
-          g.strokeRect(xa + 1, y0 + 1, xb - xa - 2, bar - 2);
-        }
+        g.strokeRect(xa - 2.5, y0 - 2.5, xb - xa + 5, bar + 5);
+        g.lineWidth = 1;
+        g.strokeStyle = '#fff';
+        g.strokeRect(xa - 1, y0 - 1, xb - xa + 2, bar + 2);
       }
       const va = Math.max(xa, left);
       const vb = Math.min(xb, right);
-      if (bar - strip < 9) continue;
+      if (lane < 9) continue;
       const w = g.measureText(id).width;
       if (vb - va < w + 8) continue;
       g.save();
       g.shadowColor = 'rgba(0, 0, 0, 0.45)';
       g.shadowBlur = 2;
       g.fillStyle = '#fff';
-      g.fillText(id, (va + vb) / 2, y0 + (bar - strip) / 2 + 0.5);
+      g.fillText(id, (va + vb) / 2, y0 + lane / 2 + 0.5);
       g.restore();
     }
   }
@@ -471,7 +467,7 @@ function legendHtml(robots, colours, anyCritical, bound) {
     .join(', ') : '#888 0 100%';
   const keys = [
     `<i class="cp-gantt-sw" style="background: linear-gradient(90deg, ${stops})"></i>printing (robot's colour)`,
-    `<i class="cp-gantt-sw" style="border: 1px solid #ccc; border-bottom: 4px solid ${css(colours.travelling)}"></i>travelling`,
+    `<i class="cp-gantt-sw" style="background: linear-gradient(transparent 60%, ${css(colours.travelling)} 60%)"></i>travelling (strip: share of the time)`,
     `<i class="cp-gantt-sw" style="background: ${css(colours.waiting)}"></i>waiting`,
   ];
   if (anyCritical) keys.push(`<i class="cp-gantt-sw" style="border: 2px solid ${css(colours.critical)}"></i>critical path`);
