@@ -98,6 +98,18 @@ def test_robots_are_hidden_where_the_print_is_nearer_and_cover_it_where_they_are
     assert np.array_equal(snap[bottom:-60], rgb[bottom:-60])
 
 
+def test_each_face_is_drawn_at_its_depth(wall_scene):
+    """A face's depth plane, at each of its corners' pixels, is the corner's depth."""
+    res = wall_scene
+    scene = _Scene(res, (1280, 720), -35.0, 30.0)
+    for i, r in enumerate(res.robots):
+        for s in scene._solids(i, r, res.makespan / 3):
+            for (quad, plane, _, _), face in zip(s.faces(scene), s.sides(scene)):
+                corners = s.corners[list(s.FACES[face])]
+                assert np.allclose(quad, scene.px(corners))
+                assert np.allclose(np.column_stack([quad, np.ones(4)]) @ plane, corners @ scene.basis[2])
+
+
 def test_a_gcode_printer_is_drawn_with_its_nozzle_only(tmp_path):
     """Where a G-code printer's body stands is not known: the picture shows the material and
     the nozzle (a rod from the tip up nozzle_height and a dot), no body, frame or printhead."""

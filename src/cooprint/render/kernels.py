@@ -2,8 +2,8 @@
 pictures with a depth beside the colour.
 
 A snapshot or a frame of an animation is an (h, w, 3) uint8 picture and an (h, w) float32 depth
-picture: each pixel of material holds the depth of the segment drawn there (towards the camera,
-mm; larger is nearer; :data:`NO_DEPTH` where there is none). The material is drawn as 1-pixel
+picture: each pixel of material holds the depth of the segment drawn there, at that pixel
+(towards the camera, mm; larger is nearer; :data:`NO_DEPTH` where there is none). The material is drawn as 1-pixel
 lines (an animation adds a frame's new segments to the picture it keeps); the robots' boxes as
 flat faces, far to near, each pixel of a face against the material's depth there: behind the
 material it is left out, in front of it the material shows through. Per-pixel loops in Python
@@ -50,9 +50,10 @@ def _clip(x0, y0, x1, y1, w, h):
 @_jit
 def draw_lines(rgb, depth, ends, colours, near, write_depth):
     """Segments ``ends`` (k, 4) float64 (pixel ``x0, y0, x1, y1``) as 1-pixel lines, in order
-    (a later one over an earlier), each in ``colours`` (k, 3) uint8; with ``write_depth``, its
-    depth ``near`` (k,) into ``depth`` under its pixels. A line's pixels: its points at unit
-    steps along its longer axis, rounded (its part within the picture)."""
+    (a later one over an earlier), each in ``colours`` (k, 3) uint8; with ``write_depth``, the
+    depth under each pixel into ``depth``: from ``near[s, 0]`` at the segment's start to
+    ``near[s, 1]`` at its end (k, 2) float32, linearly. A line's pixels: its points at unit steps
+    along its longer axis, rounded (its part within the picture)."""
     h, w = depth.shape
     for s in range(len(ends)):
         x0, y0, x1, y1 = ends[s, 0], ends[s, 1], ends[s, 2], ends[s, 3]
@@ -61,15 +62,18 @@ def draw_lines(rgb, depth, ends, colours, near, write_depth):
             continue
         dx, dy = x1 - x0, y1 - y0
         xa, ya, xb, yb = x0 + ta * dx, y0 + ta * dy, x0 + tb * dx, y0 + tb * dy
+        da, db = near[s, 0] + ta * (near[s, 1] - near[s, 0]), near[s, 0] + tb * (near[s, 1] - near[s, 0])
         steps = int(max(abs(np.floor(xb + 0.5) - np.floor(xa + 0.5)), abs(np.floor(yb + 0.5) - np.floor(ya + 0.5))))
+        r, g, b = colours[s, 0], colours[s, 1], colours[s, 2]
         for k in range(steps + 1):
             f = k / steps if steps else 0.0
             x = int(np.floor(xa + f * (xb - xa) + 0.5))
             y = int(np.floor(ya + f * (yb - ya) + 0.5))
             if 0 <= x < w and 0 <= y < h:
-                rgb[y, x, 0], rgb[y, x, 1], rgb[y, x, 2] = colours[s, 0], colours[s, 1], colours[s, 2]
+                row = rgb[y]
+                row[x, 0], row[x, 1], row[x, 2] = r, g, b
                 if write_depth:
-                    depth[y, x] = near[s]
+                    depth[y, x] = da + f * (db - da)
 
 
 @_inline

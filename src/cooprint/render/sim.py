@@ -1,6 +1,8 @@
 """Pictures of a simulated plan (thin, on the timelines): the fleet at an instant, like the seed's
-Fig. 14 and 16 (material as lines coloured per robot, robots as their footprints with the
-nozzle, and the outlines of their frames and printheads over the print), and a Gantt chart of who prints, travels and waits when."""
+Fig. 14 and 16, and in time (MP4, GIF): the material as lines coloured per robot over a floor
+grid, each robot whole (body, frame, printhead, nozzle) as shaded boxes hidden where the print
+is nearer to the camera (the pixels: :mod:`cooprint.render.kernels`); and a Gantt chart of who
+prints, travels and waits when."""
 
 from __future__ import annotations
 
@@ -75,10 +77,10 @@ class _Scene:
     material (the whole plan's, so a part fills the picture below the overlay however far the
     robots stand; robots beyond the border are cut by it), with a floor grid under it.
 
-    Pictures are drawn with a depth picture beside them (mode ``F``, :data:`NO_DEPTH` where no
-    material is): each material pixel holds the depth of the segment drawn there (along the
-    direction towards the camera, larger is nearer), so that the robots, drawn after the
-    material, can be hidden where the material is in front of them (:meth:`robots`)."""
+    Pictures are numpy arrays drawn with a depth picture beside them (:meth:`canvas`;
+    :mod:`cooprint.render.kernels`): each material pixel holds the depth of the material drawn
+    there (along the direction towards the camera, larger is nearer), so that the robots, drawn
+    after the material, are hidden where the material is in front of them (:meth:`robots`)."""
 
     def __init__(self, result: SimResult, size: tuple[int, int], azimuth_deg: float, elevation_deg: float):
         self.result, self.size = result, size
@@ -162,13 +164,14 @@ class _Scene:
         (far to near if ``sort``), their depths into ``depth`` (the same pixels; ``None``: not kept)."""
         if not len(seg):
             return
-        near = (seg @ self.basis.T)[:, :, 2].mean(axis=1)
+        ends = seg @ self.basis[2]  # (k, 2) the ends' depths
+        near = ends.mean(axis=1)
         order = np.argsort(near, kind="stable") if sort else np.arange(len(seg))
         shade = 0.65 + 0.35 * np.clip((near[order] - self.d_lo) / self.d_span, 0, 1)
         colours = (self.palette[col[order]] * shade[:, None]).astype(np.uint8)
-        ends = self.px(seg[order]).round(1).reshape(-1, 4)
-        draw_lines(rgb, rgb[:1, :1, 0].astype(np.float32) if depth is None else depth, ends, colours,
-                   near[order].astype(np.float32), depth is not None)
+        draw_lines(rgb, rgb[:1, :1, 0].astype(np.float32) if depth is None else depth,
+                   self.px(seg[order]).round(1).reshape(-1, 4), colours, ends[order].astype(np.float32),
+                   depth is not None)
 
     def floor(self, draw: ImageDraw.ImageDraw) -> None:
         """The floor grid at every ``grid_step`` mm over the floor in sight, and the lines'
@@ -265,8 +268,7 @@ class _Solid:
 
     Corner ``iu + 2 iv + 4 iz`` (each index 0 or 1) is the rectangle's first corner, plus ``iu``
     times its first side and ``iv`` times its last, at ``z0`` or ``z1``; ``axes`` (3, 3) are the
-    unit directions of the first side, the last side and up, ``lo`` and ``hi`` (3,) the box's
-    extent along them."""
+    unit directions of the first side, the last side and up."""
 
     #: Each face's corners in order round it, by (axis, side).
     FACES = {(0, 0): (0, 2, 6, 4), (0, 1): (1, 3, 7, 5), (1, 0): (0, 1, 5, 4), (1, 1): (2, 3, 7, 6),
@@ -278,7 +280,6 @@ class _Solid:
         self.corners = np.column_stack([xy[0] + bits[:, :1] * du + bits[:, 1:2] * dv,
                                         np.where(bits[:, 2] > 0, z1, z0)])
         self.axes = np.array([[*du / np.linalg.norm(du), 0.0], [*dv / np.linalg.norm(dv), 0.0], [0.0, 0.0, 1.0]])
-        self.lo, self.hi = self.corners[0] @ self.axes.T, self.corners[7] @ self.axes.T
         self.colour = colour
         self.depth = 0.0  # of its centre, set by the scene (the order it is drawn in)
 
@@ -545,8 +546,9 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
                      azimuth_deg: float = -35.0, elevation_deg: float = 30.0,
                      progress: "Callable[[int, int], None] | None" = None) -> Path:
     """MP4 (``.mp4``, through imageio-ffmpeg) or GIF (``.gif``, through Pillow) of the plan in
-    time: each frame draws only the material laid down since the one before onto a kept canvas,
-    then the robots, the clock and the progress bars on a copy (seed Fig. 15-16).
+    time: each frame draws only the material laid down since the one before onto a kept canvas
+    (the floor grid under it, its depth picture beside it), then the robots, the clock and the
+    progress bars on a copy, as :func:`render_snapshot` draws them (seed Fig. 15-16).
     ``progress(frames done, frames)`` after each frame."""
     path = Path(path)
     gif = path.suffix.lower() == ".gif"
