@@ -56,7 +56,7 @@ GRID_LABEL_COLOUR = (120, 125, 138)
 #: A robot's heights that its profile does not give (the outline checks compare its parts in XY
 #: only), mm: the frame's thickness and the printhead's height over the printhead's underside, and
 #: the nozzle's width (drawn from its tip up to the printhead's underside, ``nozzle_height``).
-FRAME_THICKNESS, HEAD_HEIGHT, NOZZLE_WIDTH = 30.0, 80.0, 4.0
+FRAME_THICKNESS, HEAD_HEIGHT, NOZZLE_WIDTH = 30.0, 80.0, 3.0
 #: How much white each part's colour takes (the body palest, the printhead the robot's own
 #: colour): a robot stands apart from the material laid in its colour.
 PART_TINT = {"body": 0.6, "frame": 0.35, "printhead": 0.0}
@@ -220,7 +220,9 @@ class _Scene:
 
         The boxes' faces are drawn far to near (each box by its centre), each pixel against the
         material's ``depth`` there (:func:`cooprint.render.kernels.draw_faces`): behind the
-        material it is left out; in front of it, the material shows through (:data:`ROBOT_ALPHA`)."""
+        material it is left out; in front of it, the material shows through (:data:`ROBOT_ALPHA`).
+        The dot at a tip marks where the robot prints: drawn over the robots, left out only
+        where material in front of it hides the tip (:data:`TIP_TOLERANCE`)."""
         solids = sorted((s for i, r in enumerate(self.result.robots) for s in self._solids(i, r, t)),
                         key=lambda s: s.depth)
         faces = [f for s in solids for f in s.faces(self)]
