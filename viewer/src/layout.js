@@ -36,14 +36,6 @@ function el(tag, attrs = {}, ...children) {
   return e;
 }
 
-// h:mm:ss, with days in front from one day on (a plan of weeks reads "8 d 0:42:28").
-export function clock(t, total) {
-  const s = Math.max(0, Math.round(t));
-  const d = Math.floor(s / 86400), h = Math.floor((s % 86400) / 3600), m = Math.floor((s % 3600) / 60), x = s % 60;
-  const hms = `${h}:${String(m).padStart(2, '0')}:${String(x).padStart(2, '0')}`;
-  return total >= 86400 ? `${d} d ${hms}` : `${d * 24 + h}:${String(m).padStart(2, '0')}:${String(x).padStart(2, '0')}`;
-}
-
 export function layout(body, meta, speeds) {
   document.head.appendChild(el('style', { text: CSS }));
   const play = el('button', { id: 'play', type: 'button', 'aria-pressed': 'false', text: 'play' });
