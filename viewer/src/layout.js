@@ -6,7 +6,7 @@ import { MODES } from './colours.js';
 const CSS = `
 * { box-sizing: border-box; }
 html, body { margin: 0; height: 100%; font: 13px/1.35 system-ui, -apple-system, "Segoe UI", sans-serif; color: #222; background: #f4f4f4; }
-#app { display: grid; grid-template-columns: 1fr 300px; grid-template-rows: auto 1fr auto; height: 100vh; }
+#app { display: grid; grid-template-columns: 1fr 340px; grid-template-rows: auto 1fr auto; height: 100vh; }
 #bar { grid-column: 1 / 3; display: flex; flex-wrap: wrap; gap: 6px 12px; align-items: center; padding: 6px 10px; background: #fff; border-bottom: 1px solid #ddd; }
 #bar .group { display: flex; align-items: center; gap: 4px; }
 #bar h1 { font-size: 14px; margin: 0 8px 0 0; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; max-width: 260px; }
