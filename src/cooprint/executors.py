@@ -54,6 +54,8 @@ CONNECT_TIMEOUT = 5.0
 #: How much longer than its own timeout cooprint waits for Dask's client to connect, s (a
 #: handshake with something that is not a scheduler may never end).
 CONNECT_MARGIN = 3.0
+#: How long a map waits for a local cluster's workers to be up (a restarted one), s.
+LOCAL_WORKERS_TIMEOUT = 30.0
 #: Most workers of ``--scheduler local:N`` (and of ``processes``).
 MAX_LOCAL_WORKERS = 64
 #: A ``processes`` executor forks a pool only from this many tasks on: a pool costs ~0.3 s to
@@ -368,6 +370,12 @@ class DaskExecutor(Executor):
         client = self._ready()
         pending: set[Any] = set()  # submitted, result not taken: cancelled if the map stops early
         try:
+            if self.helper is not None:  # a local cluster: all its workers up (one its nanny restarts after
+                # a crash included) before the broadcast, or the copy lives on fewer workers than it may need
+                try:
+                    client.wait_for_workers(self.helper.n, timeout=LOCAL_WORKERS_TIMEOUT)
+                except TimeoutError:
+                    pass  # fewer workers: the tasks run on those there are
             # once per map: every worker gets its copy now, not one per task
             [shared_f] = client.scatter([shared], broadcast=True, hash=False)
             pending.add(shared_f)
