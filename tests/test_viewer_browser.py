@@ -1,0 +1,242 @@
+"""The viewer page (``cooprint view DIR`` -> DIR/sim/viewer.html) driven in Debian's headless chromium.
+
+Issue 16's "Tested in a real browser": a small two-robot plan made here (a hollow bar: the seed's
+three chunks, robot B waiting for A's centre chunk, overhang warnings under the cavity's roof) and a
+one-printer G-code file are simulated and viewed; each page is opened from file:// with the network
+blocked, and must draw the robots' colours, play, seek from the slider, the findings and the Gantt
+chart, switch colour modes, travel and the layer range, all without a console error.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import io
+import json
+
+import numpy as np
+import pytest
+from browser import open_viewer
+from PIL import Image
+from solids import COARSE, box, hollow, to_trimesh
+
+from cooprint.cli import main
+from cooprint.render.palette import robot_colour
+
+SETTINGS = [f"--set={k}={v}" for k, v in COARSE.items()]
+#: Hue tolerance (degrees) and least saturation of a pixel counted as a robot's colour under shading.
+HUE_TOL, MIN_SAT = 12.0, 0.25
+#: Least number of a robot's pixels for its colour to count as present in the 1280 x 900 page.
+MIN_PIXELS = 40
+
+
+def _cli(*args) -> None:
+    code = main([str(a) for a in args])
+    assert code == 0, f"cooprint {' '.join(map(str, args))} exited {code}"
+
+
+@pytest.fixture(scope="module")
+def plan(tmp_path_factory, viewer_bundle):
+    """A simulated two-robot plan of a 40 x 420 x 12 mm hollow bar and its viewer page."""
+    root = tmp_path_factory.mktemp("viewer")
+    to_trimesh(hollow(40, 420, 12, 4)).export(root / "bar.stl")
+    out = root / "job"
+    _cli("run", root / "bar.stl", "--out", out, "--robots", 2, "--simulate", "-q", "--no-picture", *SETTINGS)
+    _cli("view", out)
+    summary = json.loads((out / "sim" / "summary.json").read_text())
+    return out, summary
+
+
+@pytest.fixture(scope="module")
+def gcode_view(tmp_path_factory, viewer_bundle):
+    """A 30 x 30 x 4 mm box sliced for one printer, simulated alone and viewed."""
+    root = tmp_path_factory.mktemp("gcode")
+    to_trimesh(box(30, 30, 4)).export(root / "box.stl")
+    _cli("slice", root / "box.stl", "--out", root / "part.gcode", "-q", *SETTINGS)
+    _cli("simulate", root / "part.gcode", "--out", root / "sim", "-q")
+    _cli("view", root / "sim")
+    return root / "sim"
+
+
+@pytest.fixture(scope="module")
+def view(plan, chromium):
+    """The two-robot plan's page, open for the whole module (each test sets the state it needs)."""
+    page = open_viewer(chromium, plan[0] / "sim" / "viewer.html")
+    yield page
+    page.close()
+
+
+def settle(view) -> None:
+    """Wait until the page has drawn two more frames (whatever was changed is on screen)."""
+    n = view.hook("c.frames()")
+    view.page.wait_for_function(f"() => window.cooprint.frames() >= {n + 2}", timeout=20_000)
+
+
+def shot(view) -> np.ndarray:
+    """The 3D view (#view) as an RGB array, after the page settled."""
+    settle(view)
+    png = view.page.locator("#view").screenshot()
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+
+
+def colour_pixels(img: np.ndarray, rgb) -> int:
+    """Pixels of ``img`` with the hue of ``rgb`` (within HUE_TOL) and some saturation: the colour
+    as the shading leaves it (lit, shaded, antialiased)."""
+    flat = img.reshape(-1, 3).astype(float) / 255.0
+    mx, mn = flat.max(axis=1), flat.min(axis=1)
+    sat = np.where(mx > 0, (mx - mn) / np.maximum(mx, 1e-9), 0.0)
+    r, g, b = flat.T
+    hue = np.degrees(np.arctan2(np.sqrt(3) * (g - b), 2 * r - g - b)) % 360  # the hexagonal hue
+    ref = colorsys.rgb_to_hsv(*(c / 255.0 for c in rgb))[0] * 360
+    near = np.abs((hue - ref + 180) % 360 - 180) <= HUE_TOL
+    return int(np.count_nonzero(near & (sat >= MIN_SAT) & (mx > 0.15)))
+
+
+def changed_pixels(a: np.ndarray, b: np.ndarray) -> int:
+    """Pixels that differ by more than a little between two pictures of the same size."""
+    assert a.shape == b.shape
+    return int(np.count_nonzero(np.abs(a.astype(int) - b.astype(int)).max(axis=2) > 24))
+
+
+def test_the_page_loads_offline_and_draws_every_robot_in_its_colour(view, plan):
+    out, summary = plan
+    makespan = view.hook("c.makespan")
+    assert makespan == pytest.approx(summary["makespan_s"], rel=1e-6)
+    assert 0 < view.hook("c.firstFrameMs") < 60_000
+    view.hook(f"c.seek({makespan})")
+    img = shot(view)
+    assert img.std() > 8, "the 3D view is blank"
+    for i, robot in enumerate(summary["robots"]):
+        n = colour_pixels(img, robot_colour(i))
+        assert n >= MIN_PIXELS, f"robot {robot['name']}'s colour {robot_colour(i)} is not in the picture ({n} px)"
+    view.assert_clean()
+
+
+def test_play_advances_the_clock(view):
+    view.hook("(c.pause(), c.seek(0), c.setSpeed(1000))")
+    settle(view)
+    before = view.page.locator("#clock").inner_text()
+    assert view.hook("c.time()") == 0 and not view.hook("c.playing()")
+    view.page.click("#play")
+    view.page.wait_for_function("() => window.cooprint.time() > 5", timeout=20_000)
+    assert view.hook("c.playing()")
+    view.page.wait_for_function(f"() => document.querySelector('#clock').innerText !== {json.dumps(before)}",
+                                timeout=20_000)
+    view.page.click("#play")
+    assert not view.hook("c.playing()")
+    t = view.hook("c.time()")
+    settle(view)
+    assert view.hook("c.time()") == t, "the clock moved while paused"
+    elapsed, total = view.page.locator("#clock").inner_text().split("/")
+    assert elapsed.strip() != total.strip()
+    view.assert_clean()
+
+
+def _drag_slider_to(view, t: float) -> None:
+    """Drag #time-slider's thumb from the start to the place of time ``t``."""
+    view.hook("(c.pause(), c.seek(0))")
+    box_ = view.page.locator("#time-slider").bounding_box()
+    makespan = view.hook("c.makespan")
+    thumb = 8  # half of chromium's range thumb: its centre runs from left + 8 to right - 8
+    y = box_["y"] + box_["height"] / 2
+    x0 = box_["x"] + thumb
+    x1 = x0 + (box_["width"] - 2 * thumb) * t / makespan
+    view.page.mouse.move(x0, y)
+    view.page.mouse.down()
+    view.page.mouse.move(x1, y, steps=8)
+    view.page.mouse.up()
+
+
+def test_dragging_the_slider_to_a_wait_shows_the_robot_waiting(view, plan):
+    _, summary = plan
+    wait = max((e for e in summary["events"] if e["kind"] == "wait"), key=lambda e: e["until_s"] - e["time_s"])
+    middle = (wait["time_s"] + wait["until_s"]) / 2
+    _drag_slider_to(view, middle)
+    t = view.hook("c.time()")
+    assert wait["time_s"] < t < wait["until_s"], f"the slider went to {t} s, not into the wait {wait}"
+    assert view.hook(f"c.robotState({json.dumps(wait['robot'])})")["state"] == "waiting"
+    # and after the wait, the same robot is at work again
+    view.hook(f"c.seek({wait['until_s'] + 1})")
+    assert view.hook(f"c.robotState({json.dumps(wait['robot'])})")["state"] in ("printing", "travelling")
+    view.assert_clean()
+
+
+def test_clicking_a_finding_jumps_to_its_time(view, plan):
+    _, summary = plan
+    findings = summary["findings"]
+    assert findings, "the test plan should have findings (overhangs under the cavity's roof)"
+    items = view.page.locator("#findings [data-index]")
+    assert items.count() == len(findings)
+    for i in sorted(range(len(findings)), key=lambda i: -findings[i]["time_s"])[:2]:
+        view.hook("c.seek(0)")
+        items.nth(i).click()
+        assert view.hook("c.time()") == pytest.approx(findings[i]["time_s"], abs=1e-3 * summary["makespan_s"])
+        assert view.hook("c.selectedFinding()") == int(items.nth(i).get_attribute("data-index"))
+    view.assert_clean()
+
+
+def test_colour_modes_change_the_picture(view, plan):
+    view.hook(f"(c.pause(), c.seek({plan[1]['makespan_s']}))")
+    pictures = {}
+    for mode in ("robot", "chunk", "role", "height"):
+        view.hook(f"c.setColourMode({json.dumps(mode)})")
+        assert view.hook("c.colourMode()") == mode
+        pictures[mode] = (shot(view), view.page.locator("#legend").inner_text())
+    modes = list(pictures)
+    for i, a in enumerate(modes):
+        for b in modes[i + 1:]:
+            assert changed_pixels(pictures[a][0], pictures[b][0]) > 200, f"colour modes {a} and {b} look the same"
+            assert pictures[a][1] != pictures[b][1], f"the legend of {a} and {b} is the same"
+    view.hook("c.setColourMode('robot')")
+    view.assert_clean()
+
+
+def test_travel_and_the_layer_range_change_the_picture(view, plan):
+    view.hook(f"(c.pause(), c.seek({plan[1]['makespan_s'] / 2}), c.setColourMode('robot'))")
+    before = shot(view)
+    view.page.click("#travel")
+    toggled = shot(view)
+    assert changed_pixels(before, toggled) > 20, "travel on/off did not change the picture"
+    view.page.click("#travel")
+    assert changed_pixels(before, shot(view)) <= 20, "travel back to how it was should give the same picture"
+
+    view.hook(f"c.seek({plan[1]['makespan_s']})")
+    full = shot(view)
+    hi = view.page.locator("#layer-hi")
+    lo_value, hi_value = float(hi.get_attribute("min") or 0), float(hi.get_attribute("max") or 1)
+    hi.fill(str(lo_value + 0.3 * (hi_value - lo_value)))
+    cut = shot(view)
+    assert changed_pixels(full, cut) > 200, "lowering the top of the layer range did not change the picture"
+    hi.fill(str(hi_value))
+    view.assert_clean()
+
+
+def test_clicking_the_gantt_chart_seeks(view, plan):
+    view.hook("(c.pause(), c.seek(0))")
+    gantt = view.page.locator("#gantt")
+    gantt.scroll_into_view_if_needed()
+    box_ = gantt.bounding_box()
+    times = []
+    for fraction in (0.4, 0.8):
+        view.page.mouse.click(box_["x"] + fraction * box_["width"], box_["y"] + box_["height"] / 2)
+        times.append(view.hook("c.time()"))
+    assert 0 < times[0] < times[1] <= plan[1]["makespan_s"], f"clicks on the Gantt chart went to {times}"
+    view.assert_clean()
+
+
+def test_a_gcode_file_is_viewed_with_one_robot_and_no_outline(gcode_view, chromium):
+    summary = json.loads((gcode_view / "sim" / "summary.json").read_text())
+    assert len(summary["robots"]) == 1
+    page = open_viewer(chromium, gcode_view / "sim" / "viewer.html")
+    try:
+        name = summary["robots"][0]["name"]
+        page.hook("c.seek(0)")
+        start = shot(page)
+        page.hook(f"c.seek({page.hook('c.makespan')})")
+        end = shot(page)
+        assert page.hook(f"c.robotState({json.dumps(name)})")["state"] == "done"
+        assert colour_pixels(end, robot_colour(0)) >= MIN_PIXELS, "the printed part is not in the robot's colour"
+        # no body, frame or printhead drawn: at t = 0 (no material yet) at most the nozzle's marker
+        assert colour_pixels(start, robot_colour(0)) < 0.002 * start.shape[0] * start.shape[1]
+        page.assert_clean()
+    finally:
+        page.close()
