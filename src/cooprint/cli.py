@@ -639,27 +639,34 @@ def perturbed_line(rec: dict[str, Any]) -> str:
 
 @cli.command()
 @click.argument("inputs", nargs=-1, type=click.Path())
-@click.option("--format", "fmt", type=click.Choice(["png", "mp4", "gif", "gantt"]), default="png", show_default=True,
-              help="A snapshot at --at, an animation, or the Gantt chart.")
+@click.option("--format", "fmt", type=click.Choice(["png", "mp4", "gif", "gantt"]),
+              help="A snapshot at --at, an animation, or the Gantt chart [default: from --out's suffix, .mp4 or "
+                   ".gif; else png].")
 @click.option("--at", "at", type=float, help="Time of the snapshot, s [default: the end].")
-@click.option("--fps", type=click.FloatRange(1, 120), default=24.0, show_default=True, help="Animation frames per second.")
+@click.option("--fps", type=click.FloatRange(1, 120), default=24.0, show_default=True,
+              help="Animation frames per second (a GIF: at most 50).")
 @click.option("--duration", type=click.FloatRange(0.5, 3600), help="Animation length, s [default: 20].")
-@click.option("--speedup", type=click.FloatRange(min=1e-3), help="Animation speed over real time (instead of --duration).")
+@click.option("--speedup", type=click.FloatRange(min=1e-3),
+              help="Animation speed over real time (instead of --duration; at most a 10 min animation).")
+@click.option("--accel", is_flag=True, help="Moves accelerate, as in `simulate --accel` (the times drawn are "
+              "those of its summary).")
 @click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
 @click.option("--out", "-o", type=click.Path(dir_okay=False), help="File to write [default: DIR/sim/...].")
 @click.option("--force", is_flag=True, help="Replace the file if it exists.")
-def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, duration: float | None,
-           speedup: float | None, manifest: str | None, out: str | None, force: bool) -> None:
+def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: float, duration: float | None,
+           speedup: float | None, accel: bool, manifest: str | None, out: str | None, force: bool) -> None:
     """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
     from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
-    from cooprint.render.sim import frame_count, render_animation, render_gantt, render_snapshot
+    from cooprint.render.sim import (animation_length, frame_count, length_text, render_animation, render_gantt,
+                                     render_snapshot)
     from cooprint.jobs import read_with_progress
     from cooprint.simulation import simulate as run_sim
 
     _need_inputs(inputs, manifest)
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
-    _check_render_options(fmt, at, duration, speedup)
+    fmt, inferred = _render_format(fmt, out)
+    _check_render_options(fmt, inferred, at, duration, speedup)
     sources = (*inputs, manifest)
     if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
         check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
@@ -670,12 +677,15 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     _heap_malloc()
     with stage_progress(True) as progress:  # bars on a terminal only
         inp = read_with_progress(list(inputs), manifest, None, progress, programs=False)
-        result = run_sim(inp, checks=False, progress=progress)
+        result = run_sim(inp, checks=False, accel=accel, progress=progress)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
         raise UserError(f"--at {t:g}: expected a time from 0 to the makespan, {result.makespan:.1f} s")
     if fmt in ("mp4", "gif"):  # the options must not ask for unbounded work: refused before anything is written
-        frame_count(result.makespan, fps, duration, speedup, gif=fmt == "gif")
+        n = frame_count(result.makespan, fps, duration, speedup, gif=fmt == "gif")
+        length = animation_length(result.makespan, duration, speedup)
+        click.echo(f"animation: {length_text(length)}, {n:,} frames at {fps:g} fps, the plan "
+                   f"{result.makespan / length:,.3g} times faster than real time")
     name = {"gantt": "gantt.png", "mp4": "animation.mp4", "gif": "animation.gif"}.get(fmt, f"snapshot_{t:.0f}s.png")
     target = Path(out) if out is not None else _sim_folder(inputs, None) / name
     # a bundle's sim/ is made if missing; cooprint's earlier pictures there need no --force
@@ -691,16 +701,53 @@ def render(inputs: tuple[str, ...], fmt: str, at: float | None, fps: float, dura
     click.echo(f"wrote {target}")
 
 
-def _check_render_options(fmt: str, at: float | None, duration: float | None, speedup: float | None) -> None:
+#: Each format's file suffix (an animation's encoder is chosen by it).
+FORMAT_SUFFIX = {"png": ".png", "gantt": ".png", "mp4": ".mp4", "gif": ".gif"}
+#: What a file of each picture or video suffix is (a --out so named and written in another format
+#: would be misread).
+PICTURE_SUFFIXES = {".png": "a PNG", ".mp4": "an MP4", ".gif": "a GIF", ".jpg": "a JPEG", ".jpeg": "a JPEG",
+                    ".webp": "a WebP", ".apng": "an APNG", ".bmp": "a BMP", ".tif": "a TIFF", ".tiff": "a TIFF",
+                    ".svg": "an SVG", ".pdf": "a PDF", ".webm": "a WebM", ".mkv": "a Matroska video",
+                    ".mov": "a QuickTime video", ".avi": "an AVI", ".m4v": "an MP4"}
+
+
+def _render_format(fmt: str | None, out: str | None) -> tuple[str, bool]:
+    """The format ``render`` draws and whether --out's suffix chose it: --format, else the one
+    --out's suffix names (``.mp4``, ``.gif``; else png). A --out whose suffix names another picture or
+    video format is refused (``--format mp4 --out anim.gif`` would write an MP4 named .gif), as is
+    an animation's --out without its suffix (the encoder is chosen by it)."""
+    suffix = Path(out).suffix.lower() if out else ""
+    named = fmt is not None
+    if fmt is None:
+        fmt = {".mp4": "mp4", ".gif": "gif"}.get(suffix, "png")
+    want = FORMAT_SUFFIX[fmt]
+    if out is None or suffix == want or (suffix not in PICTURE_SUFFIXES and fmt in ("png", "gantt")):
+        return fmt, not named and fmt != "png"
+    name = Path(out).name
+    if not named:
+        raise UserError(f"--out {name}: cooprint draws .png (--format png or gantt), .mp4 or .gif, not "
+                        f"{PICTURE_SUFFIXES[suffix]}")
+    what = {"png": "a PNG", "gantt": "a PNG", "mp4": "an MP4", "gif": "a GIF"}[fmt]
+    if suffix in PICTURE_SUFFIXES:
+        other = {".png": " or --format png", ".mp4": " or --format mp4", ".gif": " or --format gif"}.get(suffix, "")
+        raise UserError(f"--format {fmt} writes {what} but --out {name} is named as {PICTURE_SUFFIXES[suffix]}: "
+                        f"give --out {Path(name).stem}{want}{other}")
+    raise UserError(f"--format {fmt} writes {what}: give --out {name}{want}")
+
+
+def _check_render_options(fmt: str, inferred: bool, at: float | None, duration: float | None,
+                          speedup: float | None) -> None:
     """No option that the format ignores: ``--at`` is the png snapshot's time; ``--duration``,
-    ``--speedup`` and ``--fps`` (given on the command line) shape an mp4 / gif animation."""
+    ``--speedup`` and ``--fps`` (given on the command line) shape an mp4 / gif animation.
+    ``inferred``: --out's suffix chose the format (the message says so)."""
+    label = f"--format {fmt}" + (" (from --out's suffix)" if inferred else "")
     if at is not None and fmt != "png":
-        raise UserError(f"--at is the time of a png snapshot; --format {fmt} does not use it")
+        raise UserError(f"--at is the time of a png snapshot; {label} does not use it")
     fps_given = click.get_current_context().get_parameter_source("fps") == click.core.ParameterSource.COMMANDLINE
     given = [o for o, v in (("--duration", duration), ("--speedup", speedup), ("--fps", fps_given or None))
              if v is not None]
     if given and fmt not in ("mp4", "gif"):
-        raise UserError(f"{given[0]} shapes an animation (--format mp4 or gif); --format {fmt} does not use it")
+        raise UserError(f"{given[0]} shapes an animation (--format mp4 or gif); {label} does not use it")
 
 
 def _lean_malloc() -> None:

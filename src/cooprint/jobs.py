@@ -294,7 +294,7 @@ def write_chunk_bundle(job: ChunkJob, out: str | Path, force: bool = False, pict
 
             if progress:
                 progress("render", 0, 1)
-            render_chunks(job.chunks, tmp / "chunks.png")
+            render_chunks(job.chunks, tmp / "chunks.png", schedule=job.assignment)  # by robot, as `run` draws it
             record["picture"] = "chunks.png"
             if progress:
                 progress("render", 1, 1)

@@ -1,4 +1,7 @@
-"""One colour per robot, the same in every picture (chunks, Gantt chart, snapshots, animations).
+"""One colour per robot, the same in every picture (chunks, Gantt chart, snapshots, animations, the
+viewer): robot ``i``'s colour is :func:`robot_colour` ``(i)``, ``i`` its place in the plan's robot
+order (the fleet's order: job.json's "robots", ``Assignment.sequences`` and ``SimResult.robots``
+list the robots in it); :func:`robot_colours` maps a plan's robot names to their colours.
 
 The first robots get hand-picked colours that read well on white and apart from the Gantt
 chart's grey (travelling), yellow (waiting) and red (critical path); from the twelfth on, hues
@@ -11,6 +14,7 @@ written in their colour on white).
 from __future__ import annotations
 
 import colorsys
+from typing import Sequence
 
 #: Hand-picked robot colours (the first six are those of cooprint's earlier pictures).
 FIXED = [(214, 96, 77), (67, 147, 195), (90, 170, 90), (200, 150, 40), (150, 100, 190), (120, 120, 120),
@@ -38,3 +42,10 @@ def robot_colour(i: int) -> tuple[int, int, int]:
 def robot_palette(n: int) -> list[tuple[int, int, int]]:
     """The colours of ``n`` robots, in order."""
     return [robot_colour(i) for i in range(n)]
+
+
+def robot_colours(names: Sequence[str]) -> dict[str, tuple[int, int, int]]:
+    """Each robot's colour, ``{name: (r, g, b)}``, for the robot ``names`` in the plan's order
+    (job.json's "robots", ``[r.name for r in SimResult.robots]``, ``list(schedule.sequences)``):
+    the one mapping every picture uses, so that a robot has one colour everywhere."""
+    return {name: robot_colour(i) for i, name in enumerate(names)}

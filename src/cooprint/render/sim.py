@@ -9,6 +9,7 @@ import math
 import os
 import subprocess
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -34,9 +35,16 @@ def _colour(i: int) -> tuple[int, int, int]:
     return robot_colour(i)
 
 
+#: Seconds in a day: times from one day on are written in days.
+DAY = 86400.0
+
+
 def _hms(t: float) -> str:
-    t = int(round(t))
-    return f"{t // 3600}:{t % 3600 // 60:02d}:{t % 60:02d}"
+    """``H:MM:SS``, from one day on ``D d HH:MM:SS`` (a 375-day plan is ``375 d 00:00:00``, not
+    ``9000:00:00``)."""
+    d, s = divmod(int(round(t)), int(DAY))
+    hms = f"{s // 3600:02d}:{s % 3600 // 60:02d}:{s % 60:02d}"
+    return f"{d} d {hms}" if d else hms.removeprefix("0")
 
 
 class _Scene:
@@ -184,6 +192,31 @@ def render_snapshot(result: SimResult, t: float, path: str | Path, size: tuple[i
 #: (1,000 of 640 x 360 are 230 MB).
 MAX_FRAMES = 20_000
 MAX_GIF_FRAMES = 1_000
+#: An animation's length without --duration or --speedup, s.
+DEFAULT_LENGTH = 20.0
+#: The longest animation --speedup may make, s: a longer one is asked for by its length
+#: (--duration), never made by a speed-up that happens to be too small for a long plan
+#: (``--speedup 100`` on a 24 h plan would be a 14 min, 60 MB MP4).
+MAX_SPEEDUP_LENGTH = 600.0
+#: A GIF's most frames per second: its delays are whole hundredths of a second and browsers
+#: play a delay of 0 or 1 as 10 (50 fps is 2 each).
+MAX_GIF_FPS = 50.0
+
+
+def animation_length(makespan: float, duration: float | None = None, speedup: float | None = None) -> float:
+    """Seconds an animation of a ``makespan`` s plan lasts: ``duration``, or the plan played
+    ``speedup`` times faster than real time, or :data:`DEFAULT_LENGTH`."""
+    return makespan / speedup if speedup is not None else (duration or DEFAULT_LENGTH)
+
+
+def length_text(seconds: float) -> str:
+    """An animation's length for people: ``20.0 s``, ``14 min 24 s``, ``10 min``, ``2 h 05 min``."""
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    s = int(round(seconds))
+    if s >= 3600:
+        return f"{s // 3600} h {s % 3600 // 60:02d} min"
+    return f"{s // 60} min" + (f" {s % 60:02d} s" if s % 60 else "")
 
 
 def frame_count(makespan: float, fps: float, duration: float | None = None, speedup: float | None = None,
@@ -192,12 +225,24 @@ def frame_count(makespan: float, fps: float, duration: float | None = None, spee
     real time) at ``fps`` has; a :class:`~cooprint.errors.UserError` naming the options when
     that is not a finite count of at most ``MAX_FRAMES`` (``MAX_GIF_FRAMES`` for a GIF): the
     options alone must not ask for unbounded work (``--speedup 0.001 --fps 120`` over a 50 min
-    plan is 360,000 frames)."""
+    plan is 360,000 frames); when ``speedup`` makes it longer than :data:`MAX_SPEEDUP_LENGTH`
+    (the length it would have, the speed-up that keeps it within, and --duration to ask for
+    it); and for a GIF over :data:`MAX_GIF_FPS`."""
     for name, v in (("--fps", fps), ("--duration", duration), ("--speedup", speedup)):
         if v is not None and not (math.isfinite(v) and v > 0):
             raise UserError(f"{name} {v:g}: expected a positive number")
-    length = makespan / speedup if speedup is not None else (duration or 20.0)
+    if gif and fps > MAX_GIF_FPS:
+        raise UserError(f"--fps {fps:g}: a GIF plays at most {MAX_GIF_FPS:g} frames/s (its delays are whole "
+                        f"hundredths of a second); take a lower --fps or --format mp4")
+    length = animation_length(makespan, duration, speedup)
     frames = length * fps
+    if speedup is not None and length > MAX_SPEEDUP_LENGTH:
+        x = makespan / MAX_SPEEDUP_LENGTH
+        need = math.ceil(x) if x >= 1 else math.ceil(x * 1000) / 1000
+        raise UserError(f"--speedup {speedup:g} over the {_hms(makespan)} plan makes an animation of "
+                        f"{length_text(length)} ({frames:,.0f} frames at {fps:g} fps), longer than "
+                        f"{length_text(MAX_SPEEDUP_LENGTH)}: take --speedup {need:g} or more, or give the "
+                        f"length you want with --duration")
     limit = MAX_GIF_FRAMES if gif else MAX_FRAMES
     if not frames <= limit:
         how = (f"--speedup {speedup:g} over the {makespan:.3g} s plan is {length:.3g} s" if speedup is not None
@@ -214,6 +259,16 @@ def frame_times(makespan: float, fps: float, duration: float | None = None, spee
     faster than real time), the last frame at the end of the plan (at most ``MAX_FRAMES``,
     :func:`frame_count`)."""
     return np.linspace(0.0, makespan, frame_count(makespan, fps, duration, speedup, gif))
+
+
+def gif_delays(frames: int, length: float) -> list[int]:
+    """Each GIF frame's delay, ms, so that ``frames`` of them last ``length`` s: a GIF holds
+    whole hundredths of a second, so frame k lasts from the k-th boundary to the next, each
+    boundary ``k * length / frames`` rounded to a hundredth (24 fps: 40, 40, 50, 40, ... ms,
+    the sum within 10 ms of ``length``, not 41 ms written as 40 each, 4 % short). At least 20 ms
+    each (browsers play shorter delays as 100 ms)."""
+    bounds = np.round(np.arange(frames + 1) * (100.0 * length / frames)).astype(np.int64)
+    return (np.maximum(np.diff(bounds), 2) * 10).tolist()
 
 
 class Mp4Encoder:
@@ -351,8 +406,8 @@ def render_animation(result: SimResult, path: str | Path, fps: float = 24.0, dur
         if writer is not None:  # an error or a Ctrl-C while drawing: ffmpeg stops, the file is removed
             writer.abort()
     if gif:
-        frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps),
-                       loop=0)
+        frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:], loop=0,
+                       duration=gif_delays(len(frames), animation_length(result.makespan, duration, speedup)))
     return path
 
 
@@ -415,13 +470,19 @@ def _overlay(draw: ImageDraw.ImageDraw, scene: _Scene, t: float, size: tuple[int
 #: Gantt rows: the pitch (pixels from one robot's row to the next) for few robots, the least for
 #: many; the picture grows with the count rather than squeezing rows below the least.
 ROW_PITCH, MIN_ROW_PITCH = 60, 18
-#: Height of the Gantt chart's header (title and legend) and of its time axis, pixels.
+#: Least height of the Gantt chart's header (title and legend; a title or legend that wraps
+#: makes it taller, :func:`gantt_header`) and the height of its time axis, pixels.
 GANTT_TOP, GANTT_AXIS = 80, 60
+#: The Gantt chart's margins, pixels: the robots' names left of the bars, room for the last
+#: time label right of them.
+GANTT_LEFT, GANTT_RIGHT = 110, 30
 
 
-def gantt_height(robots: int) -> int:
-    """Height of the Gantt chart of ``robots`` rows, pixels: the header, one row per robot, the axis."""
-    return GANTT_TOP + _row_pitch(robots) * robots + GANTT_AXIS
+def gantt_height(robots: int, header: int = GANTT_TOP) -> int:
+    """Height of the Gantt chart of ``robots`` rows under a header ``header`` pixels tall (the
+    least, :data:`GANTT_TOP`, unless its title or legend wraps): the header, one row per robot,
+    the axis."""
+    return header + _row_pitch(robots) * robots + GANTT_AXIS
 
 
 def _row_pitch(robots: int) -> int:
@@ -430,18 +491,128 @@ def _row_pitch(robots: int) -> int:
     return max(MIN_ROW_PITCH, min(ROW_PITCH, 960 // max(robots, 1)))
 
 
+Box = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class GanttHeader:
+    """Where the Gantt chart's title and legend go: each measured (``textbbox``) and placed below
+    or beside the one before, never over it; a title or legend too wide for the picture wraps.
+
+    ``title``: lines ``(x, y, text, font size)``; ``legend``: items ``(key, label, swatch box,
+    label's x, y)``, key one of ``printing``, ``travelling``, ``waiting``, ``critical``, ``bound``;
+    ``boxes``: the ink box of every line, swatch and label; ``bottom``: where the rows may start."""
+
+    title: list[tuple[float, float, str, int]]
+    legend: list[tuple[str, str, Box, float, float]]
+    boxes: list[Box]
+    bottom: int
+
+
+def gantt_title(makespan: float, lower_bound: float | None = None) -> list[str]:
+    """The Gantt chart's title, in parts that may go on lines of their own: the makespan (and
+    the lower bound and how far above it the makespan is), in days from one day on."""
+    parts = [f"makespan {_hms(makespan)} ({makespan:.0f} s)"]
+    if lower_bound:
+        parts.append(f"lower bound {_hms(lower_bound)} ({lower_bound:.0f} s; makespan "
+                     f"{makespan / lower_bound - 1:+.1%})")
+    return parts
+
+
+#: The legend's labels.
+LEGEND = {"printing": "printing", "travelling": "travelling (strip: share of the time)", "waiting": "waiting",
+          "critical": "critical path", "bound": "lower bound"}
+
+
+def gantt_header(title: Sequence[str], robots: int, width: int, critical: bool = False,
+                 bound: bool = False) -> GanttHeader:
+    """Lay out the Gantt chart's header in a picture ``width`` pixels wide: the ``title``'s parts
+    on one line if they fit, else a line each (a part too wide alone in a smaller font, down to
+    11 px), then the legend below it, its items left to right, wrapping. The printing swatch holds
+    each of the ``robots``' colours; the critical path's and the lower bound's items are there
+    when the chart draws them."""
+    draw = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    left, right = GANTT_LEFT, width - GANTT_RIGHT
+    boxes: list[Box] = []
+    lines: list[tuple[float, float, str, int]] = []
+    y = 10.0
+    parts = list(title)
+    while parts:  # as many parts on a line as fit at 20 px
+        k = len(parts)
+        while k > 1 and draw.textlength("   ".join(parts[:k]), font=_font(20)) > right - left:
+            k -= 1
+        text, parts = "   ".join(parts[:k]), parts[k:]
+        size = 20
+        while size > 11 and draw.textlength(text, font=_font(size)) > right - left:
+            size -= 1
+        box = draw.textbbox((left, y), text, font=_font(size))
+        lines.append((left, y, text, size))
+        boxes.append(box)
+        y = box[3] + 8
+    keys = ["printing", "travelling", "waiting"] + ["critical"] * critical + ["bound"] * bound
+    font = _font(16)
+    legend = []
+    x, row_bottom = float(left), y
+    for key in keys:
+        sw = _swatch_width(robots) if key == "printing" else 18
+        text_w = draw.textlength(LEGEND[key], font=font)
+        if x > left and x + sw + 6 + text_w > right:  # the next line of the legend
+            x, y = float(left), row_bottom + 6
+        swatch = (x, y + 2, x + sw, y + 16)
+        label = draw.textbbox((x + sw + 6, y), LEGEND[key], font=font)
+        legend.append((key, LEGEND[key], swatch, x + sw + 6, y))
+        boxes += [swatch, label]
+        row_bottom = max(row_bottom, swatch[3], label[3])
+        x = label[2] + 24
+    return GanttHeader(lines, legend, boxes, int(math.ceil(row_bottom)) + 12)
+
+
+def _swatch_width(robots: int) -> int:
+    """Width of the printing swatch, pixels: a 14 px square per robot (2 px apart) up to 8
+    robots, then stripes of at least 2 px."""
+    return 16 * robots - 2 if robots <= 8 else max(2, 112 // robots) * robots
+
+
+def _legend(draw: ImageDraw.ImageDraw, header: GanttHeader, colours: list[tuple[int, int, int]]) -> None:
+    """Draw the header's legend: each robot's colour for printing, the travel strip, the wait,
+    the critical path's frame, the lower bound's dashes."""
+    font = _font(16)
+    for key, label, (x0, y0, x1, y1), tx, ty in header.legend:
+        if key == "printing":
+            n = len(colours)
+            step = 16 if n <= 8 else (x1 - x0) / n
+            for i, c in enumerate(colours):
+                draw.rectangle([x0 + i * step, y0, x0 + i * step + (14 if n <= 8 else step) - 1, y1], fill=c)
+        elif key == "travelling":  # as in the rows: a strip under the bar
+            draw.rectangle([x0, y1 - 5, x1, y1], fill=TRAVEL_COLOUR)
+            draw.line([(x0, y1 - 7), (x1, y1 - 7)], fill=(215, 215, 215))
+        elif key == "waiting":
+            draw.rectangle([x0, y0, x1, y1], fill=WAIT_COLOUR)
+        elif key == "critical":
+            draw.rectangle([x0, y0 - 1, x1, y1 + 1], outline=CRITICAL_COLOUR, width=3)
+        else:
+            for ya in (y0, y0 + 10):
+                draw.line([((x0 + x1) / 2, ya), ((x0 + x1) / 2, ya + 5)], fill=BOUND_COLOUR, width=2)
+        draw.text((tx, ty), label, fill=(40, 40, 40), font=font)
+
+
 def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1200, 0),
                  critical: Sequence[str] | None = None, lower_bound: float | None = None) -> Path:
-    """Per robot, when it prints (its colour), travels (grey) and waits (yellow), on one time axis.
+    """Per robot, when it prints (its colour), travels (a grey strip under the bar, as tall as
+    the share of the time it travels) and waits (yellow), on one time axis.
 
     One row per robot (any count; rows get thinner from 9 robots on, down to ``MIN_ROW_PITCH``,
-    and the picture taller, see :func:`gantt_height`). Each chunk's printing is labelled with
-    its id where the bar is wide enough.
+    and the picture taller, see :func:`gantt_height`). A row's upper part is the printing, at
+    pixel resolution (a column is coloured where the robot printed at all); its lower strip is
+    the travel, each column's grey as tall as the share of that column's time spent travelling,
+    so that travel between short prints shows instead of vanishing under them. Each chunk's
+    printing is labelled with its id where the bar is wide enough. The time axis is in days
+    from one day on (``1 d 12:00``); the title (also the PNG's ``Title`` text) is the makespan.
 
     Parameters
     ----------
     size
-        Width and height, pixels; height 0: :func:`gantt_height`.
+        Width and height, pixels; height 0: :func:`gantt_height` (taller when the header wraps).
     critical
         Chunk ids of the schedule's critical path (job.json ``schedule.critical_path``): the
         printing of each is framed in red, so the chain that bounds the makespan can be seen.
@@ -449,80 +620,119 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
         The schedule's lower bound LB, s (job.json ``schedule.lower_bound_s``): a dashed vertical
         line, so the distance from the simulated makespan to the best possible can be seen.
     """
+    from PIL.PngImagePlugin import PngInfo
+
     rows = len(result.robots)
     pitch = _row_pitch(rows)
     bar = max(10, int(pitch * 2 / 3))
-    h = size[1] or gantt_height(rows)
+    strip = max(3, round(bar / 4))  # the travel strip at the bottom of the bar
+    lane = bar - strip - 1  # the printing above it
     w = size[0]
+    marked = set(critical or ())
+    title = gantt_title(result.makespan, lower_bound)
+    header = gantt_header(title, rows, w, critical=bool(marked), bound=bool(lower_bound))
+    top = max(GANTT_TOP, header.bottom)
+    h = size[1] or gantt_height(rows, top)
     img = Image.new("RGB", (w, h), BACKGROUND)
     draw = ImageDraw.Draw(img)
-    left, right, top = 110, w - 30, GANTT_TOP
+    left, right = GANTT_LEFT, w - GANTT_RIGHT
+    cols = right - left
     span = max(result.makespan, lower_bound or 0.0, 1e-9)
-    marked = set(critical or ())
 
     def x(t: np.ndarray | float) -> np.ndarray:
-        return left + (np.asarray(t) / span) * (right - left)
+        return left + (np.asarray(t) / span) * cols
 
-    font = _font(16)
+    for tx, ty, text, fs in header.title:
+        draw.text((tx, ty), text, fill=(20, 20, 20), font=_font(fs))
+    _legend(draw, header, [_colour(i) for i in range(rows)])
     row_font = _font(min(16, max(10, bar - 2)))
-    label_font = _font(min(13, max(9, bar - 4)))
-    title = f"makespan {_hms(result.makespan)} ({result.makespan:.0f} s)"
-    if lower_bound:
-        title += f"   lower bound {_hms(lower_bound)} ({lower_bound:.0f} s; makespan {result.makespan / lower_bound - 1:+.1%})"
-    draw.text((left, 12), title, fill=(20, 20, 20), font=_font(20))
+    label_font = _font(min(13, max(9, lane - 4)))
     for i, r in enumerate(result.robots):
         tl = result.timelines[r.name]
         y0 = top + pitch * i
         y1 = y0 + bar
         draw.text((15, y0 + (bar - 16) / 2 if bar >= 16 else y0), f"robot {r.name}", fill=_colour(i), font=row_font)
-        for on, colour in ((False, TRAVEL_COLOUR), (True, _colour(i))):
-            # merge touching bars (a print is millions of moves): draw runs at pixel resolution,
-            # the moves a block at a time
-            bars = ((x(tl.t0[c:c + BLOCK_MOVES][sel]), x(tl.t1[c:c + BLOCK_MOVES][sel]))
-                    for c in range(0, len(tl.t0), BLOCK_MOVES) for sel in [tl.on[c:c + BLOCK_MOVES] == on])
-            for xa, xb in _runs(bars):
-                draw.rectangle([xa, y0, max(xb, xa + 1), y1], fill=colour)
+        printing, travel = _column_shares(tl, span, cols)
+        for a, b in _true_runs(printing > 0):
+            draw.rectangle([left + a, y0, left + b - 1, y0 + lane - 1], fill=_colour(i))
+        tall = np.ceil(np.minimum(travel, 1.0) * strip - 1e-9).astype(int)  # the travel's share, pixels
+        if tall.any():
+            band = np.arange(strip)[:, None] >= strip - tall[None, :]
+            img.paste(Image.fromarray(np.where(band[..., None], np.array(TRAVEL_COLOUR, np.uint8),
+                                               np.array(BACKGROUND, np.uint8)).astype(np.uint8)),
+                      (left, y1 - strip))
         for a, b, _ in tl.waits:
             if b > a:
-                draw.rectangle([float(x(a)), y0, float(x(b)), y1], fill=WAIT_COLOUR)
+                draw.rectangle([float(x(a)), y0, float(x(b)), y1 - 1], fill=WAIT_COLOUR)
         for cid, t_a, t_b in _chunk_spans(r, tl):
             xa, xb = float(x(t_a)), float(x(t_b))
-            if cid in marked:
-                frame = [xa - 1, y0 - 2, max(xb, xa + 2) + 1, y1 + 2]
-                draw.rectangle(frame, outline=CRITICAL_COLOUR, width=3)  # white inside: apart from a red robot's bar
-                draw.rectangle([frame[0] + 3, frame[1] + 3, frame[2] - 3, frame[3] - 3], outline=(255, 255, 255))
+            if cid in marked:  # around the bar and its travel strip, a white line apart from a red robot's bar
+                frame = [xa - 3, y0 - 3, max(xb, xa + 1) + 2, y1 + 2]
+                draw.rectangle(frame, outline=CRITICAL_COLOUR, width=2)
+                draw.rectangle([frame[0] + 2, frame[1] + 2, frame[2] - 2, frame[3] - 2], outline=(255, 255, 255))
             box = draw.textbbox((0, 0), cid, font=label_font)
-            if xb - xa > box[2] - box[0] + 6 and bar >= 12:
-                draw.text(((xa + xb) / 2, (y0 + y1) / 2), cid, fill=(255, 255, 255), font=label_font, anchor="mm")
-    # time axis
+            if xb - xa > box[2] - box[0] + 6 and lane >= 12:
+                draw.text(((xa + xb) / 2, y0 + lane / 2), cid, fill=(255, 255, 255), font=label_font, anchor="mm")
+    # time axis: labels centred on their ticks, the last kept inside the picture
     y = top + pitch * rows
     draw.line([(left, y), (right, y)], fill=(60, 60, 60))
-    step = _nice_step(span / 8)
+    axis_font = _font(13)
+    step = _nice_step(span / 8)  # about 8 labels, fewer where they would touch (a narrow picture)
+    while step < span and step / span * cols < 16 + max(
+            draw.textlength(_axis_label(k * step, span), font=axis_font) for k in range(int(span // step) + 1)):
+        step = _nice_step(step * 1.001)
     for k in range(int(span // step) + 1):
         t = k * step
-        draw.line([(float(x(t)), y), (float(x(t)), y + 6)], fill=(60, 60, 60))
-        draw.text((float(x(t)) - 20, y + 8), _hms(t), fill=(60, 60, 60), font=_font(13))
+        xt = float(x(t))
+        draw.line([(xt, y), (xt, y + 6)], fill=(60, 60, 60))
+        text = _axis_label(t, span)
+        half = draw.textlength(text, font=axis_font) / 2
+        draw.text((min(max(xt, half + 2), w - half - 2), y + 8), text, fill=(60, 60, 60), font=axis_font,
+                  anchor="ma")
     if lower_bound:
         xb = float(x(lower_bound))
         for ya in range(top - 6, y, 12):  # dashed
             draw.line([(xb, ya), (xb, min(ya + 6, y))], fill=BOUND_COLOUR, width=2)
-    legend = [("printing", _colour(0)), ("travelling", TRAVEL_COLOUR), ("waiting", WAIT_COLOUR)]
-    lx = left
-    for label, colour in legend:
-        draw.rectangle([lx, 47, lx + 18, 61], fill=colour)
-        draw.text((lx + 24, 44), label, fill=(40, 40, 40), font=font)
-        lx += 130
-    if marked:
-        draw.rectangle([lx, 46, lx + 18, 62], outline=CRITICAL_COLOUR, width=3)
-        draw.text((lx + 24, 44), "critical path", fill=(40, 40, 40), font=font)
-        lx += 150
-    if lower_bound:
-        for ya in (46, 56):
-            draw.line([(lx + 9, ya), (lx + 9, ya + 5)], fill=BOUND_COLOUR, width=2)
-        draw.text((lx + 24, 44), "lower bound", fill=(40, 40, 40), font=font)
+    info = PngInfo()
+    info.add_text("Title", "   ".join(title))
     path = Path(path)
-    img.save(path, format="PNG")
+    img.save(path, format="PNG", pnginfo=info)
     return path
+
+
+def _column_shares(tl, span: float, cols: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel column of a Gantt row (``cols`` columns over ``span`` s): the share of its time
+    the robot printed, and travelled (moves with the tool off), a block of moves at a time."""
+    shares = np.zeros((2, cols))
+    scale = cols / span
+    for c in range(0, len(tl.t0), BLOCK_MOVES):
+        a, b = tl.t0[c:c + BLOCK_MOVES] * scale, tl.t1[c:c + BLOCK_MOVES] * scale
+        on = tl.on[c:c + BLOCK_MOVES]
+        for k, sel in enumerate((on, ~on)):
+            shares[k] += _coverage(a[sel], b[sel], cols)
+    return shares[0], shares[1]
+
+
+def _coverage(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """How much of each unit column ``[c, c + 1)``, ``c < n``, the intervals ``[a, b]`` (within
+    ``[0, n]``) cover: an interval inside one column adds its length there; one across several
+    adds its part to its first and last column and 1 to each between (a difference array)."""
+    a, b = np.clip(a, 0, n), np.clip(b, 0, n)
+    ia = np.minimum(np.floor(a), n - 1).astype(np.int64)
+    ib = np.minimum(np.floor(b), n - 1).astype(np.int64)
+    same = ia == ib
+    out = np.zeros(n)  # (bincount of nothing is of integers)
+    out += np.bincount(ia[same], weights=b[same] - a[same], minlength=n)
+    ia, ib, a, b = ia[~same], ib[~same], a[~same], b[~same]
+    out += np.bincount(ia, weights=ia + 1 - a, minlength=n) + np.bincount(ib, weights=b - ib, minlength=n)
+    between = np.bincount(ia + 1, minlength=n + 1) - np.bincount(ib, minlength=n + 1)
+    return out + np.cumsum(between)[:n]
+
+
+def _true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, end)`` of each run of True in ``mask`` (end exclusive)."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8)))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
 
 
 def _chunk_spans(robot, tl) -> list[tuple[str, float, float]]:
@@ -565,10 +775,26 @@ def _runs(bars) -> list[tuple[float, float]]:
 
 
 def _nice_step(raw: float) -> float:
+    """The time axis's step, s: the first of 1 s ... 12 h at least ``raw``, then 1, 2, 5, 10, 20,
+    50 ... days."""
     for s in (1, 2, 5, 10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 10800, 21600, 43200, 86400):
         if s >= raw:
             return float(s)
-    return 86400.0 * np.ceil(raw / 86400.0)
+    days = raw / DAY
+    mag = 10 ** math.floor(math.log10(days))
+    return DAY * next(m * mag for m in (1, 2, 5, 10) if m * mag >= days)
 
 
-__all__ = ["frame_times", "gantt_height", "render_animation", "render_gantt", "render_snapshot"]
+def _axis_label(t: float, span: float) -> str:
+    """A time axis label: ``H:MM:SS`` on an axis shorter than a day, else days: ``15 d``,
+    ``1 d 12:00`` (seconds only when there are any)."""
+    if span < DAY:
+        return _hms(t)
+    d, s = divmod(int(round(t)), int(DAY))
+    if not s:
+        return f"{d} d"
+    return f"{d} d {s // 3600:02d}:{s % 3600 // 60:02d}" + (f":{s % 60:02d}" if s % 60 else "")
+
+
+__all__ = ["GanttHeader", "frame_times", "gantt_header", "gantt_height", "gantt_title", "gif_delays",
+           "render_animation", "render_gantt", "render_snapshot"]
