@@ -408,8 +408,8 @@ def strict_option(command: Any) -> Any:
 @cli.command(name="run")
 @plan_options
 @click.option("--simulate", "then_simulate", is_flag=True,
-              help="Then simulate the plan: OUT/sim/summary.json, gantt.png and snapshot.png; exit 1 if the "
-                   "simulation finds errors.")
+              help="Then simulate the plan: OUT/sim/summary.json, gantt.png, snapshot.png and viewer.html (the "
+                   "interactive viewer); exit 1 if the simulation finds errors.")
 @strict_option
 @click.option("--compress", is_flag=True,
               help="Write the robots' programs gzip-compressed: OUT/robots/<robot>.coop.gz and .gcode.gz "
@@ -450,7 +450,8 @@ def run_cmd(mesh: str, out: str, robots: int, config: tuple[str, ...], overrides
 
             bound = bound_line(sim)  # "makespan X h, lower bound Y h (+Z%)...", when job.json states a bound
             click.echo(f"simulated: {bound or 'makespan {:.2f} h'.format(sim['makespan_s'] / 3600)}; findings: "
-                       f"{findings_line(sim['finding_counts'])}; wrote {out}/sim/summary.json, gantt.png, snapshot.png")
+                       f"{findings_line(sim['finding_counts'])}; wrote {out}/sim/summary.json, gantt.png, snapshot.png"
+                       + (", viewer.html" if (Path(out) / "sim" / "viewer.html").exists() else ""))
     if record is not None:
         _report_run(record, out, no_picture)
     if sim is not None:
@@ -584,6 +585,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
                                          progress=lambda done, total: progress("perturbed runs", done, total),
                                          executor=ex)
     record = summary(result, perturbed)
+    record["inputs"] = _inputs_record(inputs, manifest, config, accel)
     if frame_step is not None:
         if result.makespan / frame_step > 10_000_000:
             raise UserError(f"--frames {frame_step:g}: more than 10 million frames over {result.makespan:.0f} s; "
@@ -619,6 +621,16 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
                target)
     else:
         _judge(record, strict, quiet, "the simulation", target)
+
+
+def _inputs_record(inputs: tuple[str, ...], manifest: str | None, config: tuple[str, ...], accel: bool
+                   ) -> dict[str, Any]:
+    """What ``cooprint view`` needs to read and time a simulation's inputs again (summary.json
+    ``inputs``): the input paths, the manifest and the ``--config`` files, absolute, and whether
+    moves accelerated."""
+    absolute = lambda x: os.path.abspath(x)  # noqa: E731
+    return {"paths": [absolute(x) for x in inputs], "manifest": absolute(manifest) if manifest else None,
+            "config": [absolute(x) for x in config], "accel": bool(accel)}
 
 
 def _finding_text(f: Any) -> str:
@@ -733,6 +745,101 @@ def _render_format(fmt: str | None, out: str | None) -> tuple[str, bool]:
         raise UserError(f"--format {fmt} writes {what} but --out {name} is named as {PICTURE_SUFFIXES[suffix]}: "
                         f"give --out {Path(name).stem}{want}{other}")
     raise UserError(f"--format {fmt} writes {what}: give --out {name}{want}")
+
+
+@cli.command()
+@click.argument("folder", type=click.Path())
+@click.option("--open", "open_page", is_flag=True, help="Then open the page in the system's web browser.")
+@click.option("--force", is_flag=True, help="Replace a DIR/sim/viewer.html that cooprint did not write.")
+def view(folder: str, open_page: bool, force: bool) -> None:
+    """Write FOLDER/sim/viewer.html: the plan in 3D and in true time, one self-contained page.
+
+    FOLDER is a `cooprint run` bundle (simulated first when it has no sim/summary.json yet) or
+    a folder written by `cooprint simulate FILES --out FOLDER` (its inputs are read again).
+    The page needs no network: open it from disk, mail it, attach it to a report."""
+    from cooprint.io.bundle import atomic_file, check_file_destination, is_bundle, is_derived_output
+    from cooprint.jobs import read_with_progress, simulate_bundle
+    from cooprint.render.viewer import check_assets, write_viewer
+    from cooprint.simulation import simulate as run_sim
+    from cooprint.simulation.inputs import read_chunk_meshes
+
+    root = Path(folder)
+    if not root.is_dir():
+        raise UserError(f"{folder}: {'not a folder' if root.exists() else 'no such folder'}; expected a `cooprint run` "
+                        "bundle or a folder written by `cooprint simulate ... --out`")
+    summary_path = root / "sim" / "summary.json"
+    target = root / "sim" / "viewer.html"
+    bundle = is_bundle(root)
+    record = _sim_record(summary_path)
+    if not bundle and record is None:
+        raise UserError(f"{folder}: neither a cooprint bundle (job.json) nor a simulated folder (sim/summary.json); "
+                        "run `cooprint run MESH --out FOLDER` or `cooprint simulate FILES --out FOLDER` first")
+    check_assets()
+    if record is None:  # a bundle not simulated yet: its simulation writes the viewer too
+        check_file_destination(target, force, create_parents=1)
+        click.echo(f"{folder} has no simulation yet (sim/summary.json): simulating it first")
+        users = target.exists() and not is_derived_output(target)  # replaced below (--force)
+        with stage_progress(True) as progress:
+            simulate_bundle(root, progress=progress, viewer=not users)
+        if not users:
+            _viewer_done(target, open_page)
+            return
+        record = _sim_record(summary_path)
+        assert record is not None
+    inputs = record.get("inputs")
+    if bundle:  # the bundle where it is now; timed as its simulation was
+        accel = inputs.get("accel") if isinstance(inputs, dict) else None
+        inputs = {"paths": [str(root)], "manifest": None, "config": [],
+                  "accel": accel if accel is not None else str(record.get("time_model", "")).startswith("trapezoidal")}
+    if not isinstance(inputs, dict) or not isinstance(inputs.get("paths"), list):
+        raise UserError(f"{summary_path}: does not say which files were simulated (written by an older cooprint?); "
+                        f"run `cooprint simulate FILES --out {folder}` again")
+    manifest, config = inputs.get("manifest"), tuple(inputs.get("config") or ())
+    sources = (*inputs["paths"], manifest)
+    for name in [*inputs["paths"], *([manifest] if manifest else []), *config]:
+        if not Path(name).exists():
+            raise UserError(f"{summary_path}: names {name}, which is no longer there; simulate again")
+    check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=1)
+    _heap_malloc()
+    with stage_progress(True) as progress:
+        inp = read_with_progress(list(inputs["paths"]), manifest, _settings(config, {}) if config else None, progress,
+                                 programs=False)
+        result = run_sim(inp, checks=False, accel=bool(inputs.get("accel")), progress=progress)
+    with atomic_file(target, force, inputs=sources, create_parents=1) as tmp:
+        write_viewer(result, record, tmp, chunks=read_chunk_meshes(inp), critical=inp.critical_path,
+                     lower_bound=inp.lower_bound, title=root.resolve().name)
+    _viewer_done(target, open_page)
+
+
+def _sim_record(path: Path) -> dict[str, Any] | None:
+    """sim/summary.json when it is cooprint's (a ``cooprint-sim/`` format), else None."""
+    from cooprint.io.bundle import SIM_FORMAT, read_json_object
+
+    record = read_json_object(path)
+    return record if record is not None and str(record.get("format", "")).startswith(SIM_FORMAT) else None
+
+
+def _viewer_done(target: Path, open_page: bool) -> None:
+    """Say where the viewer is; with ``open_page``, open it in a graphical web browser if this
+    machine has one (never a text browser in the terminal), else say that it could not."""
+    size = target.stat().st_size
+    click.echo(f"wrote {target} ({size / 1e6:.1f} MB)")
+    if not open_page:
+        return
+    import webbrowser
+
+    uri = target.resolve().as_uri()
+    graphical = sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    opened = False
+    if graphical:
+        try:
+            opened = webbrowser.open(uri)
+        except webbrowser.Error:
+            opened = False
+    if opened:
+        click.echo(f"opened {uri} in the web browser")
+    else:
+        click.echo(f"could not open a web browser here{'' if graphical else ' (no display)'}; open {uri} in one")
 
 
 def _check_render_options(fmt: str, inferred: bool, at: float | None, duration: float | None,

@@ -1,5 +1,6 @@
 """``make demo``: plan a cooperative print of a generated car for two robots, simulate it, and
-show where everything went (programs, G-code, summary, Gantt chart, animation).
+show where everything went (programs, G-code, summary, Gantt chart, animation, the interactive
+viewer).
 
 Run as ``python -m cooprint.demo OUTDIR``. The folder is the demo's own and is replaced on each run.
 """
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"outputs in {out}/:")
     for name in ("model.stl", "job.json", "chunks/", "chunks.png", "robots/A.coop", "robots/A.gcode",
                  "robots/B.coop", "robots/B.gcode", "sim/summary.json", "sim/gantt.png", "sim/snapshot.png",
-                 "sim/animation.mp4"):
+                 "sim/animation.mp4", "sim/viewer.html"):
         print(f"  {out / name}")
     return 0
 

@@ -789,37 +789,58 @@ def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, ro
 
 
 def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False,
-                    progress: Progress | None = None) -> dict[str, Any]:
+                    progress: Progress | None = None, viewer: bool = True) -> dict[str, Any]:
     """Simulate the bundle in ``out`` (written by :func:`run`) and write ``out/sim/``:
     ``summary.json``, ``gantt.png``, ``snapshot.png`` (at ``snapshot_at`` s, default half the
-    makespan) and, with ``animation``, ``animation.mp4`` (20 s at 24 frames/s); returns the
-    summary. cooprint's earlier derived outputs in ``sim/`` are replaced, other files kept.
-    ``progress``: the stages ``read`` (bytes of the programs), ``timelines``, ``checks`` and
-    ``pictures``."""
-    from cooprint.io.bundle import check_sim_folder
+    makespan), with ``viewer`` the interactive ``viewer.html`` (:mod:`cooprint.render.viewer`)
+    and, with ``animation``, ``animation.mp4`` (20 s at 24 frames/s); returns the summary.
+    cooprint's earlier derived outputs in ``sim/`` are replaced, other files kept (a
+    ``viewer.html`` that is not cooprint's is left as it is, and no viewer is written: a notice
+    says so). ``progress``: the stages ``read`` (bytes of the programs), ``timelines``,
+    ``checks`` and ``pictures``."""
+    from cooprint.io.bundle import check_sim_folder, is_derived_output
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import simulate, summary
+    from cooprint.simulation.inputs import read_chunk_meshes
 
     out = Path(out)
     check_sim_folder(out / "sim")  # before the work, not after
+    page = out / "sim" / "viewer.html"
+    if viewer and page.exists() and not is_derived_output(page):
+        warn(f"kept {page}, which cooprint did not write; no viewer written (`cooprint view {out} --force` "
+             "replaces it)")
+        viewer = False
+    if viewer:
+        from cooprint.render.viewer import check_assets, write_viewer
+
+        check_assets()  # an unbuilt viewer refused before the work
     inp = read_with_progress([str(out)], None, None, progress, programs=False)  # timed piece by piece
     result = simulate(inp, progress=progress)
     record = summary(result)
-    pictures = 3 if animation else 2
+    pictures = 2 + int(viewer) + int(animation)
     with atomic_dir(out / "sim", force=True, sim=True) as tmp:
         write_json(tmp / "summary.json", record)
+        done = 0
         if progress:
-            progress("pictures", 0, pictures)
+            progress("pictures", done, pictures)
+
+        def drawn() -> None:
+            nonlocal done
+            done += 1
+            if progress:
+                progress("pictures", done, pictures)
+
         render_gantt(result, tmp / "gantt.png", critical=inp.critical_path, lower_bound=inp.lower_bound)
-        if progress:
-            progress("pictures", 1, pictures)
+        drawn()
         render_snapshot(result, result.makespan / 2 if snapshot_at is None else snapshot_at, tmp / "snapshot.png")
-        if progress:
-            progress("pictures", 2, pictures)
+        drawn()
+        if viewer:
+            write_viewer(result, record, tmp / "viewer.html", chunks=read_chunk_meshes(inp), critical=inp.critical_path,
+                         lower_bound=inp.lower_bound, title=out.resolve().name)
+            drawn()
         if animation:
             render_animation(result, tmp / "animation.mp4", fps=24, duration=20)
-            if progress:
-                progress("pictures", 3, pictures)
+            drawn()
     return record
 
 

@@ -1,4 +1,265 @@
-// cooprint's plan viewer (placeholder until the viewer lands): see docs/viewer.md.
-import * as THREE from 'three';
+// cooprint's plan viewer (docs/viewer.md): the page's entry. Reads the record and the geometry
+// the page holds, lays out the view and its controls, plays the plan in real print time, links
+// the Gantt chart and the findings, and offers the test hook window.cooprint.
 
-window.cooprintThreeRevision = THREE.REVISION;
+import { readMeta, readGeometry } from './data.js';
+import { View } from './scene.js';
+import { MODES, legend, css, TRAVEL_COLOUR } from './colours.js';
+import { clock, layout } from './layout.js';
+import { createGantt } from './gantt.js';
+import { createSummary, createFindings } from './panels.js';
+
+// Errors on the page, for the tests (and shown in #notice).
+const errors = [];
+const hook = { errors };
+window.cooprint = hook;
+let resolveReady;
+hook.ready = new Promise((resolve) => { resolveReady = resolve; });
+hook.firstFrameMs = null;
+const noteError = (msg) => {
+  errors.push(String(msg));
+  const n = document.getElementById('notice');
+  if (n) { n.hidden = false; n.textContent = `error: ${msg}`; }
+};
+window.addEventListener('error', (e) => noteError(e.message || e.error || e));
+window.addEventListener('unhandledrejection', (e) => noteError((e.reason && (e.reason.stack || e.reason.message)) || e.reason));
+const consoleError = console.error.bind(console);
+console.error = (...args) => { errors.push(args.map(String).join(' ')); consoleError(...args); };
+
+const SPEEDS = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 20000, 50000, 100000];
+
+const timings = {};
+const mark = (name) => { timings[name] = performance.now(); };
+
+async function start() {
+  mark('start');
+  const meta = readMeta();
+  const header = meta.geometry;
+  const ui = layout(document.body, meta, SPEEDS);
+  mark('layout');
+  const geo = await readGeometry(header);
+  mark('geometry');
+  const view = new View(ui.view, meta, geo);
+  mark('view');
+  const ctx = { robots: meta.robots, header };
+  const makespan = meta.makespan;
+
+  // --- state --------------------------------------------------------------------------------
+  let t = makespan; // the finished plan first
+  let playing = false;
+  let speed = SPEEDS.filter((s) => s <= Math.max(makespan / 30, 1)).pop();
+  let frames = 0;
+  let selected = null;
+  let scheduled = false;
+  let lastWall = null;
+  const eventTimes = [...new Set((meta.events || []).map((e) => e.time_s))].sort((a, b) => a - b);
+
+  // --- the robots at t ----------------------------------------------------------------------
+  const facingAt = (rec, time) => {
+    const f = rec.facing || [[0, 0]];
+    let deg = f[0][1];
+    for (const [ft, d] of f) if (ft <= time) deg = d;
+    return deg;
+  };
+  const inIntervals = (list, time) => (list || []).some((iv) => iv[0] <= time && time < iv[1]);
+  // nozzle position and state of robot i at time: the segment under way (material or travel), or
+  // between two, where the last ended (a wait) or on the way to the next (a thinned gap).
+  function robotAt(i, time) {
+    const r = geo.robots[i];
+    const pos = (paths, v) => [0, 1, 2].map((k) => geo.world(paths.pos[v * 3 + k], k));
+    const lerp = (p, q, f) => p.map((x, k) => x + f * (q[k] - x));
+    let best = null; // the last segment started by time: {paths, s, kind}
+    for (const [paths, kind] of [[r.material, 'printing'], [r.travel, 'travelling']]) {
+      const s = paths.started(time) - 1;
+      if (s >= 0 && (!best || paths.t0(s) > best.paths.t0(best.s))) best = { paths, s, kind };
+    }
+    const row = meta.gantt && meta.gantt[i];
+    let state = 'idle';
+    let position = r.start;
+    if (best) {
+      const { paths, s } = best;
+      const v = paths.start[s];
+      if (time <= paths.t1(s)) {
+        const f = (time - paths.t0(s)) / Math.max(paths.t1(s) - paths.t0(s), 1e-12);
+        position = lerp(pos(paths, v), pos(paths, v + 1), Math.min(Math.max(f, 0), 1));
+        state = best.kind;
+      } else {
+        const end = pos(paths, v + 1), tEnd = paths.t1(s);
+        position = end;
+        let next = null; // the next segment to start
+        for (const p of [r.material, r.travel]) {
+          const k = p.started(time);
+          if (k < p.count && (!next || p.t0(k) < next.paths.t0(next.k))) next = { paths: p, k };
+        }
+        if (next) {
+          const q = pos(next.paths, next.paths.start[next.k]);
+          const dist = Math.hypot(q[0] - end[0], q[1] - end[1], q[2] - end[2]);
+          if (dist > 1e-6) position = lerp(end, q, (time - tEnd) / Math.max(next.paths.t0(next.k) - tEnd, 1e-12));
+        }
+        if (row && inIntervals(row.print, time)) state = 'printing';
+        else if (row && inIntervals(row.travel, time)) state = 'travelling';
+      }
+    }
+    if (row && (row.wait || []).some((w) => w[0] <= time && time < w[1])) state = 'waiting';
+    if (time >= r.end && r.end > 0 && state !== 'waiting') state = 'done';
+    if (r.end === 0 && time > 0) state = 'idle';
+    return { position, state, facing: facingAt(meta.robots[i], time) };
+  }
+
+  // --- drawing ------------------------------------------------------------------------------
+  const gantt = createGantt(ui.gantt, meta, { onSeek: (x) => seek(x) });
+  createSummary(ui.summary, meta);
+  const findings = createFindings(ui.findings, meta, { onSelect: (f, i) => selectFinding(i) });
+  view.onInvalidate = () => request();
+
+  function draw() {
+    view.placeRobots(geo.robots.map((_, i) => robotAt(i, t)));
+    view.render(t);
+    frames++;
+    ui.slider.value = String(t);
+    ui.clock.textContent = `${clock(t, makespan)} / ${clock(makespan, makespan)}`;
+    gantt.setTime(t);
+    if (frames === 1) {
+      requestAnimationFrame(() => {
+        hook.firstFrameMs = performance.now();
+        resolveReady(hook.firstFrameMs);
+      });
+    }
+  }
+
+  function tick(now) {
+    scheduled = false;
+    if (playing) {
+      if (lastWall !== null) t = Math.min(makespan, t + ((now - lastWall) / 1000) * speed);
+      lastWall = now;
+      if (t >= makespan) setPlaying(false);
+    }
+    draw();
+    if (playing) request();
+  }
+
+  function request() {
+    if (!scheduled) { scheduled = true; requestAnimationFrame(tick); }
+  }
+
+  // --- controls -----------------------------------------------------------------------------
+  function seek(x) {
+    t = Math.min(Math.max(Number(x) || 0, 0), makespan);
+    lastWall = null;
+    request();
+  }
+  function setPlaying(on) {
+    if (on && t >= makespan) t = 0; // from the start again
+    playing = on;
+    lastWall = null;
+    ui.play.textContent = on ? 'pause' : 'play';
+    ui.play.setAttribute('aria-pressed', on ? 'true' : 'false');
+    request();
+  }
+  function setSpeed(x) {
+    const v = Math.min(Math.max(Number(x) || 1, 1), 100000);
+    speed = v;
+    if (![...ui.speed.options].some((o) => Number(o.value) === v)) {
+      const o = document.createElement('option');
+      o.value = String(v); o.textContent = `${v}x`;
+      ui.speed.appendChild(o);
+    }
+    ui.speed.value = String(v);
+    lastWall = null;
+  }
+  function step(dir) {
+    const eps = 1e-6 * Math.max(makespan, 1);
+    const next = dir > 0 ? eventTimes.find((e) => e > t + eps) : [...eventTimes].reverse().find((e) => e < t - eps);
+    if (next !== undefined) seek(next);
+    return next === undefined ? null : next;
+  }
+  function setColourMode(mode) {
+    if (!MODES.some(([m]) => m === mode)) throw new Error(`colour mode ${mode}: expected one of ${MODES.map(([m]) => m)}`);
+    view.setColours(mode, ctx);
+    ui.mode.value = mode;
+    const entries = legend(mode, ctx, geo);
+    if (view.showTravel) entries.push({ label: 'travel', colour: [(TRAVEL_COLOUR >> 16) & 255, (TRAVEL_COLOUR >> 8) & 255, TRAVEL_COLOUR & 255] });
+    ui.legend.replaceChildren(...entries.map((e) => {
+      const row = document.createElement('div');
+      row.className = 'legend-row';
+      const sw = document.createElement('span');
+      sw.className = 'swatch'; sw.style.background = css(e.colour);
+      row.append(sw, document.createTextNode(e.label));
+      return row;
+    }));
+  }
+  function selectFinding(i) {
+    const f = (meta.findings || [])[i];
+    if (!f) return;
+    selected = i;
+    view.showMarker(f.position);
+    view.lookAt(f.position);
+    findings.select(i);
+    seek(f.time_s);
+  }
+
+  ui.play.addEventListener('click', () => setPlaying(!playing));
+  ui.speed.addEventListener('change', () => setSpeed(ui.speed.value));
+  ui.slider.addEventListener('input', () => seek(ui.slider.value));
+  ui.prev.addEventListener('click', () => step(-1));
+  ui.next.addEventListener('click', () => step(1));
+  ui.mode.addEventListener('change', () => setColourMode(ui.mode.value));
+  ui.travel.addEventListener('change', () => { view.setTravel(ui.travel.checked); setColourMode(view.colourMode); });
+  ui.outlines.addEventListener('change', () => view.setOutlines(ui.outlines.checked));
+  const layers = () => {
+    let lo = Number(ui.layerLo.value), hi = Number(ui.layerHi.value);
+    if (lo > hi) { if (document.activeElement === ui.layerLo) ui.layerHi.value = String(hi = lo); else ui.layerLo.value = String(lo = hi); }
+    ui.layerLabel.textContent = `z ${lo.toFixed(1)} - ${hi.toFixed(1)} mm`;
+    view.setLayers(lo, hi);
+  };
+  ui.layerLo.addEventListener('input', layers);
+  ui.layerHi.addEventListener('input', layers);
+  for (const [b, w] of [[ui.reset, 'reset'], [ui.top, 'top'], [ui.front, 'front'], [ui.side, 'side']]) {
+    b.addEventListener('click', () => view.resetView(w));
+  }
+  ui.setLayerRange(0, Math.max(view.partBox.max.z, header.hi[2]), Math.min(...(header.heights.length ? header.heights : [0.2])));
+  ui.gridLabel.textContent = `grid ${view.gridStep >= 1000 ? `${view.gridStep / 1000} m` : `${view.gridStep} mm`}`;
+  new ResizeObserver(() => { view.resize(); request(); }).observe(ui.view);
+  window.addEventListener('keydown', (e) => {
+    if (e.target && ['INPUT', 'SELECT', 'TEXTAREA'].includes(e.target.tagName) && e.target.type !== 'range') return;
+    if (e.key === ' ') { e.preventDefault(); setPlaying(!playing); }
+  });
+
+  const th = header.thinned;
+  const notes = [];
+  if (th) notes.push(`Showing ${th.shown.toLocaleString('en')} of ${th.total.toLocaleString('en')} material segments, thinned evenly: the plan has more than this page can draw.`);
+  if (header.travel_thinned) notes.push(`Travel: ${header.travel_thinned.shown.toLocaleString('en')} of ${header.travel_thinned.total.toLocaleString('en')} moves shown.`);
+  if (notes.length) { ui.notice.hidden = false; ui.notice.textContent = notes.join(' '); }
+
+  // --- the test hook (tests/test_viewer_browser.py, benchmarks) --------------------------------
+  Object.assign(hook, {
+    makespan,
+    time: () => t,
+    seek: (x) => { seek(x); },
+    play: () => setPlaying(true),
+    pause: () => setPlaying(false),
+    playing: () => playing,
+    setSpeed,
+    speed: () => speed,
+    nextEvent: () => step(1),
+    prevEvent: () => step(-1),
+    setColourMode,
+    colourMode: () => view.colourMode,
+    robotState: (name) => {
+      const i = geo.robots.findIndex((r) => r.name === name);
+      if (i < 0) return null;
+      const s = robotAt(i, t);
+      return { position: s.position, state: s.state };
+    },
+    frames: () => frames,
+    selectedFinding: () => selected,
+    selectFinding,
+    thinned: () => (th ? { shown: th.shown, total: th.total } : null),
+  });
+  hook._debug = { view, geo, timings };
+  setSpeed(speed);
+  setColourMode('robot');
+  request();
+}
+
+start().catch((e) => noteError((e && (e.stack || e.message)) || e));

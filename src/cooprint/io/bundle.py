@@ -63,7 +63,9 @@ SIM_FORMAT = "cooprint-sim/"
 #: Folders of a bundle: cooprint writes into them, so a plain file there is in its way.
 BUNDLE_FOLDERS = ("chunks", "robots", "sim")
 #: The names of the derived outputs cooprint writes in ``sim/``.
-SIM_NAMES = re.compile(r"summary\.json|frames\.npz|gantt\.png|snapshot(_\d+s)?\.png|animation\.(mp4|gif)")
+SIM_NAMES = re.compile(r"summary\.json|frames\.npz|gantt\.png|snapshot(_\d+s)?\.png|animation\.(mp4|gif)|viewer\.html")
+#: The first bytes of cooprint's ``sim/viewer.html`` (a file of that name without them is the user's).
+VIEWER_MARKER = b"<!-- cooprint-viewer/"
 _BUNDLE_NAMES = re.compile(r"job\.json|chunks\.png|chunks/(C|[LR]\d+)\.stl|robots/([A-Z]|R\d+)\.(coop|gcode)(\.gz)?")
 #: job.json larger than this is not read to recognise a bundle (a marker is small).
 _MARKER_LIMIT = 256 << 20
@@ -71,7 +73,7 @@ _MARKER_LIMIT = 256 << 20
 Notice = Callable[[str], None]
 
 
-def _read_json_object(path: Path) -> dict | None:
+def read_json_object(path: Path) -> dict | None:
     """The JSON object in regular file ``path``, or None (missing, special, huge, not JSON)."""
     try:
         st = os.stat(path)
@@ -85,7 +87,7 @@ def _read_json_object(path: Path) -> dict | None:
 
 def bundle_record(folder: str | Path) -> dict | None:
     """The ``job.json`` record if ``folder`` is a cooprint bundle, else None."""
-    record = _read_json_object(Path(folder) / "job.json")
+    record = read_json_object(Path(folder) / "job.json")
     if record is not None and str(record.get("format", "")).startswith(BUNDLE_FORMAT):
         return record
     return None
@@ -102,7 +104,7 @@ def is_sim_folder(folder: str | Path) -> bool:
     folder = Path(os.path.abspath(folder))
     if folder.name == "sim" and is_bundle(folder.parent):
         return True
-    summary = _read_json_object(folder / "summary.json")
+    summary = read_json_object(folder / "summary.json")
     return summary is not None and str(summary.get("format", "")).startswith(SIM_FORMAT)
 
 
@@ -111,11 +113,25 @@ def is_derived_output(path: str | Path) -> bool:
     ``sim/``, and for ``summary.json`` one whose format is cooprint's): ``simulate`` and
     ``render`` rewrite those without ``--force``."""
     path = Path(os.path.abspath(path))
-    if path.name == "summary.json" and path.exists():  # the one derived output that says whose it is
-        summary = _read_json_object(path)
+    if path.name == "summary.json" and path.exists():  # the derived outputs that say whose they are
+        summary = read_json_object(path)
         if summary is None or not str(summary.get("format", "")).startswith(SIM_FORMAT):
             return False
+    if not _says_ours(path):
+        return False
     return bool(SIM_NAMES.fullmatch(path.name)) and is_sim_folder(path.parent)
+
+
+def _says_ours(path: Path) -> bool:
+    """False for a ``viewer.html`` that does not begin with cooprint's marker (a user's page of
+    that name, never replaced without ``--force``); True for every other path."""
+    if path.name != "viewer.html" or not os.path.lexists(path):
+        return True
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(VIEWER_MARKER)) == VIEWER_MARKER
+    except OSError:
+        return False
 
 
 def _listed_files(record: dict | None) -> set[str]:
@@ -139,6 +155,12 @@ def owned(rel: str, listed: Iterable[str] = ()) -> bool:
 
 def _sim_owned(rel: str, listed: Iterable[str] = ()) -> bool:
     return bool(SIM_NAMES.fullmatch(rel))
+
+
+def _owned_in(folder: Path, is_owned: Callable[..., bool]) -> Callable[..., bool]:
+    """``is_owned`` for the files of ``folder``, a ``viewer.html`` only when it is cooprint's
+    (:func:`_says_ours`): a user's page of that name is kept."""
+    return lambda rel, listed=(): is_owned(rel, listed) and _says_ours(folder / rel)
 
 
 def check_destination(out: str | Path, force: bool = False, inputs: Iterable[str | Path] = (),
@@ -264,7 +286,7 @@ def atomic_dir(out: str | Path, force: bool = False, *, inputs: Iterable[str | P
         check_interrupt()  # a Ctrl-C some library swallowed: not committed
         with deferred_sigint():
             if in_place:
-                kept = _swap_in(new, p, tmp / "old", _sim_owned if sim else owned, listed,
+                kept = _swap_in(new, p, tmp / "old", _owned_in(p, _sim_owned if sim else owned), listed,
                                 () if sim else BUNDLE_FOLDERS)
             else:
                 _relax_permissions(tmp)

@@ -518,8 +518,9 @@ def _timelines(prep: dict) -> tuple[dict[str, Timeline], list[Finding]]:
 
 
 #: The per-command columns a robot timed from pieces keeps (:func:`schedule_pieces`): what the
-#: timeline's resolution, the checks and the pictures read of a program after it is timed.
-KEPT_COLUMNS = ("kind", "width", "height", "chunk", "event")
+#: timeline's resolution, the checks and the pictures read of a program after it is timed (the
+#: paths' roles: for the viewer's colours per role).
+KEPT_COLUMNS = ("kind", "role", "width", "height", "chunk", "event")
 
 
 def schedule_pieces(robots: list[SimRobot], pieces: dict[str, Callable[[], Iterable[Program]]],
@@ -530,7 +531,7 @@ def schedule_pieces(robots: list[SimRobot], pieces: dict[str, Callable[[], Itera
     ``room``: at least as many commands as a robot's program holds, by name, where known, so that
     its columns grow in place): the same timelines and findings to the last bit, without the
     whole programs. Returns the robots with programs that keep only :data:`KEPT_COLUMNS` (the
-    kinds an array, the others :class:`Runs`; their targets, roles and layers are constant
+    kinds an array, the others :class:`Runs`; their targets and layers are constant
     arrays that take no memory: ``xyz`` NaN), which
     every check and picture reads, but which cannot be timed again (a perturbed or accelerated
     run reads the programs whole)."""
@@ -607,8 +608,8 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
         raise ValueError(f"robot {r.name}: a program timed piece by piece needs its start")
     room = max(room, 1)
     kind = np.empty(room, np.uint8)  # changes nearly every command: an array
-    cols = {"width": _RunsBuilder(np.float64), "height": _RunsBuilder(np.float64), "chunk": _RunsBuilder(np.int16),
-            "event": _RunsBuilder(np.int32)}  # change seldom: runs
+    cols = {"role": _RunsBuilder(np.uint8), "width": _RunsBuilder(np.float64), "height": _RunsBuilder(np.float64),
+            "chunk": _RunsBuilder(np.int16), "event": _RunsBuilder(np.int32)}  # change seldom: runs
     # the moves' command indices in 4 bytes while they fit (in 8 past 2^31 commands)
     ends, mv = np.empty((room + 1, 3)), np.empty(room, np.int32 if room < INT32_COMMANDS else np.int64)
     on, dur, starts = np.empty(room, bool), np.empty(room), np.empty(room + 1)
@@ -632,6 +633,7 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
             mv = mv.astype(np.int64)
         remap = np.array([chunks.index(c) for c in piece.chunks] + [-1], dtype=np.int16)
         kind[at:at + n] = piece.kind
+        cols["role"].add(piece.role)
         cols["width"].add(piece.width)
         cols["height"].add(piece.height)
         cols["chunk"].add(remap[piece.chunk])  # -1 indexes the appended -1
@@ -651,8 +653,7 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     starts.resize(k + 1, refcheck=False)
     for a in (mv, on, dur):
         a.resize(k, refcheck=False)
-    program = Program(r.name, kind, _constant(np.float64, np.nan, (at, 3)), _constant(np.uint8, 0, (at,)),
-                      cols["width"], _constant(np.int32, -1, (at,)), cols["height"], cols["chunk"], cols["event"],
+    program = Program(r.name, kind, _constant(np.float64, np.nan, (at, 3)), cols["role"], cols["width"], _constant(np.int32, -1, (at,)), cols["height"], cols["chunk"], cols["event"],
                       chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
     r2 = replace(r, program=program)
     return r2, (r2, ends[:-1], ends[1:], on, None, dur, mv, starts, before, sync)  # lengths: computed when asked
