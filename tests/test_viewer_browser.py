@@ -25,8 +25,9 @@ from cooprint.render.palette import robot_colour
 SETTINGS = [f"--set={k}={v}" for k, v in COARSE.items()]
 #: Hue tolerance (degrees) and least saturation of a pixel counted as a robot's colour under shading.
 HUE_TOL, MIN_SAT = 12.0, 0.25
-#: Least number of a robot's pixels for its colour to count as present in the 1280 x 900 page.
-MIN_PIXELS = 40
+#: Least number of pixels (of the 1280 x 900 page's 3D view) of a robot's outline, and of its
+#: material (the small test plan's: thousands of pixels each).
+OUTLINE_PIXELS, MATERIAL_PIXELS = 500, 1000
 
 
 def _cli(*args) -> None:
@@ -52,9 +53,9 @@ def gcode_view(tmp_path_factory, viewer_bundle):
     root = tmp_path_factory.mktemp("gcode")
     to_trimesh(box(30, 30, 4)).export(root / "box.stl")
     _cli("slice", root / "box.stl", "--out", root / "part.gcode", "-q", *SETTINGS)
-    _cli("simulate", root / "part.gcode", "--out", root / "sim", "-q")
-    _cli("view", root / "sim")
-    return root / "sim"
+    _cli("simulate", root / "part.gcode", "--out", root / "part", "-q")
+    _cli("view", root / "part")
+    return root / "part"
 
 
 @pytest.fixture(scope="module")
@@ -66,9 +67,9 @@ def view(plan, chromium):
 
 
 def settle(view) -> None:
-    """Wait until the page has drawn two more frames (whatever was changed is on screen)."""
-    n = view.hook("c.frames()")
-    view.page.wait_for_function(f"() => window.cooprint.frames() >= {n + 2}", timeout=20_000)
+    """Wait two animation frames: the page draws on the first after a change (it draws only when
+    something changed), so whatever was changed is then on screen."""
+    view.page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
 
 
 def shot(view) -> np.ndarray:
@@ -102,12 +103,17 @@ def test_the_page_loads_offline_and_draws_every_robot_in_its_colour(view, plan):
     makespan = view.hook("c.makespan")
     assert makespan == pytest.approx(summary["makespan_s"], rel=1e-6)
     assert 0 < view.hook("c.firstFrameMs") < 60_000
+    view.hook("(c.pause(), c.seek(0))")
+    start = shot(view)
     view.hook(f"c.seek({makespan})")
-    img = shot(view)
-    assert img.std() > 8, "the 3D view is blank"
+    end = shot(view)
+    assert end.std() > 8, "the 3D view is blank"
     for i, robot in enumerate(summary["robots"]):
-        n = colour_pixels(img, robot_colour(i))
-        assert n >= MIN_PIXELS, f"robot {robot['name']}'s colour {robot_colour(i)} is not in the picture ({n} px)"
+        outline, done = colour_pixels(start, robot_colour(i)), colour_pixels(end, robot_colour(i))
+        # at t = 0 the robot's outline (body, frame, printhead); at the end its material too
+        assert outline >= OUTLINE_PIXELS, f"robot {robot['name']}'s outline is not drawn in {robot_colour(i)}"
+        assert done - outline >= MATERIAL_PIXELS, \
+            f"robot {robot['name']}'s material is not drawn in its colour {robot_colour(i)} ({outline} -> {done} px)"
     view.assert_clean()
 
 
@@ -211,15 +217,27 @@ def test_travel_and_the_layer_range_change_the_picture(view, plan):
 
 
 def test_clicking_the_gantt_chart_seeks(view, plan):
+    makespan = plan[1]["makespan_s"]
+    meta = view.page.evaluate("() => JSON.parse(document.getElementById('cooprint-meta').textContent)")
     view.hook("(c.pause(), c.seek(0))")
-    gantt = view.page.locator("#gantt")
-    gantt.scroll_into_view_if_needed()
-    box_ = gantt.bounding_box()
-    times = []
+    plot = view.page.locator("#gantt .cp-gantt-plot")
+    plot.scroll_into_view_if_needed()
+    box_ = plot.bounding_box()
+    # the time axis (its lowest 24 px): a click goes to the time under it
+    axis = []
     for fraction in (0.4, 0.8):
-        view.page.mouse.click(box_["x"] + fraction * box_["width"], box_["y"] + box_["height"] / 2)
-        times.append(view.hook("c.time()"))
-    assert 0 < times[0] < times[1] <= plan[1]["makespan_s"], f"clicks on the Gantt chart went to {times}"
+        view.page.mouse.click(box_["x"] + fraction * box_["width"], box_["y"] + box_["height"] - 8)
+        axis.append(view.hook("c.time()"))
+    assert 0.2 * makespan < axis[0] < axis[1] < makespan, f"clicks on the Gantt chart's axis went to {axis}"
+    # a robot's bar (row i of n, over the axis): the start of the chunk it prints there
+    rows = len(meta["gantt"])
+    for i, row in enumerate(meta["gantt"]):
+        y = box_["y"] + 4 + (box_["height"] - 4 - 24) * (i + 0.5) / rows
+        view.page.mouse.click(box_["x"] + 0.8 * box_["width"], y)
+        t = view.hook("c.time()")
+        starts = [c[1] for c in row["chunks"]]
+        assert any(t == pytest.approx(s, abs=1e-6 * makespan) for s in starts), \
+            f"a click on robot {row['name']}'s bar went to {t} s, not to one of its chunks' starts {starts}"
     view.assert_clean()
 
 
@@ -234,9 +252,10 @@ def test_a_gcode_file_is_viewed_with_one_robot_and_no_outline(gcode_view, chromi
         page.hook(f"c.seek({page.hook('c.makespan')})")
         end = shot(page)
         assert page.hook(f"c.robotState({json.dumps(name)})")["state"] == "done"
-        assert colour_pixels(end, robot_colour(0)) >= MIN_PIXELS, "the printed part is not in the robot's colour"
-        # no body, frame or printhead drawn: at t = 0 (no material yet) at most the nozzle's marker
-        assert colour_pixels(start, robot_colour(0)) < 0.002 * start.shape[0] * start.shape[1]
+        assert colour_pixels(end, robot_colour(0)) >= MATERIAL_PIXELS, "the printed part is not in the robot's colour"
+        # no body, frame or printhead drawn (a placed robot's take thousands of pixels): at t = 0,
+        # before any material, hardly anything in the robot's colour
+        assert colour_pixels(start, robot_colour(0)) < OUTLINE_PIXELS / 5
         page.assert_clean()
     finally:
         page.close()
