@@ -97,6 +97,7 @@ def measure_page(html: Path, runs: int) -> dict:
                 if i < runs - 1:
                     context.close()
             result.update(playing(page, context))
+            result.update(process_peaks(browser))
             result["thinned"] = page.evaluate("() => window.cooprint.thinned()")
             result["blocked_requests"], result["page_errors"] = blocked, errors + page.evaluate(
                 "() => window.cooprint.errors || []")
@@ -148,6 +149,23 @@ def playing(page, context) -> dict:
             "js_heap_total_mb": metrics.get("JSHeapTotalSize", 0) / 2 ** 20}
 
 
+def process_peaks(browser) -> dict:
+    """Peak resident memory (MB, the kernel's VmHWM) of chromium's largest renderer process (the
+    page's: its typed arrays live outside the JS heap) and of its GPU process (the buffers, drawn by
+    SwiftShader in software)."""
+    peaks: dict[str, float] = {}
+    for proc in browser.new_browser_cdp_session().send("SystemInfo.getProcessInfo")["processInfo"]:
+        key = {"renderer": "renderer_peak_mb", "GPU": "gpu_peak_mb"}.get(proc["type"])
+        try:
+            status = Path(f"/proc/{proc['id']}/status").read_text()
+        except OSError:  # ended meanwhile
+            continue
+        hwm = next((int(line.split()[1]) for line in status.splitlines() if line.startswith("VmHWM:")), 0)
+        if key:
+            peaks[key] = max(peaks.get(key, 0.0), hwm / 1024)
+    return peaks
+
+
 def verdicts(row: dict) -> list[str]:
     """Each of the mesh's targets, met or missed, with the figure."""
     goal = TARGETS.get(Path(row["mesh"]).name.split(".")[0], {})
@@ -177,20 +195,22 @@ def render(result: dict) -> str:
         "`cooprint.firstFrameMs` (from navigation start to the first frame drawn), median of "
         f"{plural(result['runs'], 'fresh page')}; frames/s = `cooprint.frames()` counted over {FPS_SECONDS:g} s of "
         f"playing at the speed that plays the whole plan in {PLAY_SECONDS:g} s (the material grows on every "
-        "frame), from a fifth of the plan on; JS heap = DevTools' `JSHeapUsedSize` after playing. Page size in MB "
-        "of 10⁶ bytes.",
+        "frame), from a fifth of the plan on; JS heap = DevTools' `JSHeapUsedSize` after playing (the geometry's "
+        "typed arrays are outside it), renderer and GPU = the peak resident memory of chromium's page process and of "
+        "its GPU process (SwiftShader draws in software, so the buffers are in RAM). Page size in MB of 10⁶ bytes; "
+        "memory in MB of 2²⁰ bytes.",
         "",
         "**Targets (issue 16):** nefertiti's two-robot plan: page <= 40 MB, first frame <= 10 s, >= 20 frames/s "
         "playing; benchy's: page <= 5 MB, first frame <= 3 s.",
         "",
         "| mesh | commands | makespan h | page MB | view s | view peak MB | first frame s | load s | frames/s "
-        "| JS heap MB | thinned (shown / total) | errors on the page |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|",
+        "| JS heap MB | renderer peak MB | GPU process peak MB | thinned (shown / total) | errors on the page |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|",
     ]
     notes = []
     for row in result["meshes"]:
         if "error" in row:
-            lines.append(f"| `{row['mesh']}` | failed: {row['error']} |||||||||||")
+            lines.append(f"| `{row['mesh']}` | failed: {row['error']} |||||||||||||")
             continue
         page, view = row.get("browser", {}), row["view"]
         if "error" in page:
@@ -204,7 +224,8 @@ def render(result: dict) -> str:
             f"{fmt(view['wall_median_s'], '.2f')} | {fmt(view['peak_median_mb'], '.0f')} | "
             f"{fmt(page['first_frame_median_ms'] / 1000 if 'first_frame_median_ms' in page else None, '.2f')} | "
             f"{fmt(statistics.median(page['load_s']) if page.get('load_s') else None, '.2f')} | "
-            f"{fmt(page.get('fps'), '.1f')} | {fmt(page.get('js_heap_used_mb'), '.0f')} | {thin} | "
+            f"{fmt(page.get('fps'), '.1f')} | {fmt(page.get('js_heap_used_mb'), '.0f')} | "
+            f"{fmt(page.get('renderer_peak_mb'), '.0f')} | {fmt(page.get('gpu_peak_mb'), '.0f')} | {thin} | "
             f"{problems if 'fps' in page else '—'} |")
         for msg in page.get("page_errors", [])[:3] + page.get("blocked_requests", [])[:3]:
             notes.append(f"- `{row['mesh']}`: {msg}")
