@@ -45,8 +45,8 @@ def main() -> int:
             page.wait_for_function("() => window.cooprint && window.cooprint.ready", timeout=120_000)
             page.evaluate("() => window.cooprint.ready.then(() => true)")
             page.evaluate(f"() => {{ const c = window.cooprint; c.pause(); c.seek(c.makespan * {AT}); }}")
-            n = page.evaluate("() => window.cooprint.frames()")
-            page.wait_for_function(f"() => window.cooprint.frames() >= {n + 2}")
+            # the page draws on the animation frame after a change: two frames later it is on screen
+            page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
             png = page.screenshot(full_page=True)
             browser.close()
     OUT.parent.mkdir(exist_ok=True)
