@@ -100,10 +100,13 @@ def test_accelerated_runs_read_the_programs_whole(bundle):
 
 def test_cli_simulate_and_render_write_what_the_whole_programs_give(bundle, tmp_path, monkeypatch):
     """``cooprint simulate DIR --out OTHER`` (programs timed piece by piece) writes the summary
-    the whole programs give, byte for byte; ``render --at`` the same picture."""
+    the whole programs give, byte for byte (with the inputs it read); ``render --at`` the same
+    picture."""
     _small_pieces(monkeypatch, 5000)
     whole = simulate(load_inputs([str(bundle)]))
-    write_json(tmp_path / "expected.json", summary(whole))
+    # and what `cooprint view` needs to read the inputs again
+    inputs = {"paths": [str(bundle.resolve())], "manifest": None, "config": [], "accel": False}
+    write_json(tmp_path / "expected.json", summary(whole) | {"inputs": inputs})
     assert main(["simulate", str(bundle), "--out", str(tmp_path / "o"), "--quiet"]) in (0, 1)
     assert (tmp_path / "o" / "sim" / "summary.json").read_bytes() == (tmp_path / "expected.json").read_bytes()
     at = whole.makespan * 0.4

@@ -795,9 +795,9 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
     makespan), with ``viewer`` the interactive ``viewer.html`` (:mod:`cooprint.render.viewer`)
     and, with ``animation``, ``animation.mp4`` (20 s at 24 frames/s); returns the summary.
     cooprint's earlier derived outputs in ``sim/`` are replaced, other files kept (a
-    ``viewer.html`` that is not cooprint's is left as it is, and no viewer is written: a notice
-    says so). ``progress``: the stages ``read`` (bytes of the programs), ``timelines``,
-    ``checks`` and ``pictures``."""
+    ``viewer.html`` that is not cooprint's is left as it is, and no viewer is written: a
+    warning says so; so does one when the viewer's JavaScript is not built). ``progress``: the
+    stages ``read`` (bytes of the programs), ``timelines``, ``checks`` and ``pictures``."""
     from cooprint.io.bundle import check_sim_folder, is_derived_output
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import simulate, summary
@@ -813,7 +813,11 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
     if viewer:
         from cooprint.render.viewer import check_assets, write_viewer
 
-        check_assets()  # an unbuilt viewer refused before the work
+        try:
+            check_assets()
+        except UserError as exc:  # the plan is still simulated and drawn; `cooprint view` says what to do
+            warn(f"no viewer written: {exc}")
+            viewer = False
     inp = read_with_progress([str(out)], None, None, progress, programs=False)  # timed piece by piece
     result = simulate(inp, progress=progress)
     record = summary(result)

@@ -16,7 +16,7 @@ html, body { margin: 0; height: 100%; font: 13px/1.35 system-ui, -apple-system, 
 #view { position: absolute; inset: 0; background: #fff; }
 #view canvas { display: block; }
 #grid-label { position: absolute; left: 8px; bottom: 6px; color: #555; background: rgba(255,255,255,.8); padding: 1px 4px; pointer-events: none; }
-#notice { position: absolute; left: 8px; top: 8px; right: 8px; background: #fff6d5; border: 1px solid #e0c060; padding: 4px 8px; pointer-events: none; }
+#notice { position: absolute; left: 8px; top: 8px; right: 230px; background: #fff6d5; border: 1px solid #e0c060; padding: 4px 8px; pointer-events: none; }
 #views { position: absolute; right: 8px; top: 8px; display: flex; gap: 4px; }
 #side { grid-row: 2 / 4; grid-column: 2; overflow: auto; background: #fff; border-left: 1px solid #ddd; padding: 8px; }
 #side h2 { font-size: 13px; margin: 10px 0 4px; }

@@ -28,19 +28,12 @@ console.error = (...args) => { errors.push(args.map(String).join(' ')); consoleE
 
 const SPEEDS = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000, 20000, 50000, 100000];
 
-const timings = {};
-const mark = (name) => { timings[name] = performance.now(); };
-
 async function start() {
-  mark('start');
   const meta = readMeta();
   const header = meta.geometry;
   const ui = layout(document.body, meta, SPEEDS);
-  mark('layout');
   const geo = await readGeometry(header);
-  mark('geometry');
   const view = new View(ui.view, meta, geo);
-  mark('view');
   const ctx = { robots: meta.robots, header };
   const makespan = meta.makespan;
 
@@ -112,19 +105,24 @@ async function start() {
   const findings = createFindings(ui.findings, meta, { onSelect: (f, i) => selectFinding(i) });
   view.onInvalidate = () => request();
 
+  // One frame at t; returns whether the material is drawn up to t (a large change is drawn over
+  // a few frames). The first complete frame resolves cooprint.ready.
+  let shown = false;
   function draw() {
     view.placeRobots(geo.robots.map((_, i) => robotAt(i, t)));
-    view.render(t);
+    const complete = view.render(t);
     frames++;
     ui.slider.value = String(t);
     ui.clock.textContent = `${clock(t, makespan)} / ${clock(makespan, makespan)}`;
     gantt.setTime(t);
-    if (frames === 1) {
-      requestAnimationFrame(() => {
+    if (complete && !shown) {
+      shown = true;
+      requestAnimationFrame(() => { // once it is on the screen
         hook.firstFrameMs = performance.now();
         resolveReady(hook.firstFrameMs);
       });
     }
+    return complete;
   }
 
   function tick(now) {
@@ -134,8 +132,8 @@ async function start() {
       lastWall = now;
       if (t >= makespan) setPlaying(false);
     }
-    draw();
-    if (playing) request();
+    const complete = draw();
+    if (playing || !complete) request();
   }
 
   function request() {
@@ -177,7 +175,10 @@ async function start() {
     if (!MODES.some(([m]) => m === mode)) throw new Error(`colour mode ${mode}: expected one of ${MODES.map(([m]) => m)}`);
     view.setColours(mode, ctx);
     ui.mode.value = mode;
-    const entries = legend(mode, ctx, geo);
+    showLegend();
+  }
+  function showLegend() {
+    const entries = legend(view.colourMode, ctx, geo);
     if (view.showTravel) entries.push({ label: 'travel', colour: [(TRAVEL_COLOUR >> 16) & 255, (TRAVEL_COLOUR >> 8) & 255, TRAVEL_COLOUR & 255] });
     ui.legend.replaceChildren(...entries.map((e) => {
       const row = document.createElement('div');
@@ -204,7 +205,7 @@ async function start() {
   ui.prev.addEventListener('click', () => step(-1));
   ui.next.addEventListener('click', () => step(1));
   ui.mode.addEventListener('change', () => setColourMode(ui.mode.value));
-  ui.travel.addEventListener('change', () => { view.setTravel(ui.travel.checked); setColourMode(view.colourMode); });
+  ui.travel.addEventListener('change', () => { view.setTravel(ui.travel.checked); showLegend(); });
   ui.outlines.addEventListener('change', () => view.setOutlines(ui.outlines.checked));
   const layers = () => {
     let lo = Number(ui.layerLo.value), hi = Number(ui.layerHi.value);
@@ -227,7 +228,7 @@ async function start() {
 
   const th = header.thinned;
   const notes = [];
-  if (th) notes.push(`Showing ${th.shown.toLocaleString('en')} of ${th.total.toLocaleString('en')} material segments, thinned evenly: the plan has more than this page can draw.`);
+  if (th) notes.push(`Thinned: showing ${th.shown.toLocaleString('en')} of ${th.total.toLocaleString('en')} material segments, evenly spread: the plan has more than this page holds.`);
   if (header.travel_thinned) notes.push(`Travel: ${header.travel_thinned.shown.toLocaleString('en')} of ${header.travel_thinned.total.toLocaleString('en')} moves shown.`);
   if (notes.length) { ui.notice.hidden = false; ui.notice.textContent = notes.join(' '); }
 
@@ -256,7 +257,6 @@ async function start() {
     selectFinding,
     thinned: () => (th ? { shown: th.shown, total: th.total } : null),
   });
-  hook._debug = { view, geo, timings };
   setSpeed(speed);
   setColourMode('robot');
   request();

@@ -8,14 +8,18 @@
 // segments ended since the last one; the target is copied to the screen with its depth and the
 // moving parts (robots, the segments under way, the marker) are drawn over it, hidden where
 // material is in front. A camera move, a filter or colour change, or going back in time redraws
-// the target whole (while the camera moves, from a coarse subset when the plan is large).
+// the target whole, a share a frame (while the camera moves, a coarse picture at half the
+// resolution, from every k-th layer of a large plan).
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { colourTable, TRAVEL_COLOUR } from './colours.js';
 
 // While the camera moves, at most this many segments are drawn a frame (the rest when it rests).
-const COARSE_SEGMENTS = 250_000;
+const COARSE_SEGMENTS = 60_000;
+const COARSE_MIN = 30_000;
+// A frame adds at most this many segments to the target (about 0.1-0.2 s of software GL).
+const FRAME_SEGMENTS = 200_000;
 
 
 // A box's 12 edges over the unit cube [0,1]^3, and its 6 faces (for a translucent fill).
@@ -65,10 +69,16 @@ export class View {
     this.controls = new OrbitControls(this.camera, renderer.domElement);
     this.controls.enableDamping = false;
     this.controls.screenSpacePanning = true;
+    // the camera moves from the first change until 250 ms after the last (a wheel turn is many
+    // small changes); meanwhile frames are coarse, then the whole picture is drawn again
     this.moving = false;
-    this.controls.addEventListener('start', () => { this.moving = true; });
-    this.controls.addEventListener('end', () => { this.moving = false; this.invalidate(); });
-    this.controls.addEventListener('change', () => this.invalidate());
+    this.controls.addEventListener('change', () => {
+      if (this.placing) return; // the view buttons and the findings place the camera: no motion
+      this.moving = true;
+      clearTimeout(this.still);
+      this.still = setTimeout(() => { this.moving = false; this.invalidate(); }, 250);
+      this.invalidate();
+    });
 
     this.accScene = new THREE.Scene(); // drawn into the target: grid, outlines
     this.liveScene = new THREE.Scene(); // drawn each frame over it
@@ -81,7 +91,7 @@ export class View {
     this.buildComposite();
     this.showTravel = false; // as slicers show a preview: travel on demand
     this.colourMode = 'robot';
-    this.acc = null; // what the target holds: {t, counts, travel counts, coarse}
+    this.acc = null; // what the target holds: {t, counts, tcounts} (material and travel drawn)
     this.onInvalidate = () => {};
     this.resize();
     this.resetView('reset');
@@ -179,8 +189,9 @@ export class View {
       if (this.meta.placed && rec.outline) {
         view.body = part(edges, line);
         view.bodyFill = new THREE.Mesh(faces, new THREE.MeshBasicMaterial({ color: colour, transparent: true,
-                                                                            opacity: 0.12, depthWrite: false }));
+                                                                            opacity: 0.1, depthWrite: false }));
         group.add(view.bodyFill);
+        view.column = part(edges, line);
         view.frame = part(edges, line);
         view.head = part(edges, line);
         view.mast = part(new THREE.BufferGeometry().setAttribute('position',
@@ -229,15 +240,16 @@ export class View {
   // Copy a target's colour, depth and stencil to another, or to the canvas (null): a blit of the
   // rectangle [x0, y0, x1, y1] (pixels from the bottom left; all by default). Returns whether it
   // worked (a canvas whose depth format differs from the target's refuses it).
-  blit(src, dst, depth, rect = null) {
+  blit(src, dst, depth, rect = null, scaled = false) {
     const gl = this.renderer.getContext(), props = this.renderer.properties;
     const fb = (t) => (t ? props.get(t).__webglFramebuffer : null);
     const [x0, y0, x1, y1] = rect || [0, 0, src.width, src.height];
+    const [w, h] = scaled ? [this.target.width, this.target.height] : [x1, y1]; // a coarse frame: stretched
     const check = this.direct === undefined; // asking for errors waits for the GPU: only the first time
     if (check) gl.getError();
     gl.bindFramebuffer(gl.READ_FRAMEBUFFER, fb(src));
     gl.bindFramebuffer(gl.DRAW_FRAMEBUFFER, fb(dst));
-    gl.blitFramebuffer(x0, y0, x1, y1, x0, y0, x1, y1,
+    gl.blitFramebuffer(x0, y0, x1, y1, scaled ? 0 : x0, scaled ? 0 : y0, w, h,
                        gl.COLOR_BUFFER_BIT | (depth ? gl.DEPTH_BUFFER_BIT : 0), gl.NEAREST);
     const ok = !check || gl.getError() === gl.NO_ERROR;
     this.renderer.resetState();
@@ -249,23 +261,24 @@ export class View {
   // copy covers just where the moving parts were (their old places restored from the target),
   // the new material is drawn onto the canvas too, then the moving parts where they are now.
   // A canvas that cannot take the target's depth goes through a second target (two copies).
-  present(t, counts, full, added) {
+  present(t, counts, full, added, source = this.target) {
     const renderer = this.renderer;
+    const scaled = source !== this.target;
     this.updateLive(t, counts);
     if (this.direct !== false) {
       renderer.setRenderTarget(null);
-      const whole = full || !this.liveRect;
-      const ok = this.blit(this.target, null, true, whole ? null : this.liveRect);
+      const whole = full || !this.liveRect || scaled;
+      const ok = this.blit(source, null, true, whole ? null : this.liveRect, scaled);
       if (this.direct === undefined) this.direct = ok;
       if (ok) {
-        if (!whole && added.children.length) renderer.render(added, this.camera);
+        if (!whole && added && added.children.length) renderer.render(added, this.camera);
         renderer.render(this.liveScene, this.camera);
-        this.liveRect = this.screenRect();
+        this.liveRect = scaled ? null : this.screenRect();
         return;
       }
     }
     if (!this.frameTarget) this.frameTarget = this.makeTarget();
-    this.blit(this.target, this.frameTarget, true);
+    this.blit(source, this.frameTarget, true, null, scaled);
     renderer.setRenderTarget(this.frameTarget);
     renderer.render(this.liveScene, this.camera);
     renderer.setRenderTarget(null);
@@ -300,10 +313,10 @@ export class View {
             Math.min(h, Math.ceil(y1) + m)];
   }
 
-  makeTarget() {
+  makeTarget(divisor = 1) {
     const px = new THREE.Vector2();
     this.renderer.getDrawingBufferSize(px);
-    const t = new THREE.WebGLRenderTarget(px.x, px.y, { depthBuffer: true, stencilBuffer: true,
+    const t = new THREE.WebGLRenderTarget(Math.ceil(px.x / divisor), Math.ceil(px.y / divisor), { depthBuffer: true, stencilBuffer: true,
                                                         minFilter: THREE.NearestFilter, magFilter: THREE.NearestFilter });
     this.renderer.setRenderTarget(t); // made now: its framebuffer exists for the blits
     this.renderer.setRenderTarget(null);
@@ -318,11 +331,28 @@ export class View {
     this.renderer.setSize(w, h);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
-    for (const t of [this.target, this.frameTarget]) if (t) t.dispose();
+    for (const t of [this.target, this.frameTarget, this.coarseTarget]) if (t) t.dispose();
     this.target = this.makeTarget();
     this.frameTarget = null;
+    this.coarseTarget = null;
     this.liveRect = null; // the canvas is cleared: copied whole next
     this.invalidate();
+  }
+
+  // Lines have no surface to light: each segment is shaded by how its horizontal normal (across
+  // it) faces a light from the front right, so that walls read as lit from one side; most keep
+  // their full colour (the palette's exact colour on screen), the others are darker, down to 55 %.
+  shading(m) {
+    if (m.shade) return m.shade;
+    const out = new Float32Array(m.count), span = this.geo.span, L = [0.8, -0.6];
+    for (let s = 0; s < m.count; s++) {
+      const a = m.start[s] * 3;
+      const dx = (m.pos[a + 3] - m.pos[a]) * span[0], dy = (m.pos[a + 4] - m.pos[a + 1]) * span[1];
+      const len = Math.hypot(dx, dy);
+      out[s] = len > 0 ? Math.min(1, 0.55 + 0.7 * Math.abs(-dy * L[0] + dx * L[1]) / len) : 1;
+    }
+    m.shade = out;
+    return out;
   }
 
   setColours(mode, colours) {
@@ -332,9 +362,12 @@ export class View {
       const out = attr.array;
       const table = colourTable(mode, r.index, r.data.material, colours);
       const per = table.per;
+      const shade = this.shading(r.data.material);
       for (let s = 0; s < r.data.material.count; s++) {
-        const c = per(s), o = s * 6;
-        out[o] = out[o + 3] = c[0]; out[o + 1] = out[o + 4] = c[1]; out[o + 2] = out[o + 5] = c[2];
+        const c = per(s), o = s * 6, f = shade[s];
+        out[o] = out[o + 3] = Math.round(c[0] * f);
+        out[o + 1] = out[o + 4] = Math.round(c[1] * f);
+        out[o + 2] = out[o + 5] = Math.round(c[2] * f);
       }
       attr.needsUpdate = true;
       r.coarse = null;
@@ -366,8 +399,7 @@ export class View {
     this.controls.target.copy(c);
     this.camera.position.copy(c).addScaledVector(dir, d);
     this.camera.lookAt(c);
-    this.controls.update();
-    this.invalidate();
+    this.place();
   }
 
   lookAt(point) { // keep the camera's direction and distance, centred on point
@@ -376,7 +408,13 @@ export class View {
     offset.setLength(close);
     this.controls.target.set(...point);
     this.camera.position.copy(this.controls.target).add(offset);
+    this.place();
+  }
+
+  place() { // the camera set from code: one full frame, not a motion
+    this.placing = true;
     this.controls.update();
+    this.placing = false;
     this.invalidate();
   }
 
@@ -387,13 +425,15 @@ export class View {
   }
 
   // --- drawing ----------------------------------------------------------------------------
-  // While the camera moves, a large plan is drawn from every k-th layer (its heights ranked), at
-  // most COARSE_SEGMENTS segments: the part keeps its shape, a frame takes a fraction of a full one.
+  // While the camera moves, a plan of more than COARSE_MIN segments is drawn at half the
+  // resolution (a quarter of the pixels: long lines cost by their pixels) and, above
+  // COARSE_SEGMENTS, from every k-th layer (its heights ranked): the part keeps its shape, a
+  // frame takes a fraction of a full one. Returns k (0: no coarse frames).
   coarseLayers() {
     if (this.coarseK !== undefined) return this.coarseK;
     const total = this.robots.reduce((a, x) => a + x.data.material.count, 0);
-    this.coarseK = 0;
-    if (total <= COARSE_SEGMENTS) return 0;
+    this.coarseK = total > COARSE_MIN ? 1 : 0;
+    if (total <= COARSE_SEGMENTS) return this.coarseK;
     const perZ = new Float64Array(65536);
     for (const r of this.robots) {
       const m = r.data.material;
@@ -412,7 +452,7 @@ export class View {
 
   coarseOf(r) {
     const k = this.coarseLayers();
-    if (!k) return null;
+    if (k === 1) return { below: (c) => c, object: r.material };
     if (!r.coarse) {
       const m = r.data.material, rank = this.zRank;
       let n = 0;
@@ -440,45 +480,81 @@ export class View {
     return r.coarse;
   }
 
-  // Draw the frame at time t: returns the segments drawn into the target this frame.
+  // A frame while the camera moves: the material up to t from the coarse subset, at half the
+  // resolution, stretched onto the canvas; the target is drawn again once the camera rests.
+  renderCoarse(t, want) {
+    const renderer = this.renderer;
+    if (!this.coarseTarget) this.coarseTarget = this.makeTarget(2);
+    renderer.setRenderTarget(this.coarseTarget);
+    renderer.clear(true, true, true);
+    renderer.render(this.accScene, this.camera);
+    const scene = new THREE.Scene();
+    const used = [];
+    this.robots.forEach((r, i) => {
+      const c = this.coarseOf(r), b = c.below(want[i]);
+      if (b > 0) { c.object.geometry.setDrawRange(0, b * 2); scene.add(c.object); used.push(c.object); }
+    });
+    if (scene.children.length) renderer.render(scene, this.camera);
+    used.forEach((o) => o.removeFromParent());
+    this.acc = null;
+    this.present(t, want, true, null, this.coarseTarget);
+  }
+
+  // Draw the frame at time t. The target catches up with t by at most FRAME_SEGMENTS segments a
+  // frame (the material up to an earlier time t' first: the print grows to t over a few frames,
+  // and the page answers meanwhile); returns whether it has (else the caller draws again).
   render(t) {
     const renderer = this.renderer;
-    const coarse = this.moving && this.robots.some((r) => this.coarseOf(r));
-    const counts = this.robots.map((r) => r.data.material.ended(t));
-    const tcounts = this.robots.map((r) => (this.showTravel ? r.data.travel.ended(t) : 0));
-    let drawn = 0;
-    const full = !this.acc || this.acc.coarse !== coarse || counts.some((c, i) => c < this.acc.counts[i])
-      || tcounts.some((c, i) => c < this.acc.tcounts[i]);
+    const want = this.robots.map((r) => r.data.material.ended(t));
+    if (this.moving && this.coarseLayers()) {
+      this.renderCoarse(t, want);
+      return true;
+    }
+    const full = !this.acc || want.some((c, i) => c < this.acc.counts[i])
+      || this.robots.some((r, i) => this.showTravel && r.data.travel.ended(t) < this.acc.tcounts[i])
+      || (!this.showTravel && this.acc.tcounts.some((c) => c > 0));
     renderer.setRenderTarget(this.target);
     if (full) {
       renderer.clear(true, true, true);
       renderer.render(this.accScene, this.camera);
+      this.acc = { t: 0, counts: this.robots.map(() => 0), tcounts: this.robots.map(() => 0) };
     }
-    const scene = new THREE.Scene();
+    const acc = this.acc;
+    const have = acc.counts.reduce((a, b) => a + b, 0);
+    const ended = (x) => this.robots.reduce((a, r) => a + r.data.material.ended(x), 0);
+    let upTo = t;
+    if (ended(t) - have > FRAME_SEGMENTS) { // the latest time within the frame's share
+      let lo = acc.t, hi = t;
+      for (let k = 0; k < 60 && hi - lo > 1e-9 * Math.max(t, 1); k++) {
+        const mid = (lo + hi) / 2;
+        if (ended(mid) - have > FRAME_SEGMENTS) hi = mid; else lo = mid;
+      }
+      upTo = lo;
+    }
+    const counts = this.robots.map((r) => r.data.material.ended(upTo));
+    const tcounts = this.robots.map((r) => (this.showTravel ? r.data.travel.ended(upTo) : 0));
+    const added = new THREE.Scene();
+    let drawn = 0;
     this.robots.forEach((r, i) => {
-      const from = full ? 0 : this.acc.counts[i], to = counts[i];
-      if (coarse && r.coarse) {
-        const a = r.coarse.below(from), b = r.coarse.below(to);
-        if (b > a) { r.coarse.object.geometry.setDrawRange(a * 2, (b - a) * 2); scene.add(r.coarse.object); drawn += b - a; }
-      } else if (to > from) {
+      const from = acc.counts[i], to = counts[i];
+      if (to > from) {
         r.material.geometry.setDrawRange(from * 2, (to - from) * 2);
-        scene.add(r.material);
+        added.add(r.material);
         drawn += to - from;
       }
-      const tf = full ? 0 : this.acc.tcounts[i], tt = tcounts[i];
+      const tf = acc.tcounts[i], tt = tcounts[i];
       if (tt > tf) {
         r.travel.geometry.setDrawRange(tf * 2, (tt - tf) * 2);
-        scene.add(r.travel);
+        added.add(r.travel);
+        drawn += tt - tf;
       }
     });
-    if (scene.children.length) renderer.render(scene, this.camera);
-    this.acc = { counts, tcounts, coarse };
-    this.present(t, counts, full, scene);
-    for (const r of this.robots) { // back to where they belong (an object has one parent)
-      r.material.removeFromParent(); r.travel.removeFromParent();
-      if (r.coarse) r.coarse.object.removeFromParent();
-    }
-    return drawn;
+    if (added.children.length) renderer.render(added, this.camera);
+    this.acc = { t: upTo, counts, tcounts };
+    // a little new material is drawn onto the canvas too; much of it, the canvas is copied whole
+    this.present(t, want, full || drawn > FRAME_SEGMENTS / 10, added);
+    for (const r of this.robots) { r.material.removeFromParent(); r.travel.removeFromParent(); } // (one parent each)
+    return upTo >= t;
   }
 
   updateLive(t, counts) {
@@ -527,8 +603,10 @@ export class View {
           obj.position.set(u0, v0, z0);
           obj.scale.set(Math.max(u1 - u0, 1e-3), Math.max(v1 - v0, 1e-3), Math.max(z1 - z0, 1e-3));
         };
-        box(v.body, o.body, 0, zh);
-        box(v.bodyFill, o.body, 0, zh);
+        const hb = Math.min(zh, 0.35 * (o.body[3] - o.body[2])); // the body: a low box on its wheels
+        box(v.body, o.body, 0, hb);
+        box(v.bodyFill, o.body, 0, hb);
+        box(v.column, [o.body[1] - 1, o.body[1], o.frame[2], o.frame[3]], hb, zh); // up to the frame
         box(v.frame, o.frame, zh, zh + v.rec.nozzle_height * 0.08);
         box(v.head, o.printhead, zh, zh + v.rec.nozzle_height * 0.5);
         v.mast.position.set(0, 0, z);

@@ -431,13 +431,15 @@ def _relax_permissions(root: Path, mode: int = 0o777) -> None:
     root.chmod(mode & ~mask)
 
 
-def _jsonable(obj: Any) -> Any:
+def jsonable(obj: Any) -> Any:
+    """``obj`` as JSON takes it: numpy values as Python's, floats rounded to 1e-9, NaN and
+    infinities as ``None`` (what :func:`write_json` writes; the viewer's record too)."""
     if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
+        return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
+        return [jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
+        return jsonable(obj.tolist())
     if isinstance(obj, (np.floating, float)):
         f = float(obj)
         return round(f, 9) if math.isfinite(f) else None
@@ -449,7 +451,7 @@ def _jsonable(obj: Any) -> Any:
 def write_json(path: Path, data: Any) -> None:
     """Deterministic JSON: sorted keys are not used (order is meaningful); floats rounded to 1e-9."""
     with OutputFile(path) as fh:
-        fh.write((json.dumps(_jsonable(data), indent=2) + "\n").encode("utf-8"))
+        fh.write((json.dumps(jsonable(data), indent=2) + "\n").encode("utf-8"))
 
 
 def write_stl(path: Path, vertices: np.ndarray, faces: np.ndarray, name: str = "cooprint") -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from cooprint.errors import UserError
-from cooprint.io.bundle import VIEWER_MARKER
+from cooprint.io.bundle import VIEWER_MARKER, jsonable
 from cooprint.render.viewer.geometry import MAX_SEGMENTS, ViewerGeometry, build_geometry
 from cooprint.render.viewer.meta import viewer_meta
 from cooprint.simulation import SimResult
@@ -51,7 +51,7 @@ def page(meta: Mapping[str, Any], geometry: ViewerGeometry) -> str:
     about box)."""
     bundle, licence = _asset("viewer.js"), _asset("three-LICENSE.txt")
     title = html.escape(str(meta.get("title", "")) or "plan")
-    record = json.dumps({**meta, "geometry": geometry.header}, separators=(",", ":"), allow_nan=False)
+    record = json.dumps(jsonable({**meta, "geometry": geometry.header}), separators=(",", ":"), allow_nan=False)
     comment = licence.replace("--", "- -")
     return "\n".join([
         f"{MARKER}: cooprint's plan viewer, one file: no network needed. -->",

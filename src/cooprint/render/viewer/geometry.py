@@ -387,7 +387,7 @@ def build_geometry(result: SimResult, chunks: Mapping[str, Any] | None = None, m
               "outline_chunks": [cid for cid, _ in outlines],
               "roles": [{"name": ROLE_NAMES[k], "colour": list(ROLE_COLOURS[k])} for k in range(len(ROLE_NAMES))],
               "heights": [h / 1000.0 for h in heights.tolist()],
-              "segments": {"moves": int(sum(int(np.count_nonzero(tl.on[a:a + BLOCK_MOVES]))
+              "segments": {"deposits": int(sum(int(np.count_nonzero(tl.on[a:a + BLOCK_MOVES]))
                                             for tl in result.timelines.values()
                                             for a in range(0, len(tl.t0), BLOCK_MOVES))),
                            "merged": before_lod, "shown": int(sum(p.segments for p in material)),
