@@ -14,18 +14,19 @@ from __future__ import annotations
 
 import json
 import statistics
+import sys
 import time
 from pathlib import Path
 
 from harness import BenchContext, fmt, plural, prepare_mesh, summarise, timed, tool_version
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from browser import CHROMIUM, launch_chromium  # noqa: E402  (the browser tests' chromium set-up)
+
 NAME = "viewer"
 TITLE = "Viewer"
 DEFAULT_MESHES = ["nefertiti.stl", "benchy.stl"]
 PEER_PACKAGES: list[str] = []
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 VIEWPORT = {"width": 1280, "height": 720}
 FPS_SECONDS = 5.0
 PLAY_SECONDS = 60.0
@@ -74,11 +75,11 @@ def measure_page(html: Path, runs: int) -> dict:
         from playwright.sync_api import sync_playwright
     except ImportError:
         return {"error": "playwright not installed (pip install -e '.[test]')"}
-    if not Path(CHROMIUM).exists():
+    if not CHROMIUM.exists():
         return {"error": f"chromium not installed ({CHROMIUM}; `make bench` installs Debian's chromium)"}
     with sync_playwright() as p:
         try:
-            browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+            browser = launch_chromium(p)
         except Exception as exc:  # Playwright's error types vary between its versions
             return {"error": f"chromium could not start: {str(exc).strip().splitlines()[0]}"}
         try:

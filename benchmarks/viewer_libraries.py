@@ -25,11 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from browser import launch_chromium  # noqa: E402  (the browser tests' chromium set-up)
+
 REPO = Path(__file__).resolve().parents[1]
 VIEWER = REPO / "viewer"
 BUNDLE = REPO / "src" / "cooprint" / "render" / "viewer" / "assets" / "viewer.js"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 SEGMENTS = 100_000
 FRAMES = 20  # a plotly animation of the segments growing in FRAMES steps
 LOADS = 3
@@ -110,7 +111,7 @@ def load_times(pages: dict[str, Path]) -> dict[str, float]:
     drawn = "() => document.querySelector('canvas') && (!window.Plotly || document.querySelector('.js-plotly-plot')._fullLayout)"
     out = {}
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+        browser = launch_chromium(p)
         for name, page_path in pages.items():
             runs = []
             for _ in range(LOADS):

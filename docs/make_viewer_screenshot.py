@@ -21,8 +21,8 @@ from cooprint.io.bundle import write_stl
 from cooprint.models import car
 
 OUT = Path(__file__).parent / "img" / "viewer.png"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from browser import SETTLE_JS, launch_chromium  # noqa: E402  (the tests' chromium set-up)
 VIEWPORT = {"width": 1400, "height": 1000}
 AT = 0.62  # of the makespan: both robots at work, robot B past its wait
 
@@ -39,14 +39,13 @@ def main() -> int:
             if cooprint([str(a) for a in args]) != 0:
                 return 1
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+            browser = launch_chromium(p)
             page = browser.new_page(viewport=VIEWPORT)
             page.goto((root / "car" / "sim" / "viewer.html").as_uri())
             page.wait_for_function("() => window.cooprint && window.cooprint.ready", timeout=120_000)
             page.evaluate("() => window.cooprint.ready.then(() => true)")
             page.evaluate(f"() => {{ const c = window.cooprint; c.pause(); c.seek(c.makespan * {AT}); }}")
-            # the page draws on the animation frame after a change: two frames later it is on screen
-            page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
+            page.evaluate(SETTLE_JS)  # until the picture at that time is drawn whole
             png = page.screenshot(full_page=True)
             browser.close()
     OUT.parent.mkdir(exist_ok=True)

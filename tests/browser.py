@@ -29,6 +29,13 @@ VIEWER_JS = REPO / "src" / "cooprint" / "render" / "viewer" / "assets" / "viewer
 VIEWER_SRC = REPO / "viewer"
 #: How long a page may take to draw its first frame (software GL on a shared 2-core machine).
 READY_TIMEOUT_MS = 60_000
+#: Resolves when a paused viewer page has finished drawing: it draws only on the animation frame
+#: after a change, and a large picture over several frames; so, until two animation frames pass
+#: without a frame drawn.
+SETTLE_JS = """async () => {
+  const c = window.cooprint, raf = () => new Promise((r) => requestAnimationFrame(r));
+  for (let n = -1; c.frames() !== n;) { n = c.frames(); await raf(); await raf(); }
+}"""
 
 
 def launch_chromium(playwright):
@@ -104,6 +111,10 @@ class ViewerPage:
     page: object
     blocked: list[str] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
+
+    def settle(self) -> None:
+        """Wait until the (paused) page has drawn whatever was changed (SETTLE_JS)."""
+        self.page.evaluate(SETTLE_JS)
 
     def close(self) -> None:
         """Close the page's browser context."""

@@ -66,15 +66,9 @@ def view(plan, chromium):
     page.close()
 
 
-def settle(view) -> None:
-    """Wait two animation frames: the page draws on the first after a change (it draws only when
-    something changed), so whatever was changed is then on screen."""
-    view.page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
-
-
 def shot(view) -> np.ndarray:
     """The 3D view (#view) as an RGB array, after the page settled."""
-    settle(view)
+    view.settle()
     png = view.page.locator("#view").screenshot()
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 
@@ -119,7 +113,7 @@ def test_the_page_loads_offline_and_draws_every_robot_in_its_colour(view, plan):
 
 def test_play_advances_the_clock(view):
     view.hook("(c.pause(), c.seek(0), c.setSpeed(1000))")
-    settle(view)
+    view.settle()
     before = view.page.locator("#clock").inner_text()
     assert view.hook("c.time()") == 0 and not view.hook("c.playing()")
     view.page.click("#play")
@@ -130,7 +124,7 @@ def test_play_advances_the_clock(view):
     view.page.click("#play")
     assert not view.hook("c.playing()")
     t = view.hook("c.time()")
-    settle(view)
+    view.settle()
     assert view.hook("c.time()") == t, "the clock moved while paused"
     elapsed, total = view.page.locator("#clock").inner_text().split("/")
     assert elapsed.strip() != total.strip()
