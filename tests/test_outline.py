@@ -356,23 +356,20 @@ def test_a_manifest_frame_width_is_the_robots(tmp_path):
     assert collisions(simulate(load_inputs([], str(m)))) == []
 
 
-def test_the_snapshot_draws_each_robots_frame_and_printhead(tmp_path):
-    """The frame and the printhead outlined at the printhead's underside (nozzle_height above the
-    tip), in the robot's colour: the pixel at each corner of A's printhead is A's colour."""
-    from PIL import Image
-
-    from cooprint.render.sim import _colour, _Scene, _upper_parts, render_snapshot
+def test_the_snapshot_draws_each_robots_frame_and_printhead():
+    """The body on the floor up to the printhead's underside (nozzle_height above the tip), the
+    frame and the printhead from there up, each over the outline the checks use (the drawing:
+    tests/test_render_scene.py)."""
+    from cooprint.render.sim import FRAME_THICKNESS, HEAD_HEIGHT, _Scene
 
     res = facing_across(300.0)
     a = res.robots[0]
     nozzle = res.timelines["A"].position(0.0)
-    frame, head = _upper_parts(res, a, nozzle, 0.0)
-    assert np.allclose(head[:, 2], nozzle[2] + PROFILE.nozzle_height)
-    assert np.allclose(head[:, :2], nozzle[:2] + outline_corners(PROFILE, a.facing, 0.0)["printhead"])
-    assert np.allclose(frame[:, :2], nozzle[:2] + outline_corners(PROFILE, a.facing, 0.0)["frame"])
-    path = render_snapshot(res, 0.0, tmp_path / "s.png", size=(800, 500))
-    img = np.asarray(Image.open(path).convert("RGB")).astype(int)
-    scene = _Scene(res, (800, 500), -35.0, 30.0)
-    for x, y in scene.px(head).round().astype(int):
-        near = img[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2].reshape(-1, 3)
-        assert (np.abs(near - np.array(_colour(0))).sum(axis=1) < 40).any(), (x, y)
+    under = nozzle[2] + PROFILE.nozzle_height
+    body, frame, head, rod = _Scene(res, (800, 500), -35.0, 30.0)._solids(0, a, 0.0)
+    outline = outline_corners(PROFILE, a.facing, 0.0)
+    for box, part, z0, z1 in ((body, "body", 0.0, under), (frame, "frame", under, under + FRAME_THICKNESS),
+                              (head, "printhead", under, under + HEAD_HEIGHT)):
+        assert np.allclose(box.corners[:4, :2], nozzle[:2] + outline[part][[0, 1, 3, 2]]), part
+        assert np.allclose(box.corners[:4, 2], z0) and np.allclose(box.corners[4:, 2], z1), part
+    assert np.allclose(rod.corners[:, :2].mean(axis=0), nozzle[:2]) and np.allclose(rod.corners[[0, 7], 2], [nozzle[2], under])

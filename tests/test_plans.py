@@ -203,13 +203,13 @@ def test_robots_collide_with_the_facing_in_force():
 
 
 def test_the_snapshot_draws_the_body_in_the_facing_of_the_moment(plate_one_robot):
-    from cooprint.render.sim import _footprint
+    from cooprint.render.sim import _outline_at
 
     _, res, _ = plate_one_robot
     r, tl = res.robots[0], res.timelines["A"]
     turn = r.facing_spans(tl)[-1].time
-    before = _footprint(res, r, np.zeros(3), turn - 1.0)
-    after = _footprint(res, r, np.zeros(3), turn + 1.0)
+    before = _outline_at(res, r, np.zeros(3), turn - 1.0)["body"]
+    after = _outline_at(res, r, np.zeros(3), turn + 1.0)["body"]
     assert before[:, 1].max() < 0 < after[:, 1].min()  # behind the nozzle: -y, then +y
 
 

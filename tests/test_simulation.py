@@ -114,25 +114,6 @@ def test_a_nozzle_below_the_floor_is_an_error(tmp_path):
     assert not [f for f in _sim(_robot("B", "MOVE 0 0 0\nMOVE 0 0 0.2\n")).findings if f.kind == "below-floor"]
 
 
-def test_a_printer_from_gcode_is_drawn_without_a_body(tmp_path):
-    """Where a G-code printer's body stands is not known: its snapshot shows the material and
-    the nozzle, no footprint (the trial found bodies drawn over each other and the print)."""
-    from cooprint.render.sim import ROBOT_COLOURS
-
-    g = tmp_path / "p.gcode"
-    g.write_text("G21\nG90\nM83\nG1 Z0.2 F600\nG1 X40 Y0 E2 F1200\nG1 X40 Y40 E2\n")
-    res = simulate(SimInput([read_gcode(g)], PROFILE, SlicingSettings(), str(g), placed=False))
-    assert not res.placed
-    render_snapshot(res, res.makespan, tmp_path / "g.png")
-    img = np.asarray(Image.open(tmp_path / "g.png").convert("RGB")).astype(int)
-    light = np.array([int(0.5 * x + 0.5 * 255) for x in ROBOT_COLOURS[0]])  # a footprint's fill
-    assert not (np.abs(img - light).sum(axis=2) == 0).any()
-    placed = simulate(SimInput([_robot("A", "MOVE 0 0 0.2\nTOOL ON\nMOVE 40 0 0.2\n")], PROFILE, SlicingSettings(), "t"))
-    render_snapshot(placed, placed.makespan, tmp_path / "c.png")
-    img = np.asarray(Image.open(tmp_path / "c.png").convert("RGB")).astype(int)
-    assert (np.abs(img - light).sum(axis=2) == 0).sum() > 1000  # a placed robot's footprint is drawn
-
-
 def test_gcode_files_simulate_with_their_own_feed_rates(tmp_path):
     g = tmp_path / "p.gcode"
     g.write_text("G21\nG90\nM83\nG1 Z0.2 F600\nG1 X10 Y0 E0.5 F1200 ; 10 mm at 20 mm/s\n"

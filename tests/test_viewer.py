@@ -190,3 +190,36 @@ def test_view_refuses_a_missing_or_foreign_folder_in_one_line(tmp_path, capsys):
     assert_rejected(["view", tmp_path / "nowhere"], capsys, contains="no such folder")
     (tmp_path / "plain").mkdir()
     assert_rejected(["view", tmp_path / "plain"], capsys, watch=[tmp_path], contains="neither a cooprint bundle")
+
+
+@built
+def test_a_bundles_simulation_keeps_a_users_viewer_html(bundle, tmp_path, capsys):
+    from cooprint.jobs import simulate_bundle
+
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    (job / "sim").mkdir(exist_ok=True)
+    (job / "sim" / "viewer.html").write_text("<html>my notes</html>")
+    simulate_bundle(job)
+    assert (job / "sim" / "viewer.html").read_text() == "<html>my notes</html>"
+    assert (job / "sim" / "summary.json").exists()
+    assert "which cooprint did not write; no viewer written" in capsys.readouterr().err
+
+
+@built
+def test_view_open_starts_a_graphical_browser_or_says_it_could_not(bundle, tmp_path, capsys, monkeypatch):
+    import webbrowser
+
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    opened = []
+    monkeypatch.setattr(webbrowser, "open", lambda uri: opened.append(uri) or True)
+    monkeypatch.setattr("sys.platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["view", str(job), "--open"]) == 0
+    assert "could not open a web browser here (no display)" in capsys.readouterr().out and not opened
+    monkeypatch.setenv("DISPLAY", ":0")
+    assert main(["view", str(job), "--open"]) == 0
+    assert opened == [(job / "sim" / "viewer.html").resolve().as_uri()]
+    assert "opened" in capsys.readouterr().out

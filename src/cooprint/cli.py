@@ -713,40 +713,6 @@ def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: floa
     click.echo(f"wrote {target}")
 
 
-#: Each format's file suffix (an animation's encoder is chosen by it).
-FORMAT_SUFFIX = {"png": ".png", "gantt": ".png", "mp4": ".mp4", "gif": ".gif"}
-#: What a file of each picture or video suffix is (a --out so named and written in another format
-#: would be misread).
-PICTURE_SUFFIXES = {".png": "a PNG", ".mp4": "an MP4", ".gif": "a GIF", ".jpg": "a JPEG", ".jpeg": "a JPEG",
-                    ".webp": "a WebP", ".apng": "an APNG", ".bmp": "a BMP", ".tif": "a TIFF", ".tiff": "a TIFF",
-                    ".svg": "an SVG", ".pdf": "a PDF", ".webm": "a WebM", ".mkv": "a Matroska video",
-                    ".mov": "a QuickTime video", ".avi": "an AVI", ".m4v": "an MP4"}
-
-
-def _render_format(fmt: str | None, out: str | None) -> tuple[str, bool]:
-    """The format ``render`` draws and whether --out's suffix chose it: --format, else the one
-    --out's suffix names (``.mp4``, ``.gif``; else png). A --out whose suffix names another picture or
-    video format is refused (``--format mp4 --out anim.gif`` would write an MP4 named .gif), as is
-    an animation's --out without its suffix (the encoder is chosen by it)."""
-    suffix = Path(out).suffix.lower() if out else ""
-    named = fmt is not None
-    if fmt is None:
-        fmt = {".mp4": "mp4", ".gif": "gif"}.get(suffix, "png")
-    want = FORMAT_SUFFIX[fmt]
-    if out is None or suffix == want or (suffix not in PICTURE_SUFFIXES and fmt in ("png", "gantt")):
-        return fmt, not named and fmt != "png"
-    name = Path(out).name
-    if not named:
-        raise UserError(f"--out {name}: cooprint draws .png (--format png or gantt), .mp4 or .gif, not "
-                        f"{PICTURE_SUFFIXES[suffix]}")
-    what = {"png": "a PNG", "gantt": "a PNG", "mp4": "an MP4", "gif": "a GIF"}[fmt]
-    if suffix in PICTURE_SUFFIXES:
-        other = {".png": " or --format png", ".mp4": " or --format mp4", ".gif": " or --format gif"}.get(suffix, "")
-        raise UserError(f"--format {fmt} writes {what} but --out {name} is named as {PICTURE_SUFFIXES[suffix]}: "
-                        f"give --out {Path(name).stem}{want}{other}")
-    raise UserError(f"--format {fmt} writes {what}: give --out {name}{want}")
-
-
 @cli.command()
 @click.argument("folder", type=click.Path())
 @click.option("--open", "open_page", is_flag=True, help="Then open the page in the system's web browser.")
@@ -840,6 +806,40 @@ def _viewer_done(target: Path, open_page: bool) -> None:
         click.echo(f"opened {uri} in the web browser")
     else:
         click.echo(f"could not open a web browser here{'' if graphical else ' (no display)'}; open {uri} in one")
+
+
+#: Each format's file suffix (an animation's encoder is chosen by it).
+FORMAT_SUFFIX = {"png": ".png", "gantt": ".png", "mp4": ".mp4", "gif": ".gif"}
+#: What a file of each picture or video suffix is (a --out so named and written in another format
+#: would be misread).
+PICTURE_SUFFIXES = {".png": "a PNG", ".mp4": "an MP4", ".gif": "a GIF", ".jpg": "a JPEG", ".jpeg": "a JPEG",
+                    ".webp": "a WebP", ".apng": "an APNG", ".bmp": "a BMP", ".tif": "a TIFF", ".tiff": "a TIFF",
+                    ".svg": "an SVG", ".pdf": "a PDF", ".webm": "a WebM", ".mkv": "a Matroska video",
+                    ".mov": "a QuickTime video", ".avi": "an AVI", ".m4v": "an MP4"}
+
+
+def _render_format(fmt: str | None, out: str | None) -> tuple[str, bool]:
+    """The format ``render`` draws and whether --out's suffix chose it: --format, else the one
+    --out's suffix names (``.mp4``, ``.gif``; else png). A --out whose suffix names another picture or
+    video format is refused (``--format mp4 --out anim.gif`` would write an MP4 named .gif), as is
+    an animation's --out without its suffix (the encoder is chosen by it)."""
+    suffix = Path(out).suffix.lower() if out else ""
+    named = fmt is not None
+    if fmt is None:
+        fmt = {".mp4": "mp4", ".gif": "gif"}.get(suffix, "png")
+    want = FORMAT_SUFFIX[fmt]
+    if out is None or suffix == want or (suffix not in PICTURE_SUFFIXES and fmt in ("png", "gantt")):
+        return fmt, not named and fmt != "png"
+    name = Path(out).name
+    if not named:
+        raise UserError(f"--out {name}: cooprint draws .png (--format png or gantt), .mp4 or .gif, not "
+                        f"{PICTURE_SUFFIXES[suffix]}")
+    what = {"png": "a PNG", "gantt": "a PNG", "mp4": "an MP4", "gif": "a GIF"}[fmt]
+    if suffix in PICTURE_SUFFIXES:
+        other = {".png": " or --format png", ".mp4": " or --format mp4", ".gif": " or --format gif"}.get(suffix, "")
+        raise UserError(f"--format {fmt} writes {what} but --out {name} is named as {PICTURE_SUFFIXES[suffix]}: "
+                        f"give --out {Path(name).stem}{want}{other}")
+    raise UserError(f"--format {fmt} writes {what}: give --out {name}{want}")
 
 
 def _check_render_options(fmt: str, inferred: bool, at: float | None, duration: float | None,

@@ -6,7 +6,7 @@ import { MODES } from './colours.js';
 const CSS = `
 * { box-sizing: border-box; }
 html, body { margin: 0; height: 100%; font: 13px/1.35 system-ui, -apple-system, "Segoe UI", sans-serif; color: #222; background: #f4f4f4; }
-#app { display: grid; grid-template-columns: 1fr 300px; grid-template-rows: auto 1fr auto; height: 100vh; }
+#app { display: grid; grid-template-columns: 1fr 340px; grid-template-rows: auto 1fr auto; height: 100vh; }
 #bar { grid-column: 1 / 3; display: flex; flex-wrap: wrap; gap: 6px 12px; align-items: center; padding: 6px 10px; background: #fff; border-bottom: 1px solid #ddd; }
 #bar .group { display: flex; align-items: center; gap: 4px; }
 #bar h1 { font-size: 14px; margin: 0 8px 0 0; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; max-width: 260px; }
@@ -34,14 +34,6 @@ function el(tag, attrs = {}, ...children) {
   }
   e.append(...children);
   return e;
-}
-
-// h:mm:ss, with days in front from one day on (a plan of weeks reads "8 d 0:42:28").
-export function clock(t, total) {
-  const s = Math.max(0, Math.round(t));
-  const d = Math.floor(s / 86400), h = Math.floor((s % 86400) / 3600), m = Math.floor((s % 3600) / 60), x = s % 60;
-  const hms = `${h}:${String(m).padStart(2, '0')}:${String(x).padStart(2, '0')}`;
-  return total >= 86400 ? `${d} d ${hms}` : `${d * 24 + h}:${String(m).padStart(2, '0')}:${String(x).padStart(2, '0')}`;
 }
 
 export function layout(body, meta, speeds) {

@@ -5,7 +5,8 @@
 import { readMeta, readGeometry } from './data.js';
 import { View } from './scene.js';
 import { MODES, legend, css, TRAVEL_COLOUR } from './colours.js';
-import { clock, layout } from './layout.js';
+import { layout } from './layout.js';
+import { clock } from './format.js';
 import { createGantt } from './gantt.js';
 import { createSummary, createFindings } from './panels.js';
 
@@ -113,7 +114,7 @@ async function start() {
     const complete = view.render(t);
     frames++;
     ui.slider.value = String(t);
-    ui.clock.textContent = `${clock(t, makespan)} / ${clock(makespan, makespan)}`;
+    ui.clock.textContent = `${clock(t)} / ${clock(makespan)}`;
     gantt.setTime(t);
     if (complete && !shown) {
       shown = true;
@@ -189,14 +190,20 @@ async function start() {
       return row;
     }));
   }
+  let selecting = false;
   function selectFinding(i) {
     const f = (meta.findings || [])[i];
-    if (!f) return;
-    selected = i;
-    view.showMarker(f.position);
-    view.lookAt(f.position);
-    findings.select(i);
-    seek(f.time_s);
+    if (!f || selecting) return; // (the list's select(i) may call back)
+    selecting = true;
+    try {
+      selected = i;
+      view.showMarker(f.position);
+      view.lookAt(f.position);
+      findings.select(i);
+      seek(f.time_s);
+    } finally {
+      selecting = false;
+    }
   }
 
   ui.play.addEventListener('click', () => setPlaying(!playing));

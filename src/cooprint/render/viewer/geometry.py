@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import base64
 import gzip
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numba
@@ -143,12 +143,11 @@ class _Paths:
         return _Paths(np.concatenate([q.pos for q in parts]), np.concatenate([q.time for q in parts]),
                       np.concatenate([q.lengths for q in parts]), np.concatenate([q.attrs for q in parts]))
 
-    def segment_ends(self) -> tuple[np.ndarray, np.ndarray]:
-        """Each segment's start vertex (segments,) and whether a vertex starts a segment."""
-        last = np.cumsum(self.lengths) - 1  # the last vertex of each polyline starts none
+    def segment_starts(self) -> np.ndarray:
+        """Each segment's first vertex (segments,): every vertex but the last of each polyline."""
         starts = np.ones(len(self.time), bool)
-        starts[last] = False
-        return np.flatnonzero(starts), starts
+        starts[np.cumsum(self.lengths) - 1] = False
+        return np.flatnonzero(starts)
 
 
 def _polylines(p0: np.ndarray, p1: np.ndarray, t0: np.ndarray, t1: np.ndarray, attrs: np.ndarray,
@@ -189,8 +188,7 @@ def _polylines(p0: np.ndarray, p1: np.ndarray, t0: np.ndarray, t1: np.ndarray, a
 
 def _thin(paths: _Paths, pick: np.ndarray) -> _Paths:
     """The segments ``pick`` (sorted indices) of ``paths`` only, joined again where they meet."""
-    starts, _ = paths.segment_ends()
-    s = starts[pick]
+    s = paths.segment_starts()[pick]
     return _polylines(paths.pos[s], paths.pos[s + 1], paths.time[s], paths.time[s + 1], paths.attrs[pick], None)
 
 
@@ -201,7 +199,6 @@ class ViewerGeometry:
 
     header: dict[str, Any]
     payload: bytes
-    arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     def encoded(self) -> str:
         """The payload gzip-compressed and base64-encoded, as the page holds it."""
