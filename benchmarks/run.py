@@ -26,9 +26,11 @@ import bench_plans
 import bench_scale
 import bench_simulation
 import bench_slicing
+import bench_viewer
 from harness import BenchContext, plural, resolve_meshes
 
-STAGES = [bench_chunking, bench_slicing, bench_simulation, bench_plans, bench_cooperative, bench_scale]
+STAGES = [bench_chunking, bench_slicing, bench_simulation, bench_plans, bench_cooperative, bench_scale,
+          bench_viewer]
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
 WORK = REPO / "benchmarks" / "_work"

@@ -4,6 +4,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 
+import browser
 import pytest
 from hypothesis import settings
 
@@ -24,3 +25,17 @@ def car_stl(tmp_path_factory):
     solid = car(420.0)
     write_stl(path, solid.vertices, solid.faces)
     return path
+
+
+@pytest.fixture(scope="session")
+def chromium():
+    """Debian's headless chromium through Playwright, one per session (tests/browser.py; skips the
+    test with the reason when chromium is missing or cannot start)."""
+    with browser.chromium_session() as b:
+        yield b
+
+
+@pytest.fixture(scope="session")
+def viewer_bundle():
+    """The viewer's JavaScript bundle, built when missing or stale (skips the test when it cannot be)."""
+    return browser.require_bundle()

@@ -1,0 +1,264 @@
+"""The viewer page (``cooprint view DIR`` -> DIR/sim/viewer.html) driven in Debian's headless chromium.
+
+Issue 16's "Tested in a real browser": a small two-robot plan made here (a hollow bar: the seed's
+three chunks, robot B waiting for A's centre chunk, overhang warnings under the cavity's roof) and a
+one-printer G-code file are simulated and viewed; each page is opened from file:// with the network
+blocked, and must draw the robots' colours, play, seek from the slider, the findings and the Gantt
+chart, switch colour modes, travel and the layer range, all without a console error.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import io
+import json
+
+import numpy as np
+import pytest
+from browser import open_viewer
+from PIL import Image
+from solids import COARSE, box, hollow, to_trimesh
+
+from cooprint.cli import main
+from cooprint.render.palette import robot_colour
+
+SETTINGS = [f"--set={k}={v}" for k, v in COARSE.items()]
+#: Hue tolerance (degrees) and least saturation of a pixel counted as a robot's colour under shading.
+HUE_TOL, MIN_SAT = 12.0, 0.25
+#: Least number of pixels (of the 1280 x 900 page's 3D view) of a robot's outline, and of its
+#: material (the small test plan's: thousands of pixels each).
+OUTLINE_PIXELS, MATERIAL_PIXELS = 500, 1000
+
+
+def _cli(*args) -> None:
+    code = main([str(a) for a in args])
+    assert code == 0, f"cooprint {' '.join(map(str, args))} exited {code}"
+
+
+@pytest.fixture(scope="module")
+def plan(tmp_path_factory, viewer_bundle):
+    """A simulated two-robot plan of a 40 x 420 x 12 mm hollow bar and its viewer page."""
+    root = tmp_path_factory.mktemp("viewer")
+    to_trimesh(hollow(40, 420, 12, 4)).export(root / "bar.stl")
+    out = root / "job"
+    _cli("run", root / "bar.stl", "--out", out, "--robots", 2, "--simulate", "-q", "--no-picture", *SETTINGS)
+    _cli("view", out)
+    summary = json.loads((out / "sim" / "summary.json").read_text())
+    return out, summary
+
+
+@pytest.fixture(scope="module")
+def gcode_view(tmp_path_factory, viewer_bundle):
+    """A 30 x 30 x 4 mm box sliced for one printer, simulated alone and viewed."""
+    root = tmp_path_factory.mktemp("gcode")
+    to_trimesh(box(30, 30, 4)).export(root / "box.stl")
+    _cli("slice", root / "box.stl", "--out", root / "part.gcode", "-q", *SETTINGS)
+    _cli("simulate", root / "part.gcode", "--out", root / "part", "-q")
+    _cli("view", root / "part")
+    return root / "part"
+
+
+@pytest.fixture(scope="module")
+def view(plan, chromium):
+    """The two-robot plan's page, open for the whole module (each test sets the state it needs)."""
+    page = open_viewer(chromium, plan[0] / "sim" / "viewer.html")
+    yield page
+    page.close()
+
+
+def shot(view) -> np.ndarray:
+    """The 3D view (#view) as an RGB array, after the page settled."""
+    view.settle()
+    png = view.page.locator("#view").screenshot()
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+
+
+def reset_camera(view) -> None:
+    """The camera as the page opened (a finding's click moves it): #view-reset, then the mouse off
+    the button (its hover shade would differ between pictures)."""
+    view.page.click("#view-reset")
+    view.page.mouse.move(1, 1)
+
+
+def colour_pixels(img: np.ndarray, rgb) -> int:
+    """Pixels of ``img`` with the hue of ``rgb`` (within HUE_TOL) and some saturation: the colour
+    as the shading leaves it (lit, shaded, antialiased)."""
+    flat = img.reshape(-1, 3).astype(float) / 255.0
+    mx, mn = flat.max(axis=1), flat.min(axis=1)
+    sat = np.where(mx > 0, (mx - mn) / np.maximum(mx, 1e-9), 0.0)
+    r, g, b = flat.T
+    hue = np.degrees(np.arctan2(np.sqrt(3) * (g - b), 2 * r - g - b)) % 360  # the hexagonal hue
+    ref = colorsys.rgb_to_hsv(*(c / 255.0 for c in rgb))[0] * 360
+    near = np.abs((hue - ref + 180) % 360 - 180) <= HUE_TOL
+    return int(np.count_nonzero(near & (sat >= MIN_SAT) & (mx > 0.15)))
+
+
+def changed_pixels(a: np.ndarray, b: np.ndarray) -> int:
+    """Pixels that differ by more than a little between two pictures of the same size."""
+    assert a.shape == b.shape
+    return int(np.count_nonzero(np.abs(a.astype(int) - b.astype(int)).max(axis=2) > 24))
+
+
+def test_the_page_loads_offline_and_draws_every_robot_in_its_colour(view, plan):
+    out, summary = plan
+    makespan = view.hook("c.makespan")
+    assert makespan == pytest.approx(summary["makespan_s"], rel=1e-6)
+    assert 0 < view.hook("c.firstFrameMs") < 60_000
+    view.hook("(c.pause(), c.seek(0))")
+    start = shot(view)
+    view.hook(f"c.seek({makespan})")
+    end = shot(view)
+    assert end.std() > 8, "the 3D view is blank"
+    for i, robot in enumerate(summary["robots"]):
+        outline, done = colour_pixels(start, robot_colour(i)), colour_pixels(end, robot_colour(i))
+        # at t = 0 the robot's outline (body, frame, printhead); at the end its material too
+        assert outline >= OUTLINE_PIXELS, f"robot {robot['name']}'s outline is not drawn in {robot_colour(i)}"
+        assert done - outline >= MATERIAL_PIXELS, \
+            f"robot {robot['name']}'s material is not drawn in its colour {robot_colour(i)} ({outline} -> {done} px)"
+    view.assert_clean()
+
+
+def test_play_advances_the_clock(view):
+    view.hook("(c.pause(), c.seek(0), c.setSpeed(1000))")
+    view.settle()
+    before = view.page.locator("#clock").inner_text()
+    assert view.hook("c.time()") == 0 and not view.hook("c.playing()")
+    view.page.click("#play")
+    view.page.wait_for_function("() => window.cooprint.time() > 5", timeout=20_000)
+    assert view.hook("c.playing()")
+    view.page.wait_for_function(f"() => document.querySelector('#clock').innerText !== {json.dumps(before)}",
+                                timeout=20_000)
+    view.page.click("#play")
+    assert not view.hook("c.playing()")
+    t = view.hook("c.time()")
+    view.settle()
+    assert view.hook("c.time()") == t, "the clock moved while paused"
+    elapsed, total = view.page.locator("#clock").inner_text().split("/")
+    assert elapsed.strip() != total.strip()
+    view.assert_clean()
+
+
+def _drag_slider_to(view, t: float) -> None:
+    """Drag #time-slider's thumb from the start to the place of time ``t``."""
+    view.hook("(c.pause(), c.seek(0))")
+    view.settle()
+    box_ = view.page.locator("#time-slider").bounding_box()
+    makespan = view.hook("c.makespan")
+    thumb = 8  # half of chromium's range thumb: its centre runs from left + 8 to right - 8
+    y = box_["y"] + box_["height"] / 2
+    x0 = box_["x"] + thumb
+    x1 = x0 + (box_["width"] - 2 * thumb) * t / makespan
+    view.page.mouse.move(x0, y)
+    view.page.mouse.down()
+    view.page.mouse.move(x1, y, steps=8)
+    view.page.mouse.up()
+
+
+def test_dragging_the_slider_to_a_wait_shows_the_robot_waiting(view, plan):
+    _, summary = plan
+    wait = max((e for e in summary["events"] if e["kind"] == "wait"), key=lambda e: e["until_s"] - e["time_s"])
+    middle = (wait["time_s"] + wait["until_s"]) / 2
+    _drag_slider_to(view, middle)
+    t = view.hook("c.time()")
+    assert wait["time_s"] < t < wait["until_s"], f"the slider went to {t} s, not into the wait {wait}"
+    assert view.hook(f"c.robotState({json.dumps(wait['robot'])})")["state"] == "waiting"
+    # and after the wait, the same robot is at work again
+    view.hook(f"c.seek({wait['until_s'] + 1})")
+    assert view.hook(f"c.robotState({json.dumps(wait['robot'])})")["state"] in ("printing", "travelling")
+    view.assert_clean()
+
+
+def test_clicking_a_finding_jumps_to_its_time(view, plan):
+    _, summary = plan
+    findings = summary["findings"]
+    assert findings, "the test plan should have findings (overhangs under the cavity's roof)"
+    assert view.page.locator("#findings [data-index]").count() == len(findings)
+    for i in sorted(range(len(findings)), key=lambda i: -findings[i]["time_s"])[:2]:
+        view.hook("c.seek(0)")
+        view.page.click(f'#findings [data-index="{i}"]')
+        assert view.hook("c.time()") == pytest.approx(findings[i]["time_s"], abs=1e-3 * summary["makespan_s"])
+        assert view.hook("c.selectedFinding()") == i
+    view.assert_clean()
+
+
+def test_colour_modes_change_the_picture(view, plan):
+    view.hook(f"(c.pause(), c.seek({plan[1]['makespan_s']}))")
+    reset_camera(view)
+    pictures = {}
+    for mode in ("robot", "chunk", "role", "height"):
+        view.page.select_option("#colour-mode", mode)
+        assert view.hook("c.colourMode()") == mode
+        pictures[mode] = (shot(view), view.page.locator("#legend").inner_text())
+    modes = list(pictures)
+    for i, a in enumerate(modes):
+        for b in modes[i + 1:]:
+            assert changed_pixels(pictures[a][0], pictures[b][0]) > 200, f"colour modes {a} and {b} look the same"
+            assert pictures[a][1] != pictures[b][1], f"the legend of {a} and {b} is the same"
+    view.hook("c.setColourMode('robot')")
+    view.assert_clean()
+
+
+def test_travel_and_the_layer_range_change_the_picture(view, plan):
+    view.hook(f"(c.pause(), c.seek({plan[1]['makespan_s'] / 2}), c.setColourMode('robot'))")
+    reset_camera(view)
+    before = shot(view)
+    view.page.click("#travel")
+    toggled = shot(view)
+    assert changed_pixels(before, toggled) > 20, "travel on/off did not change the picture"
+    view.page.click("#travel")
+    assert changed_pixels(before, shot(view)) <= 20, "travel back to how it was should give the same picture"
+
+    view.hook(f"c.seek({plan[1]['makespan_s']})")
+    full = shot(view)
+    hi = view.page.locator("#layer-hi")
+    lo_value, hi_value = float(hi.get_attribute("min") or 0), float(hi.get_attribute("max") or 1)
+    hi.fill(str(lo_value + 0.3 * (hi_value - lo_value)))
+    cut = shot(view)
+    assert changed_pixels(full, cut) > 200, "lowering the top of the layer range did not change the picture"
+    hi.fill(str(hi_value))
+    view.assert_clean()
+
+
+def test_clicking_the_gantt_chart_seeks(view, plan):
+    makespan = plan[1]["makespan_s"]
+    meta = view.page.evaluate("() => JSON.parse(document.getElementById('cooprint-meta').textContent)")
+    view.hook("(c.pause(), c.seek(0))")
+    plot = view.page.locator("#gantt .cp-gantt-plot")
+    plot.scroll_into_view_if_needed()
+    box_ = plot.bounding_box()
+    # the time axis (its lowest 24 px): a click goes to the time under it
+    axis = []
+    for fraction in (0.4, 0.8):
+        view.page.mouse.click(box_["x"] + fraction * box_["width"], box_["y"] + box_["height"] - 8)
+        axis.append(view.hook("c.time()"))
+    assert 0.2 * makespan < axis[0] < axis[1] < makespan, f"clicks on the Gantt chart's axis went to {axis}"
+    # a robot's bar (row i of n, over the axis): the start of the chunk it prints there
+    rows = len(meta["gantt"])
+    for i, row in enumerate(meta["gantt"]):
+        y = box_["y"] + 4 + (box_["height"] - 4 - 24) * (i + 0.5) / rows
+        view.page.mouse.click(box_["x"] + 0.8 * box_["width"], y)
+        t = view.hook("c.time()")
+        starts = [c[1] for c in row["chunks"]]
+        assert any(t == pytest.approx(s, abs=1e-6 * makespan) for s in starts), \
+            f"a click on robot {row['name']}'s bar went to {t} s, not to one of its chunks' starts {starts}"
+    view.assert_clean()
+
+
+def test_a_gcode_file_is_viewed_with_one_robot_and_no_outline(gcode_view, chromium):
+    summary = json.loads((gcode_view / "sim" / "summary.json").read_text())
+    assert len(summary["robots"]) == 1
+    page = open_viewer(chromium, gcode_view / "sim" / "viewer.html")
+    try:
+        name = summary["robots"][0]["name"]
+        page.hook("c.seek(0)")
+        start = shot(page)
+        page.hook(f"c.seek({page.hook('c.makespan')})")
+        end = shot(page)
+        assert page.hook(f"c.robotState({json.dumps(name)})")["state"] == "done"
+        assert colour_pixels(end, robot_colour(0)) >= MATERIAL_PIXELS, "the printed part is not in the robot's colour"
+        # no body, frame or printhead drawn (a placed robot's take thousands of pixels): at t = 0,
+        # before any material, hardly anything in the robot's colour
+        assert colour_pixels(start, robot_colour(0)) < OUTLINE_PIXELS / 5
+        page.assert_clean()
+    finally:
+        page.close()
