@@ -496,3 +496,37 @@ def test_paths_that_cannot_be_looked_at_are_one_line(tmp_path, capsys, make):
         (tmp_path / "m.toml").write_text(f'[[robots]]\nname = "A"\nprogram = "{long}.coop"\n')
         args = ["simulate", "--manifest", tmp_path / "m.toml", "--out", tmp_path / "o"]
     assert_rejected(args, capsys, watch=[tmp_path], contains="cannot use this path")
+
+
+# ------------------------------------------------------------------------------------------------
+# a program that is not the one job.json describes (cut short, emptied, edited)
+
+def _cut(text: str, how: str) -> str:
+    lines = text.splitlines(keepends=True)
+    if how == "emptied":
+        return ""
+    if how == "cut-at-a-line":
+        return "".join(lines[:len(lines) // 2])
+    at = next(i for i, ln in enumerate(lines) if ln.startswith("NOTIFY"))  # a NOTIFY edited into another command
+    return "".join(lines[:at] + ["TOOL OFF\n"] + lines[at + 1:])
+
+
+@pytest.mark.parametrize("how, says", [("emptied", "0 commands, job.json says "),
+                                       ("cut-at-a-line", " commands, job.json says "),
+                                       ("notify-removed", " NOTIFY, job.json says ")])
+@pytest.mark.parametrize("command", [[], ["--accel"], ["--perturb", "0.1", "--runs", "2"]],
+                         ids=["piecewise", "whole", "perturb"])
+def test_a_program_that_job_json_does_not_describe_is_refused(bundle, tmp_path, capsys, how, says, command):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    program = job / "robots" / ("A.coop" if how == "notify-removed" else "B.coop")
+    program.write_text(_cut(program.read_text(), how))
+    line = assert_rejected(["simulate", job, *command], capsys, watch=[job], contains=f"{program}: ")
+    assert says in line and "the file was truncated or replaced; re-run `cooprint run`" in line
+
+
+def test_job_json_counts_must_be_counts(bundle, tmp_path, capsys):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    _write_job(job, _set(R1 + ("stats", "commands"), "many"))
+    assert_rejected(["simulate", job], capsys, watch=[job], contains="robots[1].stats.commands: expected a count")

@@ -5,6 +5,8 @@ walls and skins, and real plans of cooprint's own slicer."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -214,8 +216,12 @@ def test_the_bar_bundle_of_two_robots_has_neither_and_a_copied_program_doubles(t
     job = solids.bar_bundle(tmp_path, 12.0)
     res = simulate(load_inputs([str(job)]))
     assert [f for f in res.findings if f.kind in NEW] == []
-    # robot B's program replaced by A's: B lays A's chunks again (the issue's first report)
+    # robot B's program replaced by A's: B lays A's chunks again (the issue's first report); job.json
+    # edited to match (a program that job.json does not describe is refused: test_bad_sim_inputs.py)
     (job / "robots" / "B.coop").write_text((job / "robots" / "A.coop").read_text())
+    record = json.loads((job / "job.json").read_text())
+    record["robots"][1]["stats"] = record["robots"][0]["stats"]
+    (job / "job.json").write_text(json.dumps(record))
     res = simulate(load_inputs([str(job)]))
     assert {f.robot for f in res.findings if f.kind == "double-deposit"} >= {"B"}
 

@@ -39,6 +39,10 @@ def _variant(bundle, tmp_path, kind: str):
         half = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].startswith("MOVE"))
         lines[half:half] = [";@facing 45\n", "WAIT nobody:7\n"]
         path.write_text("".join(lines))
+        job = json.loads((out / "job.json").read_text())  # job.json edited to match (else refused)
+        stats = job["robots"][1]["stats"]
+        stats["commands"], stats["wait"] = stats["commands"] + 1, stats["wait"] + 1
+        write_json(out / "job.json", job)
     elif kind == "gzip":
         job = json.loads((out / "job.json").read_text())
         for r in job["robots"]:
@@ -52,7 +56,7 @@ def _variant(bundle, tmp_path, kind: str):
 
 def _small_pieces(monkeypatch, piece_bytes: int):
     """The simulation reads the programs in pieces of ``piece_bytes`` of text: many pieces."""
-    monkeypatch.setattr(simulation, "iter_coop", partial(iter_coop, piece_bytes=piece_bytes))
+    monkeypatch.setattr(simulation.inputs, "iter_coop", partial(iter_coop, piece_bytes=piece_bytes))
 
 
 @pytest.mark.parametrize("kind", ["bundle", "deadlock", "gzip"])

@@ -20,7 +20,6 @@ import numpy as np
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.simulation.checks import (STEP, Material, below_floor, block_sum, chunk_order, footprint_checks,
                                         material_checks, outside_part, overhangs, robots_collide)
-from cooprint.program.commands import iter_coop
 from cooprint.simulation.inputs import (ScheduleEstimate, SimInput, SimInputError, own_chunks, load_inputs,
                                         read_chunk_meshes)
 from cooprint.simulation.kinematics import MachineLimits
@@ -100,7 +99,7 @@ def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: boo
     if inp.program_files is not None:  # a bundle's programs, read and timed piece by piece (not held whole)
         if limits is not None:
             raise ValueError("the acceleration model times whole programs: read them first (SimInput.with_programs)")
-        pieces = {r.name: partial(iter_coop, inp.program_files[r.name], r.name) for r in robots}
+        pieces = {r.name: partial(inp.program_pieces, r.name) for r in robots}  # checked against job.json
         room = {r.name: inp.program_files[r.name].stat().st_size // 7 + 1 for r in robots}  # read_coop's bound
         robots, timelines, findings = schedule_pieces(robots, pieces, p.print_speed, p.travel_speed, room)
         inp = replace(inp, robot_chunks=own_chunks(inp.robot_chunks, robots))

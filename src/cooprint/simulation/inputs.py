@@ -11,7 +11,7 @@ import re
 import tomllib
 from dataclasses import dataclass, fields, replace
 from pathlib import Path, PurePosixPath, PureWindowsPath
-from typing import Any, Iterable
+from typing import Any, Iterable, Iterator
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from cooprint.io.schema import (SchemaError, check_list, check_number, check_obj
                                 key_path, shown_key)
 from cooprint.io.bundle import map_input, plain_name, release
 from cooprint.io.files import path_kind, regular_file
-from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON, make_program, read_coop
+from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, iter_coop, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
 from cooprint.slicing.paths import INFILL, TRAVEL, extrusion_width
@@ -61,12 +61,35 @@ class SimInput:
     #: times it piece by piece (or :meth:`with_programs` reads it whole).
     program_files: dict[str, Path] | None = None
 
+    #: Each robot's command counts as job.json states them (``robots[].stats``: commands, moves,
+    #: NOTIFY, WAIT), by name: a program read piece by piece is checked against them when its
+    #: last piece is read (:meth:`program_pieces`); ``None``: not stated.
+    program_counts: dict[str, dict[str, int]] | None = None
+
     def with_programs(self) -> "SimInput":
-        """This input with every robot's program read whole (itself when they are)."""
+        """This input with every robot's program read whole (itself when they are), each checked
+        against job.json's counts (:func:`check_counts`)."""
         if self.program_files is None:
             return self
-        robots = [replace(r, program=read_coop(self.program_files[r.name], r.name)) for r in self.robots]
+        robots = []
+        for r in self.robots:
+            program = read_coop(self.program_files[r.name], r.name)
+            check_counts(self.program_files[r.name], program_counts(program), (self.program_counts or {}).get(r.name))
+            robots.append(replace(r, program=program))
         return replace(self, robots=robots, program_files=None, robot_chunks=own_chunks(self.robot_chunks, robots))
+
+    def program_pieces(self, name: str) -> Iterator[Program]:
+        """Robot ``name``'s program read piece by piece from its file (:func:`iter_coop`), its
+        commands counted on the way and checked against job.json's counts after the last piece
+        (:func:`check_counts`): a truncated or replaced file is refused in the same read that times it."""
+        assert self.program_files is not None
+        path = self.program_files[name]
+        counted = dict.fromkeys(COUNTED_KINDS, 0)
+        for piece in iter_coop(path, name):
+            for key, n in program_counts(piece).items():
+                counted[key] += n
+            yield piece
+        check_counts(path, counted, (self.program_counts or {}).get(name))
 
     @property
     def lower_bound(self) -> float | None:
@@ -94,6 +117,45 @@ class ScheduleEstimate:
 SCHEDULE_NUMBERS = {"lower_bound_s": "s", "makespan_s": "s", "gap": "a fraction: makespan / lower bound - 1"}
 #: A ``gap`` this little below 0 is a makespan equal to its bound in floating point (read as 0).
 GAP_ROUNDING = 1e-9
+
+
+#: The counts of job.json's ``robots[].stats`` that a robot's program is checked against, and
+#: how a message names each.
+COUNTED_KINDS = {"commands": "commands", "moves": "moves", "notify": "NOTIFY", "wait": "WAIT"}
+
+
+def program_counts(program: Program) -> dict[str, int]:
+    """A program's (or a piece's) commands, moves, NOTIFYs and WAITs (job.json ``stats``' counts)."""
+    kind = program.kind
+    return {"commands": len(kind), "moves": int(np.count_nonzero(kind == MOVE)),
+            "notify": int(np.count_nonzero(kind == NOTIFY)), "wait": int(np.count_nonzero(kind == WAIT))}
+
+
+def check_counts(path: Path, counted: dict[str, int], stated: dict[str, int] | None) -> None:
+    """Refuse a bundle's program whose counts (:func:`program_counts`) are not those job.json
+    states for it (``stated``; ``None``: nothing stated, nothing to check): the file was cut
+    short, emptied or replaced after ``cooprint run`` wrote it, and simulating it would report a
+    plan that is not the bundle's."""
+    for key, what in COUNTED_KINDS.items():
+        if stated is not None and key in stated and counted[key] != stated[key]:
+            raise SimInputError(f"{path}: {counted[key]:,} {what}, job.json says {stated[key]:,}: the file was "
+                                "truncated or replaced; re-run `cooprint run`")
+
+
+def _stated_counts(e: dict[str, Any], where: str, at: str) -> dict[str, int] | None:
+    """The counts of a job.json robot's ``stats`` (:data:`COUNTED_KINDS`, each an integer >= 0
+    when present), ``None`` without ``stats``."""
+    if "stats" not in e:
+        return None
+    stats = check_object(e["stats"], where, at + ".stats", unknown="ignore")
+    out = {}
+    for key in COUNTED_KINDS:
+        if key in stats:
+            value = stats[key]
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise fail(where, f"{at}.stats.{key}", "expected a count (an integer >= 0)", value)
+            out[key] = value
+    return out
 
 
 _facing = unit_deg  # a robot's facing in degrees (job.json facing_deg) as its unit vector
@@ -238,7 +300,7 @@ def load_bundle(folder: str | Path, programs: bool = True) -> SimInput:
     chunk_files = _chunk_files(record, d, where)
     settings = check_settings(record["settings"], where, "settings")
     entries = check_list(record["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="robot objects")
-    robots, names, robot_chunks, files = [], set(), {}, {}
+    robots, names, robot_chunks, files, counts = [], set(), {}, {}, {}
     for n, e in enumerate(entries):
         at = key_path("robots", n)
         check_object(e, where, at, required=BUNDLE_ROBOT_REQUIRED, optional=BUNDLE_ROBOT_OPTIONAL, unknown="typo")
@@ -253,7 +315,10 @@ def load_bundle(folder: str | Path, programs: bool = True) -> SimInput:
                               unit="degrees")
         _check_robot_record(e, facing, chunk_ids, where, at)
         profile = _bundle_profile(e.get("profile"), settings.robot, where, at)
+        counts[name] = _stated_counts(e, where, at)
         program = read_coop(program_path, name) if programs else None
+        if program is not None:
+            check_counts(program_path, program_counts(program), counts[name])
         files[name] = program_path
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing),
                                profile=profile))
@@ -263,7 +328,8 @@ def load_bundle(folder: str | Path, programs: bool = True) -> SimInput:
     return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
                     estimate=_schedule_estimate(record, where), chunk_files=chunk_files,
                     robot_chunks=robot_chunks if chunk_files is not None else None, critical_path=critical,
-                    program_files=None if programs else files)
+                    program_files=None if programs else files,
+                    program_counts={k: v for k, v in counts.items() if v is not None})
 
 
 def _critical_path(record: dict[str, Any], chunk_ids: set[str] | None, where: str) -> tuple[str, ...] | None:
