@@ -223,3 +223,108 @@ def test_view_open_starts_a_graphical_browser_or_says_it_could_not(bundle, tmp_p
     assert main(["view", str(job), "--open"]) == 0
     assert opened == [(job / "sim" / "viewer.html").resolve().as_uri()]
     assert "opened" in capsys.readouterr().out
+
+
+# --- trial 16: what view says, and a simulation it never hides or mixes -------------------------
+
+def _deadlocked(job):
+    """Robot B of bundle ``job`` waits for an event nobody announces (job.json's counts edited to match)."""
+    path = job / "robots" / "B.coop"
+    lines = path.read_text().splitlines(keepends=True)
+    half = next(i for i in range(len(lines) // 2, len(lines)) if lines[i].startswith("MOVE"))
+    path.write_text("".join(lines[:half] + ["WAIT nobody:7\n"] + lines[half:]))
+    record = json.loads((job / "job.json").read_text())
+    stats = record["robots"][1]["stats"]
+    stats["commands"], stats["wait"] = stats["commands"] + 1, stats["wait"] + 1
+    (job / "job.json").write_text(json.dumps(record))
+
+
+@built
+def test_view_that_simulates_prints_the_findings_and_exits_1_on_errors(bundle, tmp_path, capsys):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    shutil.rmtree(job / "sim", ignore_errors=True)
+    _deadlocked(job)
+    assert main(["view", str(job)]) == 1
+    out, err = capsys.readouterr()
+    assert "findings: deadlock 1" in out and "  deadlock (error): robot B" in out and "makespan" in out
+    assert "the plan is INVALID: the simulation found errors (deadlock 1)" in err
+    assert (job / "sim" / "viewer.html").read_text().startswith("<!-- cooprint-viewer/")  # written first
+    assert main(["view", str(job)]) == 0  # the same simulation: the page again, nothing judged
+    assert "simulating" not in capsys.readouterr().out
+
+
+@built
+def test_view_simulates_again_when_the_programs_changed_and_refuses_one_cut_short(bundle, tmp_path, capsys):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    shutil.rmtree(job / "sim", ignore_errors=True)
+    assert main(["view", str(job)]) == 0
+    inputs = json.loads((job / "sim" / "summary.json").read_text())["inputs"]
+    assert set(inputs["fingerprint"]) >= {"job.json", "robots/A.coop", "robots/B.coop"}
+    capsys.readouterr()
+    _deadlocked(job)
+    assert main(["view", str(job)]) == 1
+    out = capsys.readouterr().out
+    assert "changed since sim/summary.json was written: simulating again" in out and "findings: deadlock 1" in out
+    assert json.loads((job / "sim" / "summary.json").read_text())["finding_counts"]["deadlock"] == 1
+    program = job / "robots" / "A.coop"
+    program.write_text("".join(program.read_text().splitlines(keepends=True)[:100]))  # cut short at a line
+    line = assert_rejected(["view", job], capsys, watch=[job], contains=f"{program}: ")
+    assert " commands, job.json says " in line
+    assert "truncated or replaced" in line
+
+
+@built
+def test_view_of_an_unreadable_or_foreign_summary(bundle, tmp_path, capsys):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    (job / "sim").mkdir(exist_ok=True)
+    (job / "sim" / "summary.json").write_text("{broken")
+    assert main(["view", str(job)]) == 0
+    assert re.search(r"sim/summary\.json: unreadable \(.+\); simulating again", capsys.readouterr().out)
+    assert json.loads((job / "sim" / "summary.json").read_text())["format"].startswith("cooprint-sim/")
+    (job / "sim" / "summary.json").write_text('{"mine": 1}')
+    assert_rejected(["view", job], capsys, watch=[job], contains="not a cooprint simulation summary")
+
+
+@built
+def test_view_messages_name_the_right_file_and_no_option_view_lacks(bundle, tmp_path, capsys):
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    assert main(["view", str(job)]) == 0
+    capsys.readouterr()
+    (job / "job.json").write_text('{"format": "x"')
+    assert_rejected(["view", job], capsys, watch=[job], contains=f"{job / 'job.json'}: not a valid job.json")
+    shutil.copy(bundle / "job.json", job / "job.json")
+    page = job / "sim" / "viewer.html"
+    page.unlink()
+    page.mkdir()
+    line = assert_rejected(["view", job], capsys, watch=[job], contains="is a folder; move it away")
+    page.rmdir()
+    page.symlink_to(tmp_path / "elsewhere.html")
+    for line in (line, assert_rejected(["view", job], capsys, watch=[job], contains="symlink")):
+        assert "--out" not in line and "file name" not in line
+
+
+def test_simulate_of_a_missing_path_says_so(tmp_path, capsys):
+    assert_rejected(["simulate", tmp_path / "nowhere"], capsys, watch=[tmp_path],
+                    contains=f"{tmp_path / 'nowhere'}: no such file or folder")
+
+
+@built
+def test_view_of_a_gcode_folder_simulates_again_when_the_gcode_changed(bundle, tmp_path, capsys):
+    import os
+
+    gcode = tmp_path / "A.gcode"
+    shutil.copy(bundle / "robots" / "A.gcode", gcode)
+    out = tmp_path / "g"
+    main(["simulate", str(gcode), "--out", str(out), "-q"])
+    assert main(["view", str(out)]) == 0
+    assert "simulating" not in capsys.readouterr().out
+    st = gcode.stat()
+    os.utime(gcode, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))
+    assert main(["view", str(out)]) == 0
+    assert f"{gcode} changed since sim/summary.json was written: simulating again" in capsys.readouterr().out
+    stamp = json.loads((out / "sim" / "summary.json").read_text())["inputs"]["fingerprint"]
+    assert stamp[str(gcode)] == [st.st_size, st.st_mtime_ns + 10 ** 9]

@@ -502,9 +502,13 @@ _SMALL_OUTPUT = 1 << 16
 
 
 def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
+    """Some inputs, each there (a missing one is named before any question of where the output goes)."""
     if not inputs and not manifest:
         raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, .coop files, "
                         "or --manifest FILE.toml")
+    for x in inputs:
+        if x and not os.path.lexists(x):
+            raise UserError(f"{x}: no such file or folder")
 
 
 def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:
@@ -552,8 +556,8 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     import numpy as np
 
     from cooprint.io.bundle import atomic_file, check_file_destination, write_json
-    from cooprint.jobs import read_with_progress
-    from cooprint.simulation import bound_line, findings_line, frames, simulate as run_sim, summary
+    from cooprint.jobs import inputs_record, read_with_progress
+    from cooprint.simulation import findings_line, frames, simulate as run_sim, summary
     from cooprint.simulation.perturb import check_perturb_options, perturb_runs
 
     from cooprint.executors import check_executor_options, make_executor
@@ -585,7 +589,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
                                          progress=lambda done, total: progress("perturbed runs", done, total),
                                          executor=ex)
     record = summary(result, perturbed)
-    record["inputs"] = _inputs_record(inputs, manifest, config, accel)
+    record["inputs"] = inputs_record(inputs, manifest, config, accel, inp)
     if frame_step is not None:
         if result.makespan / frame_step > 10_000_000:
             raise UserError(f"--frames {frame_step:g}: more than 10 million frames over {result.makespan:.0f} s; "
@@ -597,17 +601,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     with atomic_file(target, force=True, inputs=sources, create_parents=2) as tmp:
         write_json(tmp, record)
     if not quiet:
-        click.echo(f"makespan {record['makespan_s'] / 3600:.2f} h ({record['makespan_s']:.0f} s)")
-        for r in record["robots"]:
-            click.echo(f"  robot {r['name']}: printing {r['printing_s']:.0f} s, travelling {r['travelling_s']:.0f} s, "
-                       f"waiting {r['waiting_s']:.0f} s, idle {r['idle_s']:.0f} s, {r['material_mm3'] / 1000:.1f} cm3")
-        if bound_line(record):
-            click.echo(bound_line(record))
-        click.echo("findings: " + findings_line(record["finding_counts"]))
-        for note in result.notes:
-            click.echo(f"note: {note}")
-        for f in result.findings[:10]:
-            click.echo(f"  {_finding_text(f)}")
+        report_simulation(record)
         if perturbed is not None:
             click.echo(perturbed_line(record["perturb"]))
             click.echo("perturbed findings: " + findings_line(record["perturb"]["finding_counts"]))
@@ -623,21 +617,34 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
         _judge(record, strict, quiet, "the simulation", target)
 
 
-def _inputs_record(inputs: tuple[str, ...], manifest: str | None, config: tuple[str, ...], accel: bool
-                   ) -> dict[str, Any]:
-    """What ``cooprint view`` needs to read and time a simulation's inputs again (summary.json
-    ``inputs``): the input paths, the manifest and the ``--config`` files, absolute, and whether
-    moves accelerated."""
-    absolute = lambda x: os.path.abspath(x)  # noqa: E731
-    return {"paths": [absolute(x) for x in inputs], "manifest": absolute(manifest) if manifest else None,
-            "config": [absolute(x) for x in config], "accel": bool(accel)}
+def report_simulation(record: dict[str, Any]) -> None:
+    """The lines ``simulate`` prints about a simulation summary (sim/summary.json's record):
+    makespan, each robot's times and material, the bound, the findings line, the notes and the
+    first ten findings (``view`` prints them too when it simulates)."""
+    from cooprint.simulation import bound_line, findings_line
+
+    click.echo(f"makespan {record['makespan_s'] / 3600:.2f} h ({record['makespan_s']:.0f} s)")
+    for r in record["robots"]:
+        click.echo(f"  robot {r['name']}: printing {r['printing_s']:.0f} s, travelling {r['travelling_s']:.0f} s, "
+                   f"waiting {r['waiting_s']:.0f} s, idle {r['idle_s']:.0f} s, {r['material_mm3'] / 1000:.1f} cm3")
+    if bound_line(record):
+        click.echo(bound_line(record))
+    click.echo("findings: " + findings_line(record["finding_counts"]))
+    for note in record.get("notes") or ():
+        click.echo(f"note: {note}")
+    for f in record["findings"][:10]:
+        click.echo(f"  {_finding_text(f)}")
 
 
 def _finding_text(f: Any) -> str:
-    """A finding in one line: kind, severity, robot, time, place, chunk, detail, count."""
-    return (f"{f.kind} ({f.severity}): robot {f.robot} at {f.time:.1f} s, "
-            f"({f.position[0]:.1f}, {f.position[1]:.1f}, {f.position[2]:.1f}) mm, chunk {f.chunk or '-'}: "
-            f"{f.detail}" + (f" ({f.count:,} {f.count_of})" if f.count > 1 else ""))
+    """A finding (a Finding, or its record in summary.json) in one line: kind, severity, robot,
+    time, place, chunk, detail, count."""
+    if not isinstance(f, dict):
+        f = f.to_dict()
+    x, y, z = f["position"]
+    return (f"{f['kind']} ({f['severity']}): robot {f['robot']} at {f['time_s']:.1f} s, "
+            f"({x:.1f}, {y:.1f}, {z:.1f}) mm, chunk {f['chunk'] or '-'}: "
+            f"{f['detail']}" + (f" ({f['count']:,} {f['count_of']})" if f["count"] > 1 else ""))
 
 
 def perturbed_line(rec: dict[str, Any]) -> str:
@@ -722,11 +729,15 @@ def view(folder: str, open_page: bool, force: bool) -> None:
 
     FOLDER is a `cooprint run` bundle (simulated first when it has no sim/summary.json yet) or
     a folder written by `cooprint simulate FILES --out FOLDER` (its inputs are read again).
-    The page needs no network: open it from disk, mail it, attach it to a report."""
-    from cooprint.io.bundle import atomic_file, check_file_destination, is_bundle, is_derived_output
-    from cooprint.jobs import read_with_progress, simulate_bundle
+    The page needs no network: open it from disk, mail it, attach it to a report.
+    A simulation it runs (no sim/summary.json yet, or inputs changed since) prints its summary
+    as `simulate` does and exits 1 on errors, after writing the page."""
+    from cooprint.errors import OutputError
+    from cooprint.io.bundle import atomic_file, check_file_destination, is_bundle, is_derived_output, write_json
+    from cooprint.jobs import (SummaryUnreadable, inputs_record, read_summary, read_with_progress, sim_sources,
+                               simulate_bundle)
     from cooprint.render.viewer import check_assets, write_viewer
-    from cooprint.simulation import simulate as run_sim
+    from cooprint.simulation import simulate as run_sim, summary
     from cooprint.simulation.inputs import read_chunk_meshes
 
     root = Path(folder)
@@ -735,54 +746,91 @@ def view(folder: str, open_page: bool, force: bool) -> None:
                         "bundle or a folder written by `cooprint simulate ... --out`")
     summary_path = root / "sim" / "summary.json"
     target = root / "sim" / "viewer.html"
-    bundle = is_bundle(root)
-    record = _sim_record(summary_path)
+    unreadable = None
+    try:
+        record = read_summary(summary_path)
+    except SummaryUnreadable as exc:
+        record, unreadable = None, exc
+    # a job.json that does not read is still the bundle's (its loader says what is wrong with it)
+    bundle = is_bundle(root) or (os.path.lexists(root / "job.json") and not _names_other_inputs(record, root))
     if not bundle and record is None:
+        if unreadable is not None:
+            raise UserError(f"{unreadable}; run `cooprint simulate FILES --out {folder}` again")
         raise UserError(f"{folder}: neither a cooprint bundle (job.json) nor a simulated folder (sim/summary.json); "
                         "run `cooprint run MESH --out FOLDER` or `cooprint simulate FILES --out FOLDER` first")
     check_assets()
-    if record is None:  # a bundle not simulated yet: its simulation writes the viewer too
-        check_file_destination(target, force, create_parents=1)
-        click.echo(f"{folder} has no simulation yet (sim/summary.json): simulating it first")
+    sources = None if record is None else sim_sources(root, record)
+    inputs = (str(root),) if sources is None else sources.paths
+    manifest, config = (None, ()) if sources is None else (sources.manifest, sources.config)
+    _view_destination(check_file_destination, target, force, (*inputs, manifest))
+    if record is None:
+        why = (f"{unreadable}; simulating again" if unreadable is not None else
+               f"{folder} has no simulation yet (sim/summary.json): simulating it first")
+    else:
+        why = None if sources.changed is None else (f"{folder}: {sources.changed} since sim/summary.json was "
+                                                    "written: simulating again")
+    _heap_malloc()
+    if why is not None and bundle:
+        inp = read_with_progress([str(root)], None, None, None, programs=False)  # job.json refused before a word
+        click.echo(why)
         users = target.exists() and not is_derived_output(target)  # replaced below (--force)
         with stage_progress(True) as progress:
-            simulate_bundle(root, progress=progress, viewer=not users)
+            record = simulate_bundle(root, progress=progress, viewer=not users, inp=inp)
+        report_simulation(record)
         if not users:
             _viewer_done(target, open_page)
+            _judge(record, False, False, "the simulation", summary_path)
             return
-        record = _sim_record(summary_path)
-        assert record is not None
-    inputs = record.get("inputs")
-    if bundle:  # the bundle where it is now; timed as its simulation was
-        accel = inputs.get("accel") if isinstance(inputs, dict) else None
-        inputs = {"paths": [str(root)], "manifest": None, "config": [],
-                  "accel": accel if accel is not None else str(record.get("time_model", "")).startswith("trapezoidal")}
-    if not isinstance(inputs, dict) or not isinstance(inputs.get("paths"), list):
-        raise UserError(f"{summary_path}: does not say which files were simulated (written by an older cooprint?); "
-                        f"run `cooprint simulate FILES --out {folder}` again")
-    manifest, config = inputs.get("manifest"), tuple(inputs.get("config") or ())
-    sources = (*inputs["paths"], manifest)
-    for name in [*inputs["paths"], *([manifest] if manifest else []), *config]:
-        if not Path(name).exists():
-            raise UserError(f"{summary_path}: names {name}, which is no longer there; simulate again")
-    check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=1)
-    _heap_malloc()
+    accel = False if why is not None and bundle else sources.accel  # (simulate_bundle: constant speed)
     with stage_progress(True) as progress:
-        inp = read_with_progress(list(inputs["paths"]), manifest, _settings(config, {}) if config else None, progress,
+        inp = read_with_progress(list(inputs), manifest, _settings(config, {}) if config else None, progress,
                                  programs=False)
-        result = run_sim(inp, checks=False, accel=bool(inputs.get("accel")), progress=progress)
-    with atomic_file(target, force, inputs=sources, create_parents=1) as tmp:
-        write_viewer(result, record, tmp, chunks=read_chunk_meshes(inp), critical=inp.critical_path,
-                     lower_bound=inp.lower_bound, title=root.resolve().name)
+        checked = why is not None and not bundle  # a simulated folder's inputs changed: its summary too
+        result = run_sim(inp, checks=checked, accel=accel, progress=progress)
+    if checked:
+        click.echo(why)
+        record = summary(result)
+        record["inputs"] = inputs_record(inputs, manifest, config, accel, inp)
+        with atomic_file(summary_path, force=True, inputs=(*inputs, manifest), create_parents=1) as tmp:
+            write_json(tmp, record)
+        report_simulation(record)
+    try:
+        with atomic_file(target, force, inputs=(*inputs, manifest), create_parents=1) as tmp:
+            write_viewer(result, record, tmp, chunks=read_chunk_meshes(inp), critical=inp.critical_path,
+                         lower_bound=inp.lower_bound, title=root.resolve().name)
+    except OutputError as exc:
+        raise OutputError(_view_wording(str(exc))) from None
     _viewer_done(target, open_page)
+    if why is not None:
+        _judge(record, False, False, "the simulation", summary_path)
 
 
-def _sim_record(path: Path) -> dict[str, Any] | None:
-    """sim/summary.json when it is cooprint's (a ``cooprint-sim/`` format), else None."""
-    from cooprint.io.bundle import SIM_FORMAT, read_json_object
+def _names_other_inputs(record: dict[str, Any] | None, root: Path) -> bool:
+    """Whether a simulation summary names inputs other than the folder ``root`` itself (a
+    ``simulate FILES --out`` folder, even one holding a ``job.json``)."""
+    inputs = record.get("inputs") if record is not None else None
+    return isinstance(inputs, dict) and isinstance(inputs.get("paths"), list) and \
+        inputs["paths"] != [os.path.abspath(root)]
 
-    record = read_json_object(path)
-    return record if record is not None and str(record.get("format", "")).startswith(SIM_FORMAT) else None
+
+def _view_wording(message: str) -> str:
+    """An output check's message worded for ``view``, which has no ``--out`` and writes one fixed
+    file (``sim/viewer.html``): what the user can do is move the entry in the way."""
+    for old, new in ((", or choose another --out", ""), (" or choose another --out", ""),
+                     ("; choose another --out", "; move it away"),
+                     ("; give a file name", "; move it away (cooprint writes its page sim/viewer.html there)")):
+        message = message.replace(old, new)
+    return message
+
+
+def _view_destination(check: Any, target: Path, force: bool, sources: tuple[Any, ...]) -> None:
+    """``check_file_destination`` of the page, its errors worded for ``view``."""
+    from cooprint.errors import OutputError
+
+    try:
+        check(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=1)
+    except OutputError as exc:
+        raise OutputError(_view_wording(str(exc))) from None
 
 
 def _viewer_done(target: Path, open_page: bool) -> None:

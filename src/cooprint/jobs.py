@@ -789,7 +789,7 @@ def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, ro
 
 
 def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False,
-                    progress: Progress | None = None, viewer: bool = True) -> dict[str, Any]:
+                    progress: Progress | None = None, viewer: bool = True, inp: Any = None) -> dict[str, Any]:
     """Simulate the bundle in ``out`` (written by :func:`run`) and write ``out/sim/``:
     ``summary.json``, ``gantt.png``, ``snapshot.png`` (at ``snapshot_at`` s, default half the
     makespan), with ``viewer`` the interactive ``viewer.html`` (:mod:`cooprint.render.viewer`)
@@ -797,7 +797,10 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
     cooprint's earlier derived outputs in ``sim/`` are replaced, other files kept (a
     ``viewer.html`` that is not cooprint's is left as it is, and no viewer is written: a
     warning says so; so does one when the viewer's JavaScript is not built). ``progress``: the
-    stages ``read`` (bytes of the programs), ``timelines``, ``checks`` and ``pictures``."""
+    stages ``read`` (bytes of the programs), ``timelines``, ``checks`` and ``pictures``. ``inp``:
+    the bundle already loaded without its programs (``load_inputs([out], programs=False)``).
+    The summary's ``inputs`` (:func:`inputs_record`) say what was simulated and its files' sizes
+    and times, so that ``cooprint view`` sees when they change."""
     from cooprint.io.bundle import check_sim_folder, is_derived_output
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import simulate, summary
@@ -818,9 +821,11 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
         except UserError as exc:  # the plan is still simulated and drawn; `cooprint view` says what to do
             warn(f"no viewer written: {exc}")
             viewer = False
-    inp = read_with_progress([str(out)], None, None, progress, programs=False)  # timed piece by piece
+    if inp is None:
+        inp = read_with_progress([str(out)], None, None, progress, programs=False)  # timed piece by piece
     result = simulate(inp, progress=progress)
     record = summary(result)
+    record["inputs"] = inputs_record([str(out)], None, (), False, inp)
     pictures = 2 + int(viewer) + int(animation)
     with atomic_dir(out / "sim", force=True, sim=True) as tmp:
         write_json(tmp / "summary.json", record)
@@ -863,3 +868,121 @@ def read_with_progress(inputs: list[str], manifest: str | None, settings: JobSet
     if progress:
         progress("read", size, size)
     return inp
+
+
+def inputs_record(paths: Sequence[str | Path], manifest: str | Path | None, config: Sequence[str | Path],
+                  accel: bool, inp: Any = None) -> dict[str, Any]:
+    """sim/summary.json's ``inputs``: what ``cooprint view`` and ``render`` need to read and time a
+    simulation's inputs again (the input paths, the manifest and the ``--config`` files, absolute;
+    whether moves accelerated) and to tell whether they changed since (``fingerprint``: each file
+    read, ``[size, mtime_ns]``, from :attr:`SimInput.fingerprint` and the ``--config`` files)."""
+    from cooprint.simulation.inputs import fingerprint
+
+    record: dict[str, Any] = {"paths": [os.path.abspath(x) for x in paths],
+                              "manifest": os.path.abspath(manifest) if manifest else None,
+                              "config": [os.path.abspath(x) for x in config], "accel": bool(accel)}
+    if inp is not None and inp.fingerprint is not None:
+        record["fingerprint"] = dict(inp.fingerprint) | fingerprint([Path(x) for x in config])
+    return record
+
+
+class SummaryUnreadable(UserError):
+    """A ``sim/summary.json`` that cooprint wrote (it is in a bundle's ``sim/``) but cannot read:
+    cut short, emptied, not JSON. Not a user's file: simulating again replaces it."""
+
+
+def read_summary(path: str | Path) -> dict[str, Any] | None:
+    """The simulation summary at ``path`` (``DIR/sim/summary.json``), ``None`` when there is none.
+    A file there that is JSON but not cooprint's (no ``cooprint-sim/`` format) is a
+    :class:`UserError` (never replaced: it is the user's); one that does not read as JSON at all
+    is :class:`SummaryUnreadable` (its message says why)."""
+    import json
+
+    from cooprint.io.bundle import SIM_FORMAT
+
+    p = Path(path)
+    if not os.path.lexists(p):
+        return None
+    try:
+        if not p.is_file():
+            raise UserError(f"{p}: not a regular file where cooprint keeps its simulation summary; move it away")
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise SummaryUnreadable(f"{p}: unreadable (not UTF-8 text, byte {exc.start})") from None
+    except (ValueError, RecursionError) as exc:
+        raise SummaryUnreadable(f"{p}: unreadable ({'empty' if not p.stat().st_size else str(exc)[:80]})") from None
+    except OSError as exc:
+        raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    if not isinstance(data, dict) or not str(data.get("format", "")).startswith(SIM_FORMAT):
+        raise UserError(f"{p}: not a cooprint simulation summary (no \"format\": \"{SIM_FORMAT}...\"); cooprint "
+                        "does not replace it: move it away")
+    return data
+
+
+def changed_inputs(record: dict[str, Any], root: str | Path) -> str | None:
+    """Which input of a simulation summary changed since it was simulated, in a few words
+    (``robots/B.coop changed``, ``job.json is no longer there``): the first file of its
+    ``inputs.fingerprint`` whose size or mtime differ now (a bundle's paths relative to ``root``);
+    ``None`` when none did, or the summary records none (written by an older cooprint)."""
+    inputs = record.get("inputs")
+    stamp = inputs.get("fingerprint") if isinstance(inputs, dict) else None
+    if not isinstance(stamp, dict):
+        return None
+    for key, was in stamp.items():
+        p = Path(key) if os.path.isabs(key) else Path(root) / key
+        try:
+            st = os.stat(p)
+        except OSError:
+            return f"{key} is no longer there"
+        if [int(st.st_size), int(st.st_mtime_ns)] != was:
+            return f"{key} changed"
+    return None
+
+
+@dataclass(frozen=True)
+class SimSources:
+    """What a simulated folder's ``sim/summary.json`` says was simulated (:func:`sim_sources`):
+    the inputs to read again (``paths``, ``manifest``, ``config``), whether moves accelerated,
+    the summary itself, and ``changed``: the input that changed since (:func:`changed_inputs`),
+    ``None`` when none did (or the summary cannot tell)."""
+
+    paths: tuple[str, ...]
+    manifest: str | None
+    config: tuple[str, ...]
+    accel: bool
+    record: dict[str, Any]
+    changed: str | None
+
+
+def sim_sources(folder: str | Path, record: dict[str, Any] | None = None) -> SimSources:
+    """The inputs of a simulated folder, to read and time them again (``cooprint view``,
+    ``cooprint render DIR``): a ``cooprint run`` bundle (itself) or a folder written by
+    ``cooprint simulate FILES --out FOLDER`` (the files its ``sim/summary.json`` names). Read
+    them with ``read_with_progress(list(s.paths), s.manifest, load_settings(*s.config) if
+    s.config else None, ...)`` and time them with ``simulate(..., accel=s.accel)``. ``record``:
+    the summary already read (:func:`read_summary`). A missing or unreadable summary, one that
+    does not say what it simulated, or inputs no longer there are a one-line :class:`UserError`."""
+    from cooprint.io.bundle import is_bundle
+
+    root = Path(folder)
+    summary_path = root / "sim" / "summary.json"
+    if record is None:
+        record = read_summary(summary_path)
+    if record is None:
+        raise UserError(f"{folder}: no simulation (sim/summary.json); run `cooprint simulate` first")
+    inputs = record.get("inputs")
+    saved = isinstance(inputs, dict) and isinstance(inputs.get("paths"), list)
+    if is_bundle(root) or os.path.lexists(root / "job.json") and (not saved or inputs["paths"] == [os.path.abspath(root)]):
+        accel = inputs.get("accel") if isinstance(inputs, dict) else None  # the bundle where it is now
+        return SimSources((str(root),), None, (), bool(accel) if accel is not None else
+                          str(record.get("time_model", "")).startswith("trapezoidal"), record,
+                          changed_inputs(record, root))
+    if not saved:
+        raise UserError(f"{summary_path}: does not say which files were simulated (written by an older cooprint?); "
+                        f"run `cooprint simulate FILES --out {folder}` again")
+    manifest, config = inputs.get("manifest"), tuple(inputs.get("config") or ())
+    for name in [*inputs["paths"], *([manifest] if manifest else []), *config]:
+        if not Path(name).exists():
+            raise UserError(f"{summary_path}: names {name}, which is no longer there; simulate again")
+    return SimSources(tuple(inputs["paths"]), manifest, config, bool(inputs.get("accel")), record,
+                      changed_inputs(record, root))

@@ -7,6 +7,7 @@ import difflib
 import io
 import json
 import math
+import os
 import re
 import tomllib
 from dataclasses import dataclass, fields, replace
@@ -65,6 +66,10 @@ class SimInput:
     #: NOTIFY, WAIT), by name: a program read piece by piece is checked against them when its
     #: last piece is read (:meth:`program_pieces`); ``None``: not stated.
     program_counts: dict[str, dict[str, int]] | None = None
+    #: The files read, each as ``[size, mtime_ns]`` when the input was loaded (:func:`fingerprint`),
+    #: by path (a bundle's relative to it: ``job.json``, ``robots/A.coop``): sim/summary.json keeps
+    #: it, so that ``cooprint view`` knows when the inputs changed since they were simulated.
+    fingerprint: dict[str, list[int]] | None = None
 
     def with_programs(self) -> "SimInput":
         """This input with every robot's program read whole (itself when they are), each checked
@@ -122,6 +127,20 @@ GAP_ROUNDING = 1e-9
 #: The counts of job.json's ``robots[].stats`` that a robot's program is checked against, and
 #: how a message names each.
 COUNTED_KINDS = {"commands": "commands", "moves": "moves", "notify": "NOTIFY", "wait": "WAIT"}
+
+
+def fingerprint(files: Iterable[Path], root: Path | None = None) -> dict[str, list[int]]:
+    """Each file's ``[size, mtime_ns]`` by path (relative to ``root`` when given, ``/``-separated;
+    else absolute): cheap (a stat each), and any write to a file changes its mtime."""
+    out = {}
+    for f in files:
+        try:
+            st = os.stat(f)
+        except (OSError, ValueError):  # not there: its reader says so
+            continue
+        key = Path(os.path.relpath(f, root)).as_posix() if root is not None else os.path.abspath(f)
+        out[key] = [int(st.st_size), int(st.st_mtime_ns)]
+    return out
 
 
 def program_counts(program: Program) -> dict[str, int]:
@@ -325,11 +344,12 @@ def load_bundle(folder: str | Path, programs: bool = True) -> SimInput:
         robot_chunks[name] = (tuple(e["chunks"]) if "chunks" in e else
                               tuple(program.chunks) if program is not None else None)
     critical = _critical_path(record, chunk_ids, where)
+    stamp = fingerprint([path, *files.values(), *(chunk_files or {}).values()], d)
     return SimInput(robots, settings.robot, settings.slicing, str(d), deps=_chunk_deps(record, chunk_ids, where),
                     estimate=_schedule_estimate(record, where), chunk_files=chunk_files,
                     robot_chunks=robot_chunks if chunk_files is not None else None, critical_path=critical,
                     program_files=None if programs else files,
-                    program_counts={k: v for k, v in counts.items() if v is not None})
+                    program_counts={k: v for k, v in counts.items() if v is not None}, fingerprint=stamp)
 
 
 def _critical_path(record: dict[str, Any], chunk_ids: set[str] | None, where: str) -> tuple[str, ...] | None:
@@ -532,7 +552,7 @@ def load_manifest(path: str | Path) -> SimInput:
     if "robots" not in data:
         raise SimInputError(f"{where}: no [[robots]] entries")
     entries = check_list(data["robots"], where, "robots", min_len=1, max_len=MAX_ROBOTS, what="[[robots]] entries")
-    robots, names = [], set()
+    robots, names, files = [], set(), [p]
     for n, e in enumerate(entries):  # counted from 0, as job.json's robots are
         at = key_path("robots", n)
         check_object(e, where, at, required=MANIFEST_ROBOT_REQUIRED, optional=MANIFEST_ROBOT_OPTIONAL)
@@ -550,11 +570,12 @@ def load_manifest(path: str | Path) -> SimInput:
         if kind != "file":
             raise fail(where, at + ".program", f"no such .coop file ({file})" if kind == "missing" else
                        f"expected a .coop file, not a folder, a named pipe (FIFO) or a device ({file})", prog)
+        files.append(file)
         program = read_coop(file, name)
         robots.append(SimRobot(name, program, None if start is None else np.asarray(start, float), _facing(facing)))
     profiles = _manifest_profiles(data.get("profiles", {}), [r.name for r in robots], settings.robot, where)
     robots = [replace(r, profile=profiles[r.name]) if r.name in profiles else r for r in robots]
-    return SimInput(robots, settings.robot, settings.slicing, where)
+    return SimInput(robots, settings.robot, settings.slicing, where, fingerprint=fingerprint(files))
 
 
 def _manifest_profiles(data: Any, names: list[str], fleet: RobotProfile, where: str) -> dict[str, RobotProfile]:
@@ -593,6 +614,7 @@ def load_coop_files(paths: list[str | Path], settings: JobSettings | None = None
     ``settings`` (the defaults), starting at its first MOVE, facing as :func:`coop_facing` says."""
     settings = settings or load_settings()
     robots, names = [], {}
+    stamp = fingerprint(paths)  # before the files are read
     for x in paths:
         p = Path(x)
         name = plain_name(p).stem  # A.coop and A.coop.gz: robot A
@@ -604,7 +626,7 @@ def load_coop_files(paths: list[str | Path], settings: JobSettings | None = None
         names[name] = p
         program = read_coop(p, name)
         robots.append(SimRobot(name, program, None, _facing(coop_facing(program))))
-    return SimInput(robots, settings.robot, settings.slicing, ", ".join(map(str, paths)))
+    return SimInput(robots, settings.robot, settings.slicing, ", ".join(map(str, paths)), fingerprint=stamp)
 
 
 def load_gcode_files(paths: list[str | Path], profile: RobotProfile | None = None,
@@ -612,13 +634,14 @@ def load_gcode_files(paths: list[str | Path], profile: RobotProfile | None = Non
     """Plain G-code files, one robot each (named by the file's stem). Nothing says where a
     robot's body stands, so the body checks are left out (``placed`` is false): the result is
     the timing, the material and the deadlock check."""
+    stamp = fingerprint(paths)  # before the files are read
     robots = [read_gcode(p) for p in paths]
     names = [r.name for r in robots]
     if len(set(names)) != len(names):
         raise SimInputError(f"two G-code files with the same name: {', '.join(names)}")
     # a printer's G-code: PrusaSlicer's machine limits; no robot body stands anywhere known
     return SimInput(robots, profile or RobotProfile(), slicing or SlicingSettings(), ", ".join(map(str, paths)),
-                    MachineLimits(), placed=False, notes=tuple(n for r in robots for n in r.notes))
+                    MachineLimits(), placed=False, notes=tuple(n for r in robots for n in r.notes), fingerprint=stamp)
 
 
 def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
