@@ -219,10 +219,19 @@ def test_view_open_starts_a_graphical_browser_or_says_it_could_not(bundle, tmp_p
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     assert main(["view", str(job), "--open"]) == 0
     assert "could not open a web browser here (no display)" in capsys.readouterr().out and not opened
-    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.setenv("DISPLAY", ":987")  # a DISPLAY left over, no X server behind it
     assert main(["view", str(job), "--open"]) == 0
+    assert "could not open a web browser here (no X server answers at DISPLAY=:987)" in capsys.readouterr().out
+    assert not opened
+    import socket
+
+    with socket.socket() as server:  # an X server's port (6000 + display) that answers
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+        monkeypatch.setenv("DISPLAY", f"127.0.0.1:{server.getsockname()[1] - 6000}")
+        assert main(["view", str(job), "--open"]) == 0
     assert opened == [(job / "sim" / "viewer.html").resolve().as_uri()]
-    assert "opened" in capsys.readouterr().out
+    assert f"asked the system's web browser to open {opened[0]}" in capsys.readouterr().out
 
 
 # --- trial 16: what view says, and a simulation it never hides or mixes -------------------------

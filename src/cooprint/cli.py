@@ -834,8 +834,10 @@ def _view_destination(check: Any, target: Path, force: bool, sources: tuple[Any,
 
 
 def _viewer_done(target: Path, open_page: bool) -> None:
-    """Say where the viewer is; with ``open_page``, open it in a graphical web browser if this
-    machine has one (never a text browser in the terminal), else say that it could not."""
+    """Say where the viewer is; with ``open_page``, ask a graphical web browser to open it if this
+    machine has a display that answers (never a text browser in the terminal), else say that it
+    could not. Python's ``webbrowser`` reports a browser command started, not a page shown: the
+    line says it asked."""
     size = target.stat().st_size
     click.echo(f"wrote {target} ({size / 1e6:.1f} MB)")
     if not open_page:
@@ -843,17 +845,60 @@ def _viewer_done(target: Path, open_page: bool) -> None:
     import webbrowser
 
     uri = target.resolve().as_uri()
-    graphical = sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-    opened = False
-    if graphical:
+    why = None if sys.platform in ("darwin", "win32") else _no_display()
+    asked = False
+    if why is None:
         try:
-            opened = webbrowser.open(uri)
+            asked = webbrowser.open(uri)
         except webbrowser.Error:
-            opened = False
-    if opened:
-        click.echo(f"opened {uri} in the web browser")
+            asked = False
+        why = None if asked else "no web browser found"
+    if asked:
+        click.echo(f"asked the system's web browser to open {uri}")
     else:
-        click.echo(f"could not open a web browser here{'' if graphical else ' (no display)'}; open {uri} in one")
+        click.echo(f"could not open a web browser here ({why}); open {uri} in one")
+
+
+def _no_display() -> str | None:
+    """Why no graphical browser can open a page here (Linux and the like), or ``None``: neither
+    DISPLAY nor WAYLAND_DISPLAY set, or set to a server whose socket does not answer (a
+    DISPLAY left over from a closed session). One connection attempt each, at most 0.5 s."""
+    import re
+    import socket
+
+    wayland, display = os.environ.get("WAYLAND_DISPLAY"), os.environ.get("DISPLAY")
+    if not wayland and not display:
+        return "no display"
+    if wayland:
+        path = wayland if wayland.startswith("/") else os.path.join(os.environ.get("XDG_RUNTIME_DIR", ""), wayland)
+        if _answers(socket.AF_UNIX, path):
+            return None
+    if display:
+        m = re.fullmatch(r"(?:unix)?(?P<host>[^:/]*):(?P<n>\d+)(?:\.\d+)?", display)
+        if m is None:
+            return None  # a form not known here (e.g. launchd's path): let the browser try
+        n, host = int(m.group("n")), m.group("host")
+        if host and host != "localhost":
+            if _answers(socket.AF_INET, (host, 6000 + n)):
+                return None
+        elif (_answers(socket.AF_UNIX, f"/tmp/.X11-unix/X{n}") or _answers(socket.AF_UNIX, f"\0/tmp/.X11-unix/X{n}")
+              or (host == "localhost" and _answers(socket.AF_INET, ("localhost", 6000 + n)))):
+            return None
+        return f"no X server answers at DISPLAY={display}"
+    return f"no Wayland compositor answers at WAYLAND_DISPLAY={wayland}"
+
+
+def _answers(family: int, address: Any) -> bool:
+    """Whether a server accepts a connection at ``address`` (a socket path or (host, port))."""
+    import socket
+
+    try:
+        with socket.socket(family, socket.SOCK_STREAM) as sock:
+            sock.settimeout(0.5)
+            sock.connect(address)
+        return True
+    except (OSError, ValueError):
+        return False
 
 
 #: Each format's file suffix (an animation's encoder is chosen by it).
