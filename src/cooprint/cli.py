@@ -506,9 +506,13 @@ def _need_inputs(inputs: tuple[str, ...], manifest: str | None) -> None:
     if not inputs and not manifest:
         raise UserError("nothing to simulate: give a `cooprint run` folder, G-code files, .coop files, "
                         "or --manifest FILE.toml")
-    for x in inputs:
-        if x and not os.path.lexists(x):
-            raise UserError(f"{x}: no such file or folder")
+    for x in filter(None, inputs):  # (an empty path: the reader words it)
+        try:
+            os.lstat(x)
+        except FileNotFoundError:
+            raise UserError(f"{x}: no such file or folder") from None
+        except (OSError, ValueError):  # a name too long, a loop, a NUL: the reader words it
+            pass
 
 
 def _sim_folder(inputs: tuple[str, ...], out: str | None) -> Path:

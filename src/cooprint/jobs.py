@@ -910,7 +910,9 @@ def read_summary(path: str | Path) -> dict[str, Any] | None:
     except UnicodeDecodeError as exc:
         raise SummaryUnreadable(f"{p}: unreadable (not UTF-8 text, byte {exc.start})") from None
     except (ValueError, RecursionError) as exc:
-        raise SummaryUnreadable(f"{p}: unreadable ({'empty' if not p.stat().st_size else str(exc)[:80]})") from None
+        why = ("empty" if not p.stat().st_size else f"not JSON at line {exc.lineno}, column {exc.colno}"
+               if isinstance(exc, json.JSONDecodeError) else "not JSON")
+        raise SummaryUnreadable(f"{p}: unreadable ({why})") from None
     except OSError as exc:
         raise UserError(f"{p}: cannot read ({exc.strerror or exc})") from None
     if not isinstance(data, dict) or not str(data.get("format", "")).startswith(SIM_FORMAT):
@@ -921,7 +923,7 @@ def read_summary(path: str | Path) -> dict[str, Any] | None:
 
 def changed_inputs(record: dict[str, Any], root: str | Path) -> str | None:
     """Which input of a simulation summary changed since it was simulated, in a few words
-    (``robots/B.coop changed``, ``job.json is no longer there``): the first file of its
+    (``robots/B.coop changed (its size or modification time)``, ``job.json is no longer there``): the first file of its
     ``inputs.fingerprint`` whose size or mtime differ now (a bundle's paths relative to ``root``);
     ``None`` when none did, or the summary records none (written by an older cooprint)."""
     inputs = record.get("inputs")
@@ -935,7 +937,7 @@ def changed_inputs(record: dict[str, Any], root: str | Path) -> str | None:
         except OSError:
             return f"{key} is no longer there"
         if [int(st.st_size), int(st.st_mtime_ns)] != was:
-            return f"{key} changed"
+            return f"{key} changed (its size or modification time)"
     return None
 
 

@@ -338,6 +338,8 @@ def load_bundle(folder: str | Path, programs: bool = True) -> SimInput:
         program = read_coop(program_path, name) if programs else None
         if program is not None:
             check_counts(program_path, program_counts(program), counts[name])
+        elif program_path.stat().st_size == 0:  # emptied: refused now, before any work
+            check_counts(program_path, dict.fromkeys(COUNTED_KINDS, 0), counts[name])
         files[name] = program_path
         robots.append(SimRobot(name, program, np.asarray(start, dtype=np.float64), _facing(facing),
                                profile=profile))
