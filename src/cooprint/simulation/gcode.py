@@ -40,7 +40,7 @@ from cooprint.interrupts import hold_compiles
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT
 from cooprint.program.scan import POW10, decimal
 from cooprint.simulation.inputs import SimInputError
-from cooprint.slicing.paths import extrusion_width
+from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, extrusion_width
 
 hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
 
@@ -144,7 +144,7 @@ def _number(buf, i, pow10):
 @numba.njit(cache=True, nogil=True)
 def _sweep(buf, pow10, host, limit):
     """Every ``G0``/``G1`` move of the G-code in ``buf``: ``(bad, count, xyz, feed, de, deposit,
-    layer_h, hosts)``, where ``bad`` is 0 or the number of the first line not in the plain form (the
+    layer_h, hosts, starts)`` (``starts``: the byte each move's line starts at), where ``bad`` is 0 or the number of the first line not in the plain form (the
     rows are then incomplete). ``host`` (``(HOST_CAP, 4)`` int64) receives a row per host line:
     line number, start and end byte, moves before it; ``hosts`` is how many. A position or an E
     step beyond ``+-limit`` mm is a line not taken (the line reader words the error)."""
@@ -158,6 +158,7 @@ def _sweep(buf, pow10, host, limit):
     pushed = np.empty(cap)
     deposit = np.empty(cap, np.bool_)
     heights = np.empty(cap)
+    starts = np.empty(cap, np.int64)  # the byte where each move's line starts (its role: the ;TYPE: before)
     # the reader's state: Marlin's defaults, absolute XYZ and E, homed at 0, 0, 0
     px, py, pz = 0.0, 0.0, 0.0
     rel_xyz, rel_e, e = False, False, 0.0
@@ -178,7 +179,7 @@ def _sweep(buf, pow10, host, limit):
         if i < n and not _word_end(buf[i]):
             # a byte that may be Unicode white space or part of the word (or a control)
             if i == a or code != _OTHER:
-                return line, m, xyz, feeds, pushed, deposit, heights, nh
+                return line, m, xyz, feeds, pushed, deposit, heights, nh, starts
         if code == _G0 or code == _G1 or code == _G92:
             have_x, have_y, have_z, have_e, have_f = False, False, False, False, False
             vx, vy, vz, ve, vf = 0.0, 0.0, 0.0, 0.0, 0.0
@@ -191,15 +192,15 @@ def _sweep(buf, pow10, host, limit):
                 if k == 59:  # ';'
                     i = _rest_of_line(buf, i)
                     if i < 0:
-                        return line, m, xyz, feeds, pushed, deposit, heights, nh
+                        return line, m, xyz, feeds, pushed, deposit, heights, nh, starts
                     break
                 if 97 <= k <= 122:  # lower case
                     k -= 32
                 if not (65 <= k <= 90 or 48 <= k <= 57 or k == 43 or k == 45 or k == 46):
-                    return line, m, xyz, feeds, pushed, deposit, heights, nh
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh, starts
                 v, i, size = _number(buf, i + 1, pow10)
                 if i < 0 or (size == 0 and code != _G92):  # G92 E: E0
-                    return line, m, xyz, feeds, pushed, deposit, heights, nh
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh, starts
                 if k == 88:
                     have_x, vx = True, v
                 elif k == 89:
@@ -216,7 +217,7 @@ def _sweep(buf, pow10, host, limit):
             else:
                 if have_f:
                     if not vf > 0:
-                        return line, m, xyz, feeds, pushed, deposit, heights, nh
+                        return line, m, xyz, feeds, pushed, deposit, heights, nh, starts
                     feed = vf / 60.0
                 tx, ty, tz = px, py, pz
                 if have_x:
@@ -230,7 +231,7 @@ def _sweep(buf, pow10, host, limit):
                     de = ve if (rel_xyz or rel_e) else ve - e
                     e += de
                 if abs(tx) > limit or abs(ty) > limit or abs(tz) > limit or abs(de) > limit:
-                    return line, m, xyz, feeds, pushed, deposit, heights, nh  # the line reader's error
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh, starts  # the line reader's error
                 dep = de > 0 and (tx != px or ty != py or tz != pz)
                 if dep and tz != layer_z:
                     if tz > layer_z:
@@ -243,6 +244,7 @@ def _sweep(buf, pow10, host, limit):
                 pushed[m] = de
                 deposit[m] = dep
                 heights[m] = layer_h
+                starts[m] = a
                 m += 1
                 px, py, pz = tx, ty, tz
         else:
@@ -252,10 +254,10 @@ def _sweep(buf, pow10, host, limit):
                 rel_e = code == _M83
             i = _rest_of_line(buf, i)
             if i < 0:
-                return line, m, xyz, feeds, pushed, deposit, heights, nh
+                return line, m, xyz, feeds, pushed, deposit, heights, nh, starts
             if code == _HOST:
                 if nh == len(host):
-                    return line, m, xyz, feeds, pushed, deposit, heights, nh
+                    return line, m, xyz, feeds, pushed, deposit, heights, nh, starts
                 host[nh, 0], host[nh, 1], host[nh, 2], host[nh, 3] = line, a, i, m
                 nh += 1
         # at the line break: CR LF, CR or LF ends the line
@@ -264,7 +266,7 @@ def _sweep(buf, pow10, host, limit):
                 i += 2
             else:
                 i += 1
-    return 0, m, xyz, feeds, pushed, deposit, heights, nh
+    return 0, m, xyz, feeds, pushed, deposit, heights, nh, starts
 
 
 # ----------------------------------------------------------------------------------------------
@@ -344,6 +346,7 @@ class GcodeRows:
     width: np.ndarray  # (n,) mm, 0 but on deposit moves
     height: np.ndarray  # (n,) mm, 0 but on deposit moves
     de: np.ndarray  # (n,) filament pushed, mm
+    role: np.ndarray  # (n,) uint8 path role (cooprint.slicing.paths) from the ;TYPE: comments; TRAVEL on other rows
     events: tuple[tuple[str, ...], ...] = ()  # of the NOTIFY / WAIT rows, in order
     pauses: list[int] = field(default_factory=list)  # line numbers of the operator pauses (M0/M1)
 
@@ -371,11 +374,98 @@ def gcode_rows(data: bytes, filament_diameter: float, where: str = "G-code") -> 
     not in the plain form (the line reader is then the one to read the file)."""
     buf = np.frombuffer(data, dtype=np.uint8)
     hosts = np.empty((HOST_CAP, 4), np.int64)
-    bad, m, xyz, feed, de, dep, layer_h, nh = _sweep(buf, POW10, hosts, COORD_LIMIT)
+    bad, m, xyz, feed, de, dep, layer_h, nh, starts = _sweep(buf, POW10, hosts, COORD_LIMIT)
     if bad:
         return None
-    rows = _move_rows(m, xyz[:m], feed[:m], de[:m], dep[:m], layer_h[:m], filament_diameter)
+    at, roles = type_comments(data)
+    k = np.searchsorted(at, starts[:m], side="right") - 1  # the ;TYPE: line in force at each move
+    role = np.where(k >= 0, roles[np.maximum(k, 0)], INFILL).astype(np.uint8) if len(at) else np.full(m, INFILL, np.uint8)
+    rows = _move_rows(m, xyz[:m], feed[:m], de[:m], dep[:m], layer_h[:m], filament_diameter, role)
     return _with_host_lines(rows, data, hosts[:nh], where)
+
+
+#: Feature types of the slicers' ``;TYPE:`` comments (PrusaSlicer and SuperSlicer, Orca and
+#: Bambu Studio, Cura and cooprint's own G-code), lower case, as cooprint's path roles
+#: (:mod:`cooprint.slicing.paths`); any other type (support, skirt, brim, wipe tower, custom)
+#: is infill, as material with no type is.
+TYPE_ROLES = {
+    **dict.fromkeys(("external perimeter", "overhang perimeter", "wall-outer", "outer wall", "overhang wall"),
+                    PERIMETER_OUTER),
+    **dict.fromkeys(("perimeter", "wall-inner", "inner wall"), PERIMETER_INNER),
+    **dict.fromkeys(("solid infill", "top solid infill", "bridge infill", "internal bridge infill", "gap fill",
+                     "skin", "internal solid infill", "top surface", "bottom surface", "bridge", "gap infill"), SKIN),
+    **dict.fromkeys(("internal infill", "fill", "sparse infill"), INFILL),
+}
+
+
+def type_role(name: str) -> int:
+    """The path role of a ``;TYPE:`` comment's feature name (:data:`TYPE_ROLES`; others: infill)."""
+    return TYPE_ROLES.get(name.strip().lower(), INFILL)
+
+
+def type_comments(data) -> tuple[np.ndarray, np.ndarray]:
+    """The ``;TYPE:<name>`` comment lines of G-code ``data`` (a comment alone on its line, blanks
+    before it allowed): the byte each starts at and its role (:func:`type_role`), in order. A
+    compiled pass finds them and keys each name by a hash; only one name of each hash is decoded."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    at, first, end, key = _type_lines(buf, np.frombuffer(b";TYPE:", np.uint8))
+    roles = np.full(len(at), INFILL, np.uint8)
+    if len(at):
+        keys, where, inverse = np.unique(key, return_index=True, return_inverse=True)
+        lut = np.array([type_role(bytes(buf[first[k]:end[k]]).decode("utf-8", errors="replace"))
+                        for k in where.tolist()], np.uint8)
+        roles = lut[inverse.reshape(-1)]
+    return at, roles
+
+
+@numba.njit(cache=True, nogil=True)
+def _type_lines(buf, tag):
+    """The lines of ``buf`` that are blanks then ``tag`` (``;TYPE:``): where each starts, where
+    its name starts and ends (before a ``;`` or the line break), and a hash of the name (FNV-1a
+    over its bytes in lower case, blanks at its end left out)."""
+    n, t = len(buf), len(tag)
+    count = 0
+    at = np.empty(16, np.int64)
+    first = np.empty(16, np.int64)
+    end = np.empty(16, np.int64)
+    key = np.empty(16, np.uint64)
+    i = 0
+    while i < n:
+        a = i
+        while i < n and (buf[i] == 32 or buf[i] == 9):
+            i += 1
+        match = i + t <= n
+        if match:
+            for k in range(t):
+                if buf[i + k] != tag[k]:
+                    match = False
+                    break
+        if match:
+            b = i + t
+            e = b
+            while e < n and buf[e] != 10 and buf[e] != 13 and buf[e] != 59:
+                e += 1
+            c = e
+            while c > b and (buf[c - 1] == 32 or buf[c - 1] == 9):
+                c -= 1
+            h = np.uint64(14695981039346656037)
+            for k in range(b, c):
+                v = buf[k]
+                if 65 <= v <= 90:
+                    v += 32
+                h = (h ^ np.uint64(v)) * np.uint64(1099511628211)
+            if count == len(at):
+                at, first, end, key = (np.concatenate((at, np.empty(count, np.int64))),
+                                       np.concatenate((first, np.empty(count, np.int64))),
+                                       np.concatenate((end, np.empty(count, np.int64))),
+                                       np.concatenate((key, np.empty(count, np.uint64))))
+            at[count], first[count], end[count], key[count] = a, b, c, h
+            count += 1
+            i = e
+        while i < n and buf[i] != 10 and buf[i] != 13:
+            i += 1
+        i += 1
+    return at[:count], first[:count], end[:count], key[:count]
 
 
 def _with_host_lines(rows: GcodeRows, data: bytes, hosts: np.ndarray, where: str) -> GcodeRows:
@@ -400,19 +490,21 @@ def _with_host_lines(rows: GcodeRows, data: bytes, hosts: np.ndarray, where: str
             kinds.append(got[0])
             events.append(got[1])
     if not sync_at:
-        return GcodeRows(rows.kind, rows.xyz, rows.speed, rows.width, rows.height, rows.de, (), pauses)
+        return GcodeRows(rows.kind, rows.xyz, rows.speed, rows.width, rows.height, rows.de, rows.role, (), pauses)
     at = np.array(sync_at)
 
     def put(col: np.ndarray, value) -> np.ndarray:
         return np.insert(col, at, value, axis=0)
 
     return GcodeRows(put(rows.kind, np.array(kinds, np.uint8)), put(rows.xyz, np.nan), put(rows.speed, 0.0),
-                     put(rows.width, 0.0), put(rows.height, 0.0), put(rows.de, 0.0), tuple(events), pauses)
+                     put(rows.width, 0.0), put(rows.height, 0.0), put(rows.de, 0.0), put(rows.role, TRAVEL),
+                     tuple(events), pauses)
 
 
 def _move_rows(m: int, xyz: np.ndarray, feed: np.ndarray, de: np.ndarray, dep: np.ndarray, layer_h: np.ndarray,
-               filament_diameter: float) -> GcodeRows:
-    """The rows of the sweep's ``m`` moves: a TOOL row where the deposit changes, then the move."""
+               filament_diameter: float, role: np.ndarray) -> GcodeRows:
+    """The rows of the sweep's ``m`` moves: a TOOL row where the deposit changes, then the move
+    (with its ``role``; the TOOL rows travel)."""
     fil_area = math.pi * (filament_diameter / 2) ** 2  # as the line reader
     # a TOOL ON / TOOL OFF row before each move whose deposit differs from the one before
     change = dep != np.r_[False, dep[:-1]]
@@ -439,8 +531,10 @@ def _move_rows(m: int, xyz: np.ndarray, feed: np.ndarray, de: np.ndarray, dep: n
     width[row[d]] = _widths(de[d] * fil_area / length, layer_h[d])
     height = np.zeros(rows)
     height[row[d]] = layer_h[d]
-    return GcodeRows(kind, out_xyz, speed, width, height, pushed)
+    roles = np.full(rows, TRAVEL, np.uint8)
+    roles[row] = role
+    return GcodeRows(kind, out_xyz, speed, width, height, pushed, roles)
 
 
-__all__ = ["EVENT_NAME", "HOST_CAP", "HOST_WORDS", "GcodeRows", "HostLineError", "gcode_rows", "host_line",
-           "pause_note"]
+__all__ = ["EVENT_NAME", "HOST_CAP", "HOST_WORDS", "TYPE_ROLES", "GcodeRows", "HostLineError", "gcode_rows", "host_line",
+           "pause_note", "type_comments", "type_role"]

@@ -678,7 +678,7 @@ def read_gcode(path: str | Path, filament_diameter: float = 1.75) -> SimRobot:
     finally:
         release(data)
     prog = make_program(plain_name(p).stem, rows.kind, rows.xyz if len(rows.kind) else None,
-                        role=np.where(rows.kind == MOVE, INFILL, TRAVEL), width=rows.width, height=rows.height,
+                        role=rows.role, width=rows.width, height=rows.height,
                         events=rows.events)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
     return SimRobot(plain_name(p).stem, prog, np.zeros(3), _facing(90.0), rows.speed, rows.de, _notes(p, rows.pauses))
@@ -699,19 +699,21 @@ def _gcode_text(data: bytes) -> str:
 def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> SimRobot:
     """:func:`read_gcode` of the text of G-code file ``p``, line by line: the reference of the
     compiled sweep, and the reader of the files it does not take (and of their errors)."""
-    from cooprint.simulation.gcode import HOST_WORDS, host_line
+    from cooprint.simulation.gcode import HOST_WORDS, host_line, type_role
 
     fil_area = math.pi * (filament_diameter / 2) ** 2
     pos = np.zeros(3)
     rel_xyz, rel_e, e = False, False, 0.0  # Marlin's defaults: absolute XYZ and E
     feed = 1500.0 / 60.0
-    kinds, xyz, speeds, widths, heights, pushed = [], [], [], [], [], []
+    kinds, xyz, speeds, widths, heights, pushed, roles = [], [], [], [], [], [], []
     events, pauses = [], []
-    tool = False
+    tool, role = False, INFILL  # the role of the ;TYPE: comment in force
     layer_z, layer_h = 0.0, 0.2  # the height of the last layer that deposited, and its thickness
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.split(";", 1)[0].strip()
         if not line:
+            if raw.lstrip(" \t").startswith(";TYPE:"):
+                role = type_role(raw.lstrip(" \t")[6:].split(";", 1)[0])
             continue
         words = line.split()
         code = words[0].upper()
@@ -756,6 +758,7 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
                 layer_h = max(target[2] - layer_z, 1e-3) if target[2] > layer_z else layer_h
                 layer_z = target[2]
             kinds.append(MOVE)
+            roles.append(role)
             xyz.append(tuple(target))
             speeds.append(feed)
             # the width whose flow cross-section carries the filament pushed
@@ -780,8 +783,10 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
                 heights.append(0.0)
                 pushed.append(0.0)
     kind = np.array(kinds, dtype=np.uint8)
+    role_col = np.full(len(kind), TRAVEL, np.uint8)
+    role_col[kind == MOVE] = roles
     prog = make_program(plain_name(p).stem, kind, np.array(xyz).reshape(-1, 3) if xyz else None,
-                        role=np.where(kind == MOVE, INFILL, TRAVEL), width=np.array(widths),
+                        role=role_col, width=np.array(widths),
                         height=np.array(heights), events=tuple(events))
     speed = np.array(speeds)
     # homed: at 0, 0, 0; a move that only pushes or pulls filament takes |E| / F
