@@ -107,9 +107,12 @@ def test_cli_simulate_and_render_write_what_the_whole_programs_give(bundle, tmp_
     the whole programs give, byte for byte (with the inputs it read); ``render --at`` the same
     picture."""
     _small_pieces(monkeypatch, 5000)
-    whole = simulate(load_inputs([str(bundle)]))
-    # and what `cooprint view` needs to read the inputs again
-    inputs = {"paths": [str(bundle.resolve())], "manifest": None, "config": [], "accel": False}
+    inp = load_inputs([str(bundle)])
+    whole = simulate(inp)
+    # and what `cooprint view` needs to read the inputs again, and to know when they change
+    inputs = {"paths": [str(bundle.resolve())], "manifest": None, "config": [], "accel": False,
+              "fingerprint": inp.fingerprint}
+    assert set(inp.fingerprint) >= {"job.json", "robots/A.coop", "robots/B.coop"}
     write_json(tmp_path / "expected.json", summary(whole) | {"inputs": inputs})
     assert main(["simulate", str(bundle), "--out", str(tmp_path / "o"), "--quiet"]) in (0, 1)
     assert (tmp_path / "o" / "sim" / "summary.json").read_bytes() == (tmp_path / "expected.json").read_bytes()

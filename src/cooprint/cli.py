@@ -786,13 +786,14 @@ def view(folder: str, open_page: bool, force: bool) -> None:
             _judge(record, False, False, "the simulation", summary_path)
             return
     accel = False if why is not None and bundle else sources.accel  # (simulate_bundle: constant speed)
+    checked = why is not None and not bundle  # a simulated folder's inputs changed: its summary too
+    if checked:
+        click.echo(why)
     with stage_progress(True) as progress:
         inp = read_with_progress(list(inputs), manifest, _settings(config, {}) if config else None, progress,
                                  programs=False)
-        checked = why is not None and not bundle  # a simulated folder's inputs changed: its summary too
         result = run_sim(inp, checks=checked, accel=accel, progress=progress)
     if checked:
-        click.echo(why)
         record = summary(result)
         record["inputs"] = inputs_record(inputs, manifest, config, accel, inp)
         with atomic_file(summary_path, force=True, inputs=(*inputs, manifest), create_parents=1) as tmp:
