@@ -130,6 +130,10 @@ export class View {
     return obj;
   }
 
+  // The floor grid over the part and the robots' area (the scene's box, with a margin), its step
+  // a round tenth of the part. Each line is made of pieces a few steps long: software GL drops
+  // a whole line that reaches behind the camera, and a grid metres wide around a small part
+  // always does (it then showed only where the camera looked away from the robots' area).
   buildGrid() {
     const g = this.geo;
     const lo = new THREE.Vector3(...g.lo), hi = new THREE.Vector3(...g.hi);
@@ -139,14 +143,28 @@ export class View {
     const step = niceStep(partExtent / 10);
     const n = Math.ceil((extent * 1.3) / step / 2) * 2;
     const cx = Math.round(((lo.x + hi.x) / 2) / step) * step, cy = Math.round(((lo.y + hi.y) / 2) / step) * step;
-    const grid = new THREE.GridHelper(n * step, n, 0xb0b0b0, 0xdcdcdc);
-    grid.rotation.x = Math.PI / 2;
-    grid.position.set(cx, cy, 0);
-    this.accScene.add(grid);
+    const x0 = cx - (n / 2) * step, y0 = cy - (n / 2) * step;
+    const piece = Math.max(1, Math.ceil((2 * (n + 1) * n) / 60_000)); // steps a piece: at most ~60,000 pieces
+    const major = [], minor = [];
+    for (let i = 0; i <= n; i++) {
+      const out = (i === n / 2) ? major : minor; // the centre lines darker, as GridHelper draws them
+      for (let j = 0; j < n; j += piece) {
+        const a = j * step, b = Math.min(j + piece, n) * step, u = i * step;
+        out.push(x0 + u, y0 + a, 0, x0 + u, y0 + b, 0, x0 + a, y0 + u, 0, x0 + b, y0 + u, 0);
+      }
+    }
+    for (const [pos, colour] of [[minor, 0xdcdcdc], [major, 0xb0b0b0]]) {
+      const geom = new THREE.BufferGeometry();
+      geom.setAttribute('position', new THREE.Float32BufferAttribute(pos, 3));
+      const lines = new THREE.LineSegments(geom, new THREE.LineBasicMaterial({ color: colour }));
+      lines.frustumCulled = false;
+      this.accScene.add(lines);
+    }
     const axes = new THREE.AxesHelper(step);
-    axes.position.set(cx - (n / 2) * step, cy - (n / 2) * step, 0);
+    axes.position.set(x0, y0, 0);
     this.accScene.add(axes);
     this.gridStep = step;
+    this.gridBox = [x0, y0, x0 + n * step, y0 + n * step]; // (the test hook's)
   }
 
   buildMaterial() {
