@@ -350,6 +350,7 @@ async function start() {
     selectFinding,
     thinned: () => (th ? { shown: th.shown, total: th.total } : null),
     idle,
+    gridStep: () => view.gridStep,
   });
   setSpeed(speed);
   setColourMode('robot');
