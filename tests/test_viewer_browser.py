@@ -24,6 +24,8 @@ from solids import COARSE, box, hollow, to_trimesh
 
 from cooprint.cli import main
 from cooprint.render.palette import robot_colour
+from cooprint.render.viewer import write_viewer
+from cooprint.simulation import load_inputs, simulate, summary
 
 SETTINGS = [f"--set={k}={v}" for k, v in COARSE.items()]
 #: Hue tolerance (degrees) and least saturation of a pixel counted as a robot's colour under shading.
@@ -344,3 +346,21 @@ def test_a_gcode_preview_disables_what_it_has_no_data_for(gcode_page):
         assert page.locator(button).is_disabled()
         assert "no NOTIFY / WAIT" in page.locator(button).get_attribute("title")
     gcode_page.assert_clean()
+
+
+def test_the_thinned_notice_says_so_and_can_be_closed(plan, chromium, tmp_path):
+    inp = load_inputs([str(plan[0])], programs=False)
+    result = simulate(inp)
+    html = write_viewer(result, summary(result), tmp_path / "thin.html", max_segments=200)
+    page = open_viewer(chromium, html)
+    try:
+        notice = page.page.locator("#notice")
+        thinned = page.hook("c.thinned()")
+        assert thinned and thinned["shown"] <= 200 < thinned["total"]
+        assert notice.is_visible() and f"of {thinned['total']:,} material segments" in notice.inner_text()
+        page.page.click("#notice-close")
+        assert not notice.is_visible()
+        assert page.hook("c.thinned()") == thinned  # (closed, not forgotten)
+        page.assert_clean()
+    finally:
+        page.close()
