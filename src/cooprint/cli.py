@@ -752,19 +752,9 @@ def view(folder: str, open_page: bool, force: bool) -> None:
             return
         record = _sim_record(summary_path)
         assert record is not None
-    inputs = record.get("inputs")
-    if bundle:  # the bundle where it is now; timed as its simulation was
-        accel = inputs.get("accel") if isinstance(inputs, dict) else None
-        inputs = {"paths": [str(root)], "manifest": None, "config": [],
-                  "accel": accel if accel is not None else str(record.get("time_model", "")).startswith("trapezoidal")}
-    if not isinstance(inputs, dict) or not isinstance(inputs.get("paths"), list):
-        raise UserError(f"{summary_path}: does not say which files were simulated (written by an older cooprint?); "
-                        f"run `cooprint simulate FILES --out {folder}` again")
+    inputs = _recorded_inputs(root, record, bundle)
     manifest, config = inputs.get("manifest"), tuple(inputs.get("config") or ())
     sources = (*inputs["paths"], manifest)
-    for name in [*inputs["paths"], *([manifest] if manifest else []), *config]:
-        if not Path(name).exists():
-            raise UserError(f"{summary_path}: names {name}, which is no longer there; simulate again")
     check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=1)
     _heap_malloc()
     with stage_progress(True) as progress:
@@ -775,6 +765,26 @@ def view(folder: str, open_page: bool, force: bool) -> None:
         write_viewer(result, record, tmp, chunks=read_chunk_meshes(inp), critical=inp.critical_path,
                      lower_bound=inp.lower_bound, title=root.resolve().name)
     _viewer_done(target, open_page)
+
+
+def _recorded_inputs(root: Path, record: dict[str, Any], bundle: bool) -> dict[str, Any]:
+    """What folder ``root``'s simulation read, from its sim/summary.json ``record`` (its ``inputs``,
+    :func:`_inputs_record`): for a bundle, the bundle where it is now, timed as its simulation was;
+    for a `simulate --out` folder, the files it names, each checked to be still there."""
+    summary_path = root / "sim" / "summary.json"
+    inputs = record.get("inputs")
+    if bundle:
+        accel = inputs.get("accel") if isinstance(inputs, dict) else None
+        inputs = {"paths": [str(root)], "manifest": None, "config": [],
+                  "accel": accel if accel is not None else str(record.get("time_model", "")).startswith("trapezoidal")}
+    if not isinstance(inputs, dict) or not isinstance(inputs.get("paths"), list):
+        raise UserError(f"{summary_path}: does not say which files were simulated (written by an older cooprint?); "
+                        f"run `cooprint simulate FILES --out {root}` again")
+    manifest, config = inputs.get("manifest"), tuple(inputs.get("config") or ())
+    for name in [*inputs["paths"], *([manifest] if manifest else []), *config]:
+        if not Path(name).exists():
+            raise UserError(f"{summary_path}: names {name}, which is no longer there; simulate again")
+    return inputs
 
 
 def _sim_record(path: Path) -> dict[str, Any] | None:
