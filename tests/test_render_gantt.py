@@ -228,3 +228,25 @@ def test_render_accel_draws_the_times_of_simulate_accel(plan, tmp_path, capsys):
             titles[bool(extra)] = im.text["Title"]
     assert titles[True] == f"makespan {_hms(accel)} ({accel:.0f} s)"
     assert titles[False] != titles[True]  # the zigzag takes longer when its moves accelerate
+
+
+def test_render_of_a_simulated_folder_is_timed_as_its_simulation_unless_told(plan, tmp_path, capsys):
+    """`render DIR` of a `simulate --accel --out DIR` folder reads the files its summary names and
+    times them with acceleration (the summary's makespan); --no-accel draws constant-speed times."""
+    folder = tmp_path / "s"
+    assert main(["simulate", "--manifest", str(plan), "--out", str(folder), "--accel", "-q"]) in (0, 1)
+    accel = json.loads((folder / "sim" / "summary.json").read_text())["makespan_s"]
+    assert main(["render", str(folder), "--format", "gantt"]) == 0
+    with Image.open(folder / "sim" / "gantt.png") as im:
+        assert im.text["Title"] == f"makespan {_hms(accel)} ({accel:.0f} s)"
+    out = tmp_path / "no.png"
+    assert main(["render", str(folder), "--format", "gantt", "--no-accel", "--out", str(out)]) == 0
+    plain = simulate(load_manifest(plan), checks=False).makespan
+    with Image.open(out) as im:
+        assert im.text["Title"] == f"makespan {_hms(plain)} ({plain:.0f} s)"
+    assert abs(plain - accel) > 1
+
+
+def test_render_of_a_missing_path_says_so(tmp_path, capsys):
+    assert_rejected(["render", tmp_path / "nonexist"], capsys, watch=[tmp_path],
+                    contains=f"{tmp_path / 'nonexist'}: no such file or folder")

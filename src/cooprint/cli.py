@@ -660,26 +660,44 @@ def perturbed_line(rec: dict[str, Any]) -> str:
 @click.option("--duration", type=click.FloatRange(0.5, 3600), help="Animation length, s [default: 20].")
 @click.option("--speedup", type=click.FloatRange(min=1e-3),
               help="Animation speed over real time (instead of --duration; at most a 10 min animation).")
-@click.option("--accel", is_flag=True, help="Moves accelerate, as in `simulate --accel` (the times drawn are "
-              "those of its summary).")
+@click.option("--accel/--no-accel", default=None,
+              help="Moves accelerate, as in `simulate --accel` (the times drawn are those of its summary) "
+                   "[default: as DIR's simulation was (its sim/summary.json), else --no-accel].")
 @click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
 @click.option("--out", "-o", type=click.Path(dir_okay=False), help="File to write [default: DIR/sim/...].")
 @click.option("--force", is_flag=True, help="Replace the file if it exists.")
 def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: float, duration: float | None,
-           speedup: float | None, accel: bool, manifest: str | None, out: str | None, force: bool) -> None:
-    """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
-    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
+           speedup: float | None, accel: bool | None, manifest: str | None, out: str | None, force: bool) -> None:
+    """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt).
+
+    INPUTS: .coop / G-code files, a `cooprint run` bundle, or a folder written by `cooprint
+    simulate FILES --out DIR` (the files its sim/summary.json names are read again)."""
+    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder, is_bundle
     from cooprint.render.sim import (animation_length, frame_count, length_text, render_animation, render_gantt,
                                      render_snapshot)
     from cooprint.jobs import read_with_progress
     from cooprint.simulation import simulate as run_sim
 
     _need_inputs(inputs, manifest)
+    for name in inputs:
+        if not os.path.lexists(name):
+            raise UserError(f"{name}: no such file or folder")
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
     fmt, inferred = _render_format(fmt, out)
     _check_render_options(fmt, inferred, at, duration, speedup)
-    sources = (*inputs, manifest)
+    folder = Path(inputs[0]) if len(inputs) == 1 and Path(inputs[0]).is_dir() and manifest is None else None
+    record = _sim_record(folder / "sim" / "summary.json") if folder is not None else None
+    paths, config = list(inputs), ()
+    if folder is not None and record is not None:  # timed as it was simulated; a `simulate --out` folder's files
+        recorded = _recorded_inputs(folder, record, is_bundle(folder))
+        if not is_bundle(folder):
+            paths, manifest = list(recorded["paths"]), recorded.get("manifest")
+            config = tuple(recorded.get("config") or ())
+        if accel is None:
+            accel = bool(recorded.get("accel"))
+    accel = bool(accel)
+    sources = (*paths, manifest)
     if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
         check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
     elif len(inputs) == 1 and Path(inputs[0]).is_dir():  # a bundle: DIR/sim/<picture>
@@ -688,7 +706,8 @@ def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: floa
         raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
     with stage_progress(True) as progress:  # bars on a terminal only
-        inp = read_with_progress(list(inputs), manifest, None, progress, programs=False)
+        inp = read_with_progress(paths, manifest, _settings(config, {}) if config else None, progress,
+                                 programs=False)
         result = run_sim(inp, checks=False, accel=accel, progress=progress)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
