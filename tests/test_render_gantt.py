@@ -18,7 +18,7 @@ from cooprint.cli import main
 from cooprint.errors import UserError
 from cooprint.render.palette import robot_colour
 from cooprint.render.sim import (DAY, GANTT_LEFT, GANTT_RIGHT, GANTT_TOP, TRAVEL_COLOUR, WAIT_COLOUR, _axis_label,
-                                 _hms, _nice_step, _row_pitch, frame_count, gantt_header, gantt_height, gantt_title,
+                                 _hms, _nice_step, _row_pitch, frame_count, gantt_header, gantt_height, gantt_names, gantt_title,
                                  gif_delays, render_gantt)
 from cooprint.simulation import simulate
 from cooprint.simulation.inputs import load_manifest
@@ -250,3 +250,37 @@ def test_render_of_a_simulated_folder_is_timed_as_its_simulation_unless_told(pla
 def test_render_of_a_missing_path_says_so(tmp_path, capsys):
     assert_rejected(["render", tmp_path / "nonexist"], capsys, watch=[tmp_path],
                     contains=f"{tmp_path / 'nonexist'}: no such file or folder")
+
+
+def _renamed(result, names: dict[str, str]):
+    """The plan with its robots renamed (``names``: old -> new)."""
+    robots = [dataclasses.replace(r, name=names.get(r.name, r.name)) for r in result.robots]
+    tls = {names.get(n, n): tl for n, tl in result.timelines.items()}
+    return dataclasses.replace(result, robots=robots, timelines=tls)
+
+
+@pytest.mark.parametrize("width", [1200, 480])
+def test_a_long_robot_name_never_runs_under_the_bars(result, tmp_path, width):
+    """A 30-character name: the bars start right of it (the whole name in a 1200 px chart), or,
+    where that would take more than a third of the picture, the name is cut short with "…"."""
+    long = "my_really_long_part_name_v2_fi"
+    assert len(long) == 30
+    renamed = _renamed(result, {"A": long})
+    img = _pixels(render_gantt(renamed, tmp_path / "g.png", size=(width, 0)))
+    bar = max(10, int(_row_pitch(2) * 2 / 3))
+    font = min(16, max(10, bar - 2))
+    names, left = gantt_names([long, "B"], font, width)
+    assert left > GANTT_LEFT and left <= max(GANTT_LEFT, width // 3)
+    assert names[0] == f"robot {long}" if width == 1200 else names[0].endswith("…")
+    top = next(y for y in range(img.shape[0]) if _exact(img[y, left:left + 3], robot_colour(0)).all())
+    row = _exact(img[top:top + bar, :left], robot_colour(0))  # A's label, left of A's bars
+    label_cols = np.flatnonzero(row.any(axis=0))
+    assert label_cols.max() < left - 5  # the label ends before the bars
+    assert label_cols.max() - label_cols.min() > 0.8 * _text_width(names[0], font)  # drawn whole
+    # A's bar is in its row right of `left` from its first column on
+    assert _exact(img[top:top + bar, left:left + 10], robot_colour(0)).mean() > 0.5
+
+
+def _text_width(text: str, font: int) -> float:
+    from cooprint.render.sim import _cached_font
+    return _cached_font(font).getlength(text)

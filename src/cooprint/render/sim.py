@@ -812,6 +812,8 @@ GANTT_TOP, GANTT_AXIS = 80, 60
 #: The Gantt chart's margins, pixels: the robots' names left of the bars, room for the last
 #: time label right of them.
 GANTT_LEFT, GANTT_RIGHT = 110, 30
+#: Where a Gantt row's label starts, and the least gap between it and the bars, pixels.
+GANTT_NAME_X, GANTT_NAME_GAP = 15, 10
 
 
 def gantt_height(robots: int, header: int = GANTT_TOP) -> int:
@@ -971,7 +973,9 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     h = size[1] or gantt_height(rows, top)
     img = Image.new("RGB", (w, h), BACKGROUND)
     draw = ImageDraw.Draw(img)
-    left, right = GANTT_LEFT, w - GANTT_RIGHT
+    row_font = _font(min(16, max(10, bar - 2)))
+    names, left = gantt_names([r.name for r in result.robots], row_font.size, w)
+    right = w - GANTT_RIGHT
     cols = right - left
     span = max(result.makespan, lower_bound or 0.0, 1e-9)
 
@@ -981,13 +985,12 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     for tx, ty, text, fs in header.title:
         draw.text((tx, ty), text, fill=(20, 20, 20), font=_font(fs))
     _legend(draw, header, [_colour(i) for i in range(rows)])
-    row_font = _font(min(16, max(10, bar - 2)))
     label_font = _font(min(13, max(9, lane - 4)))
     for i, r in enumerate(result.robots):
         tl = result.timelines[r.name]
         y0 = top + pitch * i
         y1 = y0 + bar
-        draw.text((15, y0 + (bar - 16) / 2 if bar >= 16 else y0), f"robot {r.name}", fill=_colour(i), font=row_font)
+        draw.text((GANTT_NAME_X, y0 + (bar - 16) / 2 if bar >= 16 else y0), names[i], fill=_colour(i), font=row_font)
         printing, travel = _column_shares(tl, span, cols)
         for a, b in _true_runs(printing > 0):
             draw.rectangle([left + a, y0, left + b - 1, y0 + lane - 1], fill=_colour(i))
@@ -1034,6 +1037,19 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     path = Path(path)
     img.save(path, format="PNG", pnginfo=info)
     return path
+
+
+def gantt_names(names: Sequence[str], font: int, width: int) -> tuple[list[str], int]:
+    """The Gantt rows' labels ("robot A") in a font of ``font`` pixels and where the bars start
+    (``left``, pixels) in a chart ``width`` pixels wide: :data:`GANTT_LEFT`, or further right as far
+    as the widest label needs, up to a third of the picture; a label wider than that is cut short
+    with "…" (never under the bars)."""
+    texts = [f"robot {n}" for n in names]
+    f = _cached_font(font)
+    room = max(GANTT_LEFT, width // 3) - GANTT_NAME_X - GANTT_NAME_GAP
+    need = max([f.getlength(t) for t in texts] + [0.0])
+    left = max(GANTT_LEFT, min(math.ceil(need), room) + GANTT_NAME_X + GANTT_NAME_GAP)
+    return [_cut(t, room, font) for t in texts], left
 
 
 def _column_shares(tl, span: float, cols: int) -> tuple[np.ndarray, np.ndarray]:
