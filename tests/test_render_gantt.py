@@ -284,3 +284,32 @@ def test_a_long_robot_name_never_runs_under_the_bars(result, tmp_path, width):
 def _text_width(text: str, font: int) -> float:
     from cooprint.render.sim import _cached_font
     return _cached_font(font).getlength(text)
+
+
+def _chunk_lines(cid: str, y: float, n: int) -> str:
+    return f";@chunk {cid}\nMOVE 0 {y} 0.2\nTOOL ON\n" + "".join(
+        f"MOVE {4 * ((k + 1) % 2)} {y + 0.5 * k} 0.2\n" for k in range(n)) + "TOOL OFF\n"
+
+
+def test_the_critical_path_drawn_is_the_chain_that_sets_the_makespan(tmp_path):
+    """One robot printing C, L1, R1 (the schedule's precedence chain is C -> L1): its work alone
+    sets the makespan, so all three are framed. Two robots, B waiting for A's C before R1: the
+    chain is R1 (B, ends last) <- C (A, told B), not A's L1."""
+    from cooprint.render.sim import CRITICAL_COLOUR, simulated_critical_path
+
+    (tmp_path / "A.coop").write_text(_chunk_lines("C", 0, 40) + _chunk_lines("L1", 50, 40) + _chunk_lines("R1", 100, 40))
+    (tmp_path / "m.toml").write_text('[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0, 0.2]\n')
+    one = simulate(load_manifest(tmp_path / "m.toml"), checks=False)
+    assert sorted(simulated_critical_path(one)) == ["C", "L1", "R1"]
+    img = _pixels(render_gantt(one, tmp_path / "g.png", critical=["C", "L1"]))
+    red = _exact(img[GANTT_TOP:], CRITICAL_COLOUR).any(axis=0)
+    cols = img.shape[1] - GANTT_LEFT - GANTT_RIGHT
+    last = GANTT_LEFT + int(0.95 * cols)  # R1 ends the plan: its frame reaches the right end
+    assert red[last:].any() and red[GANTT_LEFT:GANTT_LEFT + cols // 10].any()
+
+    (tmp_path / "A2.coop").write_text(_chunk_lines("C", 0, 40) + "NOTIFY C\n" + _chunk_lines("L1", 50, 20))
+    (tmp_path / "B2.coop").write_text("MOVE 0 500 0.2\nWAIT C\n" + _chunk_lines("R1", 500, 60))
+    (tmp_path / "m2.toml").write_text('[[robots]]\nname = "A"\nprogram = "A2.coop"\nstart = [0, 0, 0.2]\n'
+                                      '[[robots]]\nname = "B"\nprogram = "B2.coop"\nstart = [0, 500, 0.2]\n')
+    two = simulate(load_manifest(tmp_path / "m2.toml"), checks=False)
+    assert simulated_critical_path(two) == ["R1", "C"]

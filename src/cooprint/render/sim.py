@@ -952,8 +952,10 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     size
         Width and height, pixels; height 0: :func:`gantt_height` (taller when the header wraps).
     critical
-        Chunk ids of the schedule's critical path (job.json ``schedule.critical_path``): the
-        printing of each is framed in red, so the chain that bounds the makespan can be seen.
+        The schedule's critical path (job.json ``schedule.critical_path``), given when the plan
+        has a schedule: the printing of each chunk on the chain that set the simulated makespan
+        (:func:`simulated_critical_path`, which the precedence chain alone misses where a robot's
+        own order or a wait set it) is framed in red.
     lower_bound
         The schedule's lower bound LB, s (job.json ``schedule.lower_bound_s``): a dashed vertical
         line, so the distance from the simulated makespan to the best possible can be seen.
@@ -966,7 +968,7 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     strip = max(3, round(bar / 4))  # the travel strip at the bottom of the bar
     lane = bar - strip - 1  # the printing above it
     w = size[0]
-    marked = set(critical or ())
+    marked = set(simulated_critical_path(result)) if critical else set()
     title = gantt_title(result.makespan, lower_bound)
     header = gantt_header(title, rows, w, critical=bool(marked), bound=bool(lower_bound))
     top = max(GANTT_TOP, header.bottom)
@@ -1050,6 +1052,42 @@ def gantt_names(names: Sequence[str], font: int, width: int) -> tuple[list[str],
     need = max([f.getlength(t) for t in texts] + [0.0])
     left = max(GANTT_LEFT, min(math.ceil(need), room) + GANTT_NAME_X + GANTT_NAME_GAP)
     return [_cut(t, room, font) for t in texts], left
+
+
+def simulated_critical_path(result: SimResult, slack: float = 1e-6) -> list[str]:
+    """The chunk ids of the chain that sets the simulated makespan, last first: from the robot
+    that ends last, its chunks back in time, and where it waited before a chunk for another
+    robot's NOTIFY, that robot's chunks before the notice, and so on. With one robot it is all its
+    chunks (its work alone sets the makespan), where the schedule's precedence chain (job.json
+    ``critical_path``) would leave out a chunk that depends on no other."""
+    spans = {r.name: _chunk_spans(r, result.timelines[r.name]) for r in result.robots}
+    notices: dict[str, list[tuple[float, str]]] = {}
+    for r in result.robots:
+        for tn, event in result.timelines[r.name].notifies:
+            notices.setdefault(str(event), []).append((float(tn), r.name))
+    live = [r.name for r in result.robots if spans[r.name]]
+    if not live:
+        return []
+    robot = max(live, key=lambda n: result.timelines[n].end)
+    t, chain, seen = result.timelines[robot].end + slack, [], set()
+    while True:
+        done = [s for s in spans[robot] if s[2] <= t and s[0] not in seen]
+        if not done:
+            return chain
+        cid, start, _ = max(done, key=lambda s: s[2])
+        chain.append(cid)
+        seen.add(cid)
+        earlier = max([s[2] for s in spans[robot] if s[2] <= start + slack and s[0] not in seen], default=-np.inf)
+        waits = [(b, ev) for a, b, ev in result.timelines[robot].waits if earlier - slack <= b <= start + slack
+                 and b - a > slack]
+        t = start + slack
+        if waits:  # it went on when told: the chain goes on in the robot that told it
+            b, events = max(waits, key=lambda w: w[0])
+            told = [(tn, n) for ev in ([events] if isinstance(events, str) else list(events))
+                    for tn, n in notices.get(str(ev), []) if tn <= b + slack and n != robot]
+            if told:
+                tn, robot = max(told)
+                t = tn + slack
 
 
 def _column_shares(tl, span: float, cols: int) -> tuple[np.ndarray, np.ndarray]:
