@@ -179,6 +179,38 @@ def test_every_robots_name_and_bar_are_inside_the_picture(size, n):
             assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
     if n <= 3:
         assert all(c.state_at is not None for c in lay.cells)  # few robots: "robot A", the bar and the state
+    if n <= 4 or size[0] >= 1280 and n <= 12:  # the state word where there is room (a 640 px GIF of 4 robots)
+        assert all(c.state_at is not None for c in lay.cells)
+    from cooprint.render.sim import STATES, _text_box
+    for c in lay.cells:  # the state word inside the picture, right of the bar, clear of the next cell
+        if c.state_at is not None:
+            x0, _, x1, _ = _text_box(max(STATES, key=len), (c.state_at[0], 0), c.state_font)
+            assert c.bar[2] < x0 and x1 <= w
+            assert all(x1 <= o.at[0] or o.at[0] < c.at[0] or o.at[1] != c.at[1] for o in lay.cells if o is not c)
+
+
+@pytest.mark.parametrize("size", [(640, 360), (1280, 720)])
+def test_a_waiting_robots_bar_keeps_its_colour_and_shows_yellow_and_waiting(size, tmp_path):
+    """Four robots, D waiting half-way for A's long line: its bar is filled in its colour and
+    framed in the Gantt chart's yellow, in the GIF's size as in the PNG's."""
+    from cooprint.render.sim import WAIT_COLOUR
+    texts = {"A": "MOVE 0 0 0.4\nTOOL ON\nMOVE 0 400 0.4\nNOTIFY go\n",
+             "D": "MOVE 300 0 0.4\nTOOL ON\nMOVE 340 0 0.4\nTOOL OFF\nWAIT go\nTOOL ON\nMOVE 380 0 0.4\n"}
+    robots = [_robot(name, texts.get(name, f"MOVE {100 * k} 0 0.4\nTOOL ON\nMOVE {100 * k + 40} 0 0.4\n"),
+                     [100 * k, 0, 0.4], [0, 1]) for k, name in enumerate(robot_names(4))]
+    res = _sim(robots)
+    (a, b, _), = res.timelines["D"].waits
+    t = (a + b) / 2
+    img = np.asarray(Image.open(render_snapshot(res, t, tmp_path / "s.png", size=size)).convert("RGB")).astype(int)
+    lay = _Scene(res, size, -35.0, 30.0).layout
+    cell = lay.cells[3]
+    assert cell.state_at is not None
+    x0, y0, x1, y1 = cell.bar
+    bar = img[y0:y1 + 1, x0:x1 + 1]
+    near = lambda c: (np.abs(bar - np.asarray(c)).sum(axis=2) < 12).mean()
+    assert near(robot_colour(3)) > 0.1  # its progress (half) in its colour, not grey
+    assert near(WAIT_COLOUR) > 0.15  # the yellow frame
+    assert near((150, 150, 150)) == 0
 
 
 @pytest.mark.parametrize("size", [(640, 360), (1280, 720)])

@@ -613,8 +613,9 @@ def _outline_at(result: SimResult, r, nozzle: np.ndarray, t: float) -> dict[str,
 class OverlayCell:
     """One robot's place in the overlay: ``text`` (its name) written at ``at`` (left, top) in a
     font of ``font`` pixels, covering ``box``; its progress bar ``bar``; where its state is
-    written (``state_at``, left and middle, in ``state_font``; ``None`` in the compact layout,
-    where a waiting robot's bar is grey instead). Boxes are ``(x0, y0, x1, y1)``, pixels."""
+    written (``state_at``, left and middle, in ``state_font``; ``None`` in a compact layout with
+    no room for it). A waiting robot's bar is framed in the Gantt chart's yellow in every layout.
+    Boxes are ``(x0, y0, x1, y1)``, pixels."""
 
     text: str
     at: tuple[int, int]
@@ -713,7 +714,15 @@ def _overlay_compact(names: list[str], size: tuple[int, int], clock: str, k: flo
         widths = [_cached_font(font).getlength(n) for n in names]
         cell_w = room + 2 * gap
     name_w = math.ceil(max(widths))
+    # the state after the bar where the rows stay within 15 % of the picture's height, or add none
+    state_w = math.ceil(gap + max(_cached_font(font).getlength(t) for t in STATES))
     pitch = font + max(3, round(8 * k))
+    rows = -(-len(names) // per_row)
+    more = -(-len(names) // max(1, (room + 2 * gap) // (cell_w + state_w)))
+    stated = cell_w + state_w - 2 * gap <= room and (more == rows or top + pitch * more <= 0.15 * size[1])
+    if stated:
+        cell_w += state_w
+        per_row = max(1, (room + 2 * gap) // cell_w)
     cells = []
     for j, name in enumerate(names):
         at = (x0 + cell_w * (j % per_row), top + pitch * (j // per_row))
@@ -721,7 +730,7 @@ def _overlay_compact(names: list[str], size: tuple[int, int], clock: str, k: flo
         bx = at[0] + name_w + gap
         mid = (box[1] + box[3]) // 2
         cells.append(OverlayCell(name, at, font, box, (bx, mid - bar_h // 2, bx + bar_w, mid - bar_h // 2 + bar_h),
-                                 None, font))
+                                 (bx + bar_w + gap, mid) if stated else None, font))
     bottom = max([clock_box[3]] + [max(c.box[3], c.bar[3]) for c in cells]) + pad // 2
     return OverlayLayout(clock_at, clock_font, clock_box, tuple(cells), bottom)
 
@@ -757,9 +766,10 @@ def _overlay(rgb: np.ndarray, scene: _Scene, t: float) -> None:
         draw.text(cell.at, cell.text, fill=_colour(i), font=_cached_font(cell.font))
         x0, y0, x1, y1 = cell.bar
         draw.rectangle(cell.bar, outline=(90, 90, 90))
-        if frac > 0:
-            fill = (150, 150, 150) if waiting and cell.state_at is None else _colour(i)
-            draw.rectangle([x0, y0, x0 + round((x1 - x0) * frac), y1], fill=fill)
+        if frac > 0:  # the robot's colour in every layout
+            draw.rectangle([x0, y0, x0 + round((x1 - x0) * frac), y1], fill=_colour(i))
+        if waiting:  # the Gantt chart's yellow, around the bar
+            draw.rectangle(cell.bar, outline=WAIT_COLOUR, width=max(2, (y1 - y0) // 4))
         if cell.state_at is not None:
             label = ("waiting" if waiting else "idle" if not total else "done" if t >= tl.end
                      else f"{100 * frac:.0f}% printed")
