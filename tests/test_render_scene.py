@@ -239,3 +239,33 @@ def test_the_animation_draws_the_robots_as_the_snapshot_does(wall_scene, tmp_pat
                       .convert("RGB")).astype(int)
     assert last.shape == snap.shape
     assert np.median(np.abs(last - snap).sum(axis=2)) < 12
+
+
+def test_the_nozzles_rod_shows_over_its_frame_and_a_small_part_under_the_frame_shows():
+    """A 5 mm square printed by a robot whose frame hangs between the camera and the print: the
+    rod from the tip up to the printhead is drawn over the see-through frame (the printhead reads
+    as attached), and the print and the floor under the frame stay visible (the frame takes
+    :data:`ROBOT_ALPHA` of a material pixel, :data:`OVER_PART_ALPHA` of a floor pixel there)."""
+    from cooprint.render.sim import NOZZLE_COLOUR
+    text = "MOVE 0 0 0.4\nTOOL ON\n" + "".join(
+        f"MOVE {5 * ((k + 1) // 2 % 2)} {5 * (k // 2 % 2)} {0.4 + 0.4 * (k // 4)}\n" for k in range(1, 49))
+    res = _sim([_robot("A", text, [0, 0, 0.4], -TOWARDS)])  # its frame towards the camera
+    t = res.makespan / 2
+    rgb, before, depth, scene = _picture(res, t)
+    solids = scene._solids(0, res.robots[0], t)
+    rod = _silhouette(scene, [s for s in solids if s.on_top])
+    frame = _silhouette(scene, [s for s in solids if not s.on_top])
+    material = depth > NO_DEPTH / 2
+    seen = rod & frame & ~material  # the rod behind the frame (seen from the camera)
+    assert seen.sum() > 500
+    assert (np.abs(rgb[seen].astype(int) - np.asarray(NOZZLE_COLOUR)).sum(axis=1) < 150).mean() > 0.9
+    diff = np.abs(rgb.astype(int) - before.astype(int)).sum(axis=2)
+    under = frame & ~rod
+    assert (under & material).sum() > 100  # the print lies under the frame ...
+    assert np.median(diff[under & material]) <= 0.2 * 3 * 255  # ... and shows through it
+    ys, xs = np.nonzero(material)
+    near = np.zeros_like(material)  # the floor round the print, under the frame
+    near[ys.min() - 40:ys.max() + 40, xs.min() - 40:xs.max() + 40] = True
+    floor = under & near & ~material
+    solid = under & ~near & (diff > 0)  # faces elsewhere, over no material: drawn whole
+    assert floor.sum() > 1000 and 0 < np.median(diff[floor]) <= 0.5 * diff[solid].max()

@@ -64,8 +64,14 @@ NOZZLE_COLOUR = (70, 70, 76)
 #: Towards the light on the robots' faces: from above, from the left front.
 LIGHT = np.array([-0.35, -0.45, 0.82]) / np.linalg.norm([-0.35, -0.45, 0.82])
 #: How much of a robot's colour covers the material behind it (the rest: the material's, so that a
-#: robot over the print, as a frame seen from above, does not hide it).
-ROBOT_ALPHA = 0.45
+#: robot over the print, as a frame seen from above, does not hide it: at 0.45 a 5 mm cube under
+#: its robot's frame was a faint trace; the faces' outlines still draw the robot).
+ROBOT_ALPHA = 0.2
+#: ... and of a face that covers material somewhere, over the floor (so that the gaps between a
+#: small part's lines are not the frame's colour: the part stays visible under a robot's frame).
+OVER_PART_ALPHA = 0.35
+#: ... and of a nozzle's rod over the material behind it (drawn over the robots' frames).
+NOZZLE_ALPHA = 0.6
 #: ... and of its outline over the material behind it.
 EDGE_ALPHA = 0.7
 #: The nozzle's tip is marked with a dot unless material nearer than this (mm) hides it.
@@ -218,18 +224,27 @@ class _Scene:
         body, frame and printhead as shaded boxes (where they are known: not for G-code
         printers), its nozzle down to the tip and a dot at the tip.
 
-        The boxes' faces are drawn far to near (each box by its centre), each pixel against the
-        material's ``depth`` there (:func:`cooprint.render.kernels.draw_faces`): behind the
+        The boxes' faces are drawn far to near (each box by its centre; the nozzles' rods last,
+        over the robots' see-through frames, so that a printhead reads as attached to its tip; a
+        face over the material is see-through over the floor too, :data:`OVER_PART_ALPHA`),
+        each pixel against the material's ``depth`` there (:func:`cooprint.render.kernels.draw_faces`): behind the
         material it is left out; in front of it, the material shows through (:data:`ROBOT_ALPHA`).
         The dot at a tip marks where the robot prints: drawn over the robots, left out only
         where material in front of it hides the tip (:data:`TIP_TOLERANCE`)."""
         solids = sorted((s for i, r in enumerate(self.result.robots) for s in self._solids(i, r, t)),
                         key=lambda s: s.depth)
-        faces = [f for s in solids for f in s.faces(self)]
-        if faces:
+        material = depth[::4, ::4] > NO_DEPTH / 2  # where material is, a pixel in 16
+        for on_top in (False, True):  # the rods over the rest
+            faces = [f for s in solids if s.on_top == on_top for f in s.faces(self)]
+            if not faces:
+                continue
             quads, planes, fills, edges = (np.array([f[k] for f in faces]) for k in range(4))
+            alpha = np.full(len(faces), NOZZLE_ALPHA if on_top else ROBOT_ALPHA)
+            # a face over the material lets it show through everywhere (a 5 mm cube under a frame)
+            over = np.array([_covers(material, q / 4) for q in quads]) & (not on_top)
+            back = np.where(over, OVER_PART_ALPHA, 1.0)
             draw_faces(rgb, rgb.copy(), depth, quads, planes, fills.astype(np.uint8), edges.astype(np.uint8),
-                       ROBOT_ALPHA, EDGE_ALPHA)
+                       alpha, EDGE_ALPHA, back)
         radius = max(4.0, 6.0 * self.k)
         for i, r in enumerate(self.result.robots):
             tip = self.nozzle(r, t)
@@ -258,10 +273,23 @@ class _Scene:
                     out.append(_Solid(parts[part], z0, z1, colour + PART_TINT[part] * (255 - colour)))
         rod = tip[:2] + NOZZLE_WIDTH / 2 * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
         if under > tip[2]:
-            out.append(_Solid(rod, float(tip[2]), under, np.array(NOZZLE_COLOUR, float)))
+            out.append(_Solid(rod, float(tip[2]), under, np.array(NOZZLE_COLOUR, float), on_top=True))
         for s in out:
             s.depth = float(s.corners.mean(axis=0) @ self.basis[2])
         return out
+
+
+def _covers(mask: np.ndarray, quad: np.ndarray) -> bool:
+    """Whether the convex ``quad`` (4, 2) pixels (of ``mask``'s scale) covers a True pixel of ``mask``."""
+    h, w = mask.shape
+    x0, y0 = np.floor(quad.min(axis=0)).astype(int)
+    x1, y1 = np.ceil(quad.max(axis=0)).astype(int)
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w - 1), min(y1, h - 1)
+    if x0 > x1 or y0 > y1 or not mask[y0:y1 + 1, x0:x1 + 1].any():
+        return False
+    inside = Image.new("1", (x1 - x0 + 1, y1 - y0 + 1), 0)
+    ImageDraw.Draw(inside).polygon([(x - x0, y - y0) for x, y in quad.tolist()], fill=1, outline=1)
+    return bool((np.asarray(inside) & mask[y0:y1 + 1, x0:x1 + 1]).any())
 
 
 class _Solid:
@@ -276,13 +304,15 @@ class _Solid:
     FACES = {(0, 0): (0, 2, 6, 4), (0, 1): (1, 3, 7, 5), (1, 0): (0, 1, 5, 4), (1, 1): (2, 3, 7, 6),
              (2, 0): (0, 1, 3, 2), (2, 1): (4, 5, 7, 6)}
 
-    def __init__(self, xy: np.ndarray, z0: float, z1: float, colour: np.ndarray):
+    def __init__(self, xy: np.ndarray, z0: float, z1: float, colour: np.ndarray, on_top: bool = False):
         du, dv = xy[1] - xy[0], xy[3] - xy[0]
         bits = np.array([[c & 1, (c >> 1) & 1, c >> 2] for c in range(8)], float)
         self.corners = np.column_stack([xy[0] + bits[:, :1] * du + bits[:, 1:2] * dv,
                                         np.where(bits[:, 2] > 0, z1, z0)])
         self.axes = np.array([[*du / np.linalg.norm(du), 0.0], [*dv / np.linalg.norm(dv), 0.0], [0.0, 0.0, 1.0]])
         self.colour = colour
+        #: Drawn after every other box (a nozzle's rod: never lost behind a frame).
+        self.on_top = on_top
         self.depth = 0.0  # of its centre, set by the scene (the order it is drawn in)
 
     def sides(self, scene: _Scene) -> list[tuple[int, int]]:
