@@ -29,11 +29,13 @@ VIEWER_JS = REPO / "src" / "cooprint" / "render" / "viewer" / "assets" / "viewer
 VIEWER_SRC = REPO / "viewer"
 #: How long a page may take to draw its first frame (software GL on a shared 2-core machine).
 READY_TIMEOUT_MS = 60_000
-#: Resolves when a paused viewer page has finished drawing: it draws only on the animation frame
-#: after a change, and a large picture over several frames; so, until two animation frames pass
-#: without a frame drawn.
+#: Resolves when a paused viewer page has finished drawing: the page's own ``cooprint.idle()``
+#: (nothing left to draw, the picture on the screen); on a page without it (an older one), until two
+#: animation frames pass without a frame drawn (it draws only on the frame after a change, and a
+#: large picture over several frames).
 SETTLE_JS = """async () => {
   const c = window.cooprint, raf = () => new Promise((r) => requestAnimationFrame(r));
+  if (typeof c.idle === 'function') return c.idle();
   for (let n = -1; c.frames() !== n;) { n = c.frames(); await raf(); await raf(); }
 }"""
 

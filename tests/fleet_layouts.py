@@ -7,8 +7,10 @@ import dataclasses
 
 import numpy as np
 
-from cooprint.chunking.cut import Chunk
+from cooprint.chunking.cut import Chunk, ChunkSet
 from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.jobs import chunk_job
+from cooprint.models import car
 from cooprint.program.build import MaterialIndex
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.scheduling.schedule import Schedule
@@ -137,3 +139,20 @@ def grid_boxes(rows: int, cols: int, robots: tuple[str, ...], width: float = 120
                    np.zeros((n, 4)), {c: deps.get(c, ()) for c in ids}, {c: tuple(body.get(c, ())) for c in ids})
     sched = Schedule(seqs, "hand", {c: 0.0 for c in ids}, {c: 1.0 for c in ids}, 1.0, 1.0)
     return dag, sched, layers, MaterialIndex.of(chunks, margin=slicing.layer_height)
+
+
+def box_grid(nx: int, ny: int, size: float = 100.0, tiny: tuple[int, int] | None = None) -> ChunkSet:
+    """A grid of ``nx`` x ``ny`` box chunks (a layout other than seed2, for the pictures' tests)
+    over the car's plan; the ``tiny`` one (column, row) a 2 mm cube."""
+    plan = chunk_job(car(420.0), robots=1).chunks.plan
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    faces = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                      [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
+    chunks = []
+    for i in range(nx):
+        for j in range(ny):
+            dims = [2.0, 2.0, 2.0] if (i, j) == tiny else [size * 0.9, size * 0.9, 40.0 + 10 * ((i + j) % 3)]
+            v = corners * dims + [i * size, j * size, 0.0]
+            chunks.append(Chunk(f"r{j}c{i}", "right", j + 1, v, faces, float(np.prod(np.ptp(v, axis=0))), (),
+                                row=j, col=i))
+    return ChunkSet(plan, tuple(chunks), {c.id: () for c in chunks}, sum(c.volume for c in chunks), layout="grid")

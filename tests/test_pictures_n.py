@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+import fleet_layouts
 from badinput import assert_rejected
-from cooprint.chunking.cut import Chunk, ChunkSet
 from cooprint.cli import main
 from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.jobs import chunk_job, robot_names
@@ -68,23 +68,10 @@ def test_chunk_picture_coloured_by_robot_with_a_legend(car_chunks, tmp_path):
     assert _exact(plain[:100], robot_colour(2)) == 0  # no legend without a schedule
 
 
-def _box_chunks(nx: int, ny: int, size: float = 100.0) -> ChunkSet:
-    """A grid of ``nx`` x ``ny`` box chunks (a layout other than seed2) over the car's plan."""
-    plan = chunk_job(car(420.0), robots=1).chunks.plan
-    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
-    faces = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                      [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
-    chunks = []
-    for i in range(nx):
-        for j in range(ny):
-            v = corners * [size * 0.9, size * 0.9, 40.0 + 10 * ((i + j) % 3)] + [i * size, j * size, 0.0]
-            chunks.append(Chunk(f"r{j}c{i}", "right", j + 1, v, faces, float(np.prod(np.ptp(v, axis=0))), (),
-                                row=j, col=i))
-    return ChunkSet(plan, tuple(chunks), {c.id: () for c in chunks}, sum(c.volume for c in chunks), layout="grid")
 
 
 def test_chunk_picture_of_200_chunks_and_16_robots(tmp_path):
-    chunks = _box_chunks(20, 10)
+    chunks = fleet_layouts.box_grid(20, 10)
     ids = [c.id for c in chunks.chunks]
     names = robot_names(16)
     sched = Assignment({r: tuple(ids[k::16]) for k, r in enumerate(names)}, "test")

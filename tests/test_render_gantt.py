@@ -18,7 +18,7 @@ from cooprint.cli import main
 from cooprint.errors import UserError
 from cooprint.render.palette import robot_colour
 from cooprint.render.sim import (DAY, GANTT_LEFT, GANTT_RIGHT, GANTT_TOP, TRAVEL_COLOUR, WAIT_COLOUR, _axis_label,
-                                 _hms, _nice_step, _row_pitch, frame_count, gantt_header, gantt_height, gantt_title,
+                                 _hms, _nice_step, _row_pitch, frame_count, gantt_header, gantt_height, gantt_names, gantt_title,
                                  gif_delays, render_gantt)
 from cooprint.simulation import simulate
 from cooprint.simulation.inputs import load_manifest
@@ -98,7 +98,8 @@ def test_the_gantt_legend_shows_each_robots_printing_colour(result, tmp_path):
 def test_a_narrow_gantt_grows_to_hold_its_wrapped_header(result, tmp_path):
     bound = 0.8 * result.makespan
     img = _pixels(render_gantt(result, tmp_path / "g.png", size=(480, 0), critical=["x"], lower_bound=bound))
-    header = gantt_header(gantt_title(result.makespan, bound), 2, 480, critical=True, bound=True)
+    # no chunks in these programs: no critical path to frame, so none in the legend
+    header = gantt_header(gantt_title(result.makespan, bound), 2, 480, critical=False, bound=True)
     assert header.bottom > GANTT_TOP and img.shape[0] == gantt_height(2, header.bottom)
     # A's row starts under the header: its colour in the legend's swatch, then from the row on
     legend_end = int(max(box[3] for box in header.boxes)) + 1
@@ -228,3 +229,88 @@ def test_render_accel_draws_the_times_of_simulate_accel(plan, tmp_path, capsys):
             titles[bool(extra)] = im.text["Title"]
     assert titles[True] == f"makespan {_hms(accel)} ({accel:.0f} s)"
     assert titles[False] != titles[True]  # the zigzag takes longer when its moves accelerate
+
+
+def test_render_of_a_simulated_folder_is_timed_as_its_simulation_unless_told(plan, tmp_path, capsys):
+    """`render DIR` of a `simulate --accel --out DIR` folder reads the files its summary names and
+    times them with acceleration (the summary's makespan); --no-accel draws constant-speed times."""
+    folder = tmp_path / "s"
+    assert main(["simulate", "--manifest", str(plan), "--out", str(folder), "--accel", "-q"]) in (0, 1)
+    accel = json.loads((folder / "sim" / "summary.json").read_text())["makespan_s"]
+    assert main(["render", str(folder), "--format", "gantt"]) == 0
+    with Image.open(folder / "sim" / "gantt.png") as im:
+        assert im.text["Title"] == f"makespan {_hms(accel)} ({accel:.0f} s)"
+    out = tmp_path / "no.png"
+    assert main(["render", str(folder), "--format", "gantt", "--no-accel", "--out", str(out)]) == 0
+    plain = simulate(load_manifest(plan), checks=False).makespan
+    with Image.open(out) as im:
+        assert im.text["Title"] == f"makespan {_hms(plain)} ({plain:.0f} s)"
+    assert abs(plain - accel) > 1
+
+
+def test_render_of_a_missing_path_says_so(tmp_path, capsys):
+    assert_rejected(["render", tmp_path / "nonexist"], capsys, watch=[tmp_path],
+                    contains=f"{tmp_path / 'nonexist'}: no such file or folder")
+
+
+def _renamed(result, names: dict[str, str]):
+    """The plan with its robots renamed (``names``: old -> new)."""
+    robots = [dataclasses.replace(r, name=names.get(r.name, r.name)) for r in result.robots]
+    tls = {names.get(n, n): tl for n, tl in result.timelines.items()}
+    return dataclasses.replace(result, robots=robots, timelines=tls)
+
+
+@pytest.mark.parametrize("width", [1200, 480])
+def test_a_long_robot_name_never_runs_under_the_bars(result, tmp_path, width):
+    """A 30-character name: the bars start right of it (the whole name in a 1200 px chart), or,
+    where that would take more than a third of the picture, the name is cut short with "…"."""
+    long = "my_really_long_part_name_v2_fi"
+    assert len(long) == 30
+    renamed = _renamed(result, {"A": long})
+    img = _pixels(render_gantt(renamed, tmp_path / "g.png", size=(width, 0)))
+    bar = max(10, int(_row_pitch(2) * 2 / 3))
+    font = min(16, max(10, bar - 2))
+    names, left = gantt_names([long, "B"], font, width)
+    assert left > GANTT_LEFT and left <= max(GANTT_LEFT, width // 3)
+    assert names[0] == f"robot {long}" if width == 1200 else names[0].endswith("…")
+    top = next(y for y in range(img.shape[0]) if _exact(img[y, left:left + 3], robot_colour(0)).all())
+    row = _exact(img[top:top + bar, :left], robot_colour(0))  # A's label, left of A's bars
+    label_cols = np.flatnonzero(row.any(axis=0))
+    assert label_cols.max() < left - 5  # the label ends before the bars
+    assert label_cols.max() - label_cols.min() > 0.8 * _text_width(names[0], font)  # drawn whole
+    # A's bar is in its row right of `left` from its first column on
+    assert _exact(img[top:top + bar, left:left + 10], robot_colour(0)).mean() > 0.5
+
+
+def _text_width(text: str, font: int) -> float:
+    from cooprint.render.sim import _cached_font
+    return _cached_font(font).getlength(text)
+
+
+def _chunk_lines(cid: str, y: float, n: int) -> str:
+    return f";@chunk {cid}\nMOVE 0 {y} 0.2\nTOOL ON\n" + "".join(
+        f"MOVE {4 * ((k + 1) % 2)} {y + 0.5 * k} 0.2\n" for k in range(n)) + "TOOL OFF\n"
+
+
+def test_the_critical_path_drawn_is_the_chain_that_sets_the_makespan(tmp_path):
+    """One robot printing C, L1, R1 (the schedule's precedence chain is C -> L1): its work alone
+    sets the makespan, so all three are framed. Two robots, B waiting for A's C before R1: the
+    chain is R1 (B, ends last) <- C (A, told B), not A's L1."""
+    from cooprint.render.sim import CRITICAL_COLOUR, simulated_critical_path
+
+    (tmp_path / "A.coop").write_text(_chunk_lines("C", 0, 40) + _chunk_lines("L1", 50, 40) + _chunk_lines("R1", 100, 40))
+    (tmp_path / "m.toml").write_text('[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0, 0.2]\n')
+    one = simulate(load_manifest(tmp_path / "m.toml"), checks=False)
+    assert sorted(simulated_critical_path(one)) == ["C", "L1", "R1"]
+    img = _pixels(render_gantt(one, tmp_path / "g.png", critical=["C", "L1"]))
+    red = _exact(img[GANTT_TOP:], CRITICAL_COLOUR).any(axis=0)
+    cols = img.shape[1] - GANTT_LEFT - GANTT_RIGHT
+    last = GANTT_LEFT + int(0.95 * cols)  # R1 ends the plan: its frame reaches the right end
+    assert red[last:].any() and red[GANTT_LEFT:GANTT_LEFT + cols // 10].any()
+
+    (tmp_path / "A2.coop").write_text(_chunk_lines("C", 0, 40) + "NOTIFY C\n" + _chunk_lines("L1", 50, 20))
+    (tmp_path / "B2.coop").write_text("MOVE 0 500 0.2\nWAIT C\n" + _chunk_lines("R1", 500, 60))
+    (tmp_path / "m2.toml").write_text('[[robots]]\nname = "A"\nprogram = "A2.coop"\nstart = [0, 0, 0.2]\n'
+                                      '[[robots]]\nname = "B"\nprogram = "B2.coop"\nstart = [0, 500, 0.2]\n')
+    two = simulate(load_manifest(tmp_path / "m2.toml"), checks=False)
+    assert simulated_critical_path(two) == ["R1", "C"]

@@ -179,6 +179,38 @@ def test_every_robots_name_and_bar_are_inside_the_picture(size, n):
             assert a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1], (a, b)
     if n <= 3:
         assert all(c.state_at is not None for c in lay.cells)  # few robots: "robot A", the bar and the state
+    if n <= 4 or size[0] >= 1280 and n <= 12:  # the state word where there is room (a 640 px GIF of 4 robots)
+        assert all(c.state_at is not None for c in lay.cells)
+    from cooprint.render.sim import STATES, _text_box
+    for c in lay.cells:  # the state word inside the picture, right of the bar, clear of the next cell
+        if c.state_at is not None:
+            x0, _, x1, _ = _text_box(max(STATES, key=len), (c.state_at[0], 0), c.state_font)
+            assert c.bar[2] < x0 and x1 <= w
+            assert all(x1 <= o.at[0] or o.at[0] < c.at[0] or o.at[1] != c.at[1] for o in lay.cells if o is not c)
+
+
+@pytest.mark.parametrize("size", [(640, 360), (1280, 720)])
+def test_a_waiting_robots_bar_keeps_its_colour_and_shows_yellow_and_waiting(size, tmp_path):
+    """Four robots, D waiting half-way for A's long line: its bar is filled in its colour and
+    framed in the Gantt chart's yellow, in the GIF's size as in the PNG's."""
+    from cooprint.render.sim import WAIT_COLOUR
+    texts = {"A": "MOVE 0 0 0.4\nTOOL ON\nMOVE 0 400 0.4\nNOTIFY go\n",
+             "D": "MOVE 300 0 0.4\nTOOL ON\nMOVE 340 0 0.4\nTOOL OFF\nWAIT go\nTOOL ON\nMOVE 380 0 0.4\n"}
+    robots = [_robot(name, texts.get(name, f"MOVE {100 * k} 0 0.4\nTOOL ON\nMOVE {100 * k + 40} 0 0.4\n"),
+                     [100 * k, 0, 0.4], [0, 1]) for k, name in enumerate(robot_names(4))]
+    res = _sim(robots)
+    (a, b, _), = res.timelines["D"].waits
+    t = (a + b) / 2
+    img = np.asarray(Image.open(render_snapshot(res, t, tmp_path / "s.png", size=size)).convert("RGB")).astype(int)
+    lay = _Scene(res, size, -35.0, 30.0).layout
+    cell = lay.cells[3]
+    assert cell.state_at is not None
+    x0, y0, x1, y1 = cell.bar
+    bar = img[y0:y1 + 1, x0:x1 + 1]
+    near = lambda c: (np.abs(bar - np.asarray(c)).sum(axis=2) < 12).mean()
+    assert near(robot_colour(3)) > 0.1  # its progress (half) in its colour, not grey
+    assert near(WAIT_COLOUR) > 0.15  # the yellow frame
+    assert near((150, 150, 150)) == 0
 
 
 @pytest.mark.parametrize("size", [(640, 360), (1280, 720)])
@@ -207,3 +239,33 @@ def test_the_animation_draws_the_robots_as_the_snapshot_does(wall_scene, tmp_pat
                       .convert("RGB")).astype(int)
     assert last.shape == snap.shape
     assert np.median(np.abs(last - snap).sum(axis=2)) < 12
+
+
+def test_the_nozzles_rod_shows_over_its_frame_and_a_small_part_under_the_frame_shows():
+    """A 5 mm square printed by a robot whose frame hangs between the camera and the print: the
+    rod from the tip up to the printhead is drawn over the see-through frame (the printhead reads
+    as attached), and the print and the floor under the frame stay visible (the frame takes
+    :data:`ROBOT_ALPHA` of a material pixel, :data:`OVER_PART_ALPHA` of a floor pixel there)."""
+    from cooprint.render.sim import NOZZLE_COLOUR
+    text = "MOVE 0 0 0.4\nTOOL ON\n" + "".join(
+        f"MOVE {5 * ((k + 1) // 2 % 2)} {5 * (k // 2 % 2)} {0.4 + 0.4 * (k // 4)}\n" for k in range(1, 49))
+    res = _sim([_robot("A", text, [0, 0, 0.4], -TOWARDS)])  # its frame towards the camera
+    t = res.makespan / 2
+    rgb, before, depth, scene = _picture(res, t)
+    solids = scene._solids(0, res.robots[0], t)
+    rod = _silhouette(scene, [s for s in solids if s.on_top])
+    frame = _silhouette(scene, [s for s in solids if not s.on_top])
+    material = depth > NO_DEPTH / 2
+    seen = rod & frame & ~material  # the rod behind the frame (seen from the camera)
+    assert seen.sum() > 500
+    assert (np.abs(rgb[seen].astype(int) - np.asarray(NOZZLE_COLOUR)).sum(axis=1) < 150).mean() > 0.9
+    diff = np.abs(rgb.astype(int) - before.astype(int)).sum(axis=2)
+    under = frame & ~rod
+    assert (under & material).sum() > 100  # the print lies under the frame ...
+    assert np.median(diff[under & material]) <= 0.2 * 3 * 255  # ... and shows through it
+    ys, xs = np.nonzero(material)
+    near = np.zeros_like(material)  # the floor round the print, under the frame
+    near[ys.min() - 40:ys.max() + 40, xs.min() - 40:xs.max() + 40] = True
+    floor = under & near & ~material
+    solid = under & ~near & (diff > 0)  # faces elsewhere, over no material: drawn whole
+    assert floor.sum() > 1000 and 0 < np.median(diff[floor]) <= 0.5 * diff[solid].max()

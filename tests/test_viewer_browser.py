@@ -4,7 +4,10 @@ Issue 16's "Tested in a real browser": a small two-robot plan made here (a hollo
 three chunks, robot B waiting for A's centre chunk, overhang warnings under the cavity's roof) and a
 one-printer G-code file are simulated and viewed; each page is opened from file:// with the network
 blocked, and must draw the robots' colours, play, seek from the slider, the findings and the Gantt
-chart, switch colour modes, travel and the layer range, all without a console error.
+chart, switch colour modes, travel and the layer range, all without a console error. The page also
+shows the floor grid from its first frame (a G-code preview's part far from the origin too), a layer
+range as high as the material, each robot's state and progress, and disables what the plan has no
+data for (a G-code file's chunks, its missing events).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from solids import COARSE, box, hollow, to_trimesh
 
 from cooprint.cli import main
 from cooprint.render.palette import robot_colour
+from cooprint.render.viewer import write_viewer
+from cooprint.simulation import load_inputs, simulate, summary
 
 SETTINGS = [f"--set={k}={v}" for k, v in COARSE.items()]
 #: Hue tolerance (degrees) and least saturation of a pixel counted as a robot's colour under shading.
@@ -154,17 +159,43 @@ def _drag_slider_to(view, t: float) -> None:
     view.page.mouse.up()
 
 
+def status_line(view, robot: str) -> str:
+    """The text of robot ``robot``'s status line (#status) once the page settled."""
+    view.settle()
+    return " ".join(view.page.locator(f'#status [data-robot="{robot}"] > span').all_text_contents())
+
+
 def test_dragging_the_slider_to_a_wait_shows_the_robot_waiting(view, plan):
     _, summary = plan
     wait = max((e for e in summary["events"] if e["kind"] == "wait"), key=lambda e: e["until_s"] - e["time_s"])
     middle = (wait["time_s"] + wait["until_s"]) / 2
+    robot = wait["robot"]
     _drag_slider_to(view, middle)
     t = view.hook("c.time()")
     assert wait["time_s"] < t < wait["until_s"], f"the slider went to {t} s, not into the wait {wait}"
-    assert view.hook(f"c.robotState({json.dumps(wait['robot'])})")["state"] == "waiting"
+    assert view.hook(f"c.robotState({json.dumps(robot)})")["state"] == "waiting"
+    # its status line says so, and for which event
+    line = status_line(view, robot)
+    assert "waiting for" in line and all(e in line for e in wait["events"]), f"robot {robot}'s status line during its wait: {line!r}"
     # and after the wait, the same robot is at work again
     view.hook(f"c.seek({wait['until_s'] + 1})")
-    assert view.hook(f"c.robotState({json.dumps(wait['robot'])})")["state"] in ("printing", "travelling")
+    assert view.hook(f"c.robotState({json.dumps(robot)})")["state"] in ("printing", "travelling")
+    assert "waiting" not in status_line(view, robot)
+    view.assert_clean()
+
+
+def test_the_status_lines_follow_each_robots_printing(view, plan):
+    _, summary = plan
+    view.hook("(c.pause(), c.seek(0))")
+    names = [r["name"] for r in summary["robots"]]
+    assert all(status_line(view, n).endswith(" 0% printed") for n in names)
+    view.hook(f"c.seek({summary['makespan_s'] / 2})")
+    half = {n: view.hook(f"c.robotState({json.dumps(n)})")["printed"] for n in names}
+    assert all(0 < p < 1 for p in half.values()), f"halfway, each robot has printed part of its share: {half}"
+    for n in names:
+        assert f"{int(100 * half[n] + 1e-9)}% printed" in status_line(view, n)
+    view.hook(f"c.seek({summary['makespan_s']})")
+    assert [status_line(view, n) for n in names] == [f"{n} done 100% printed" for n in names]
     view.assert_clean()
 
 
@@ -244,21 +275,92 @@ def test_clicking_the_gantt_chart_seeks(view, plan):
     view.assert_clean()
 
 
-def test_a_gcode_file_is_viewed_with_one_robot_and_no_outline(gcode_view, chromium):
+@pytest.fixture(scope="module")
+def gcode_page(gcode_view, chromium):
+    """The G-code preview's page, open for the module; ``first``: its 3D view as first drawn."""
+    page = open_viewer(chromium, gcode_view / "sim" / "viewer.html")
+    page.first = shot(page)
+    yield page
+    page.close()
+
+
+def test_a_gcode_file_is_viewed_with_one_robot_and_no_outline(gcode_view, gcode_page):
+    page = gcode_page
     summary = json.loads((gcode_view / "sim" / "summary.json").read_text())
     assert len(summary["robots"]) == 1
-    page = open_viewer(chromium, gcode_view / "sim" / "viewer.html")
+    name = summary["robots"][0]["name"]
+    page.hook("c.seek(0)")
+    start = shot(page)
+    page.hook(f"c.seek({page.hook('c.makespan')})")
+    end = shot(page)
+    assert page.hook(f"c.robotState({json.dumps(name)})")["state"] == "done"
+    assert colour_pixels(end, robot_colour(0)) >= MATERIAL_PIXELS, "the printed part is not in the robot's colour"
+    # no body, frame or printhead drawn (a placed robot's take thousands of pixels): at t = 0,
+    # before any material, hardly anything in the robot's colour
+    assert colour_pixels(start, robot_colour(0)) < OUTLINE_PIXELS / 5
+    page.assert_clean()
+
+
+#: The floor grid's colours (scene.js: its lines and its centre lines).
+GRID_GREYS = (0xdc, 0xb0)
+#: Least grid pixels in each quarter of the first frame (a grid around the part: tens of thousands).
+GRID_PIXELS = 300
+
+
+def grid_pixels(img: np.ndarray) -> np.ndarray:
+    """Which pixels of ``img`` are the floor grid's greys."""
+    grey = (np.ptp(img.astype(int), axis=2) <= 2)
+    return grey & np.isin(img[..., 0], [g + d for g in GRID_GREYS for d in (-1, 0, 1)])
+
+
+def test_the_floor_grid_is_under_a_gcode_part_from_the_first_frame(gcode_page):
+    # a G-code's part lies far from the origin, which the scene's box holds: the grid spans both,
+    # and was once missing from the first frame (lines reaching behind the camera were dropped)
+    grid = grid_pixels(gcode_page.first)
+    h, w = grid.shape
+    quarters = [int(grid[a:a + h // 2, b:b + w // 2].sum()) for a in (0, h // 2) for b in (0, w // 2)]
+    assert min(quarters) >= GRID_PIXELS, f"floor grid pixels in the first frame's quarters: {quarters}"
+    label = gcode_page.page.locator("#grid-label").inner_text()
+    step = gcode_page.hook("c.gridStep()")
+    assert label == (f"grid {step:g} mm" if step < 1000 else f"grid {step / 1000:g} m")
+    gcode_page.assert_clean()
+
+
+def test_the_layer_range_spans_the_material_not_the_travel(gcode_page, plan, view):
+    layer = COARSE["slicing.layer_height"]
+    for page, top in ((gcode_page, 4.0), (view, 12.0)):  # the 30 x 30 x 4 box, the 12 mm bar
+        hi = page.page.locator("#layer-hi")
+        assert float(hi.get_attribute("min")) == 0
+        assert top - 1e-6 <= float(hi.get_attribute("max")) < top + layer, \
+            f"the layer range of a {top} mm high part ends at {hi.get_attribute('max')} mm"
+
+
+def test_a_gcode_preview_disables_what_it_has_no_data_for(gcode_page):
+    page = gcode_page.page
+    chunk = page.locator('#colour-mode option[value="chunk"]')
+    assert chunk.is_disabled() and "no chunks" in chunk.get_attribute("title")
+    with pytest.raises(Exception, match="no chunks"):
+        gcode_page.hook("c.setColourMode('chunk')")
+    assert gcode_page.hook("c.colourMode()") == "robot"
+    for button in ("#prev-event", "#next-event"):  # a lone printer has no NOTIFY / WAIT
+        assert page.locator(button).is_disabled()
+        assert "no NOTIFY / WAIT" in page.locator(button).get_attribute("title")
+    gcode_page.assert_clean()
+
+
+def test_the_thinned_notice_says_so_and_can_be_closed(plan, chromium, tmp_path):
+    inp = load_inputs([str(plan[0])], programs=False)
+    result = simulate(inp)
+    html = write_viewer(result, summary(result), tmp_path / "thin.html", max_segments=200)
+    page = open_viewer(chromium, html)
     try:
-        name = summary["robots"][0]["name"]
-        page.hook("c.seek(0)")
-        start = shot(page)
-        page.hook(f"c.seek({page.hook('c.makespan')})")
-        end = shot(page)
-        assert page.hook(f"c.robotState({json.dumps(name)})")["state"] == "done"
-        assert colour_pixels(end, robot_colour(0)) >= MATERIAL_PIXELS, "the printed part is not in the robot's colour"
-        # no body, frame or printhead drawn (a placed robot's take thousands of pixels): at t = 0,
-        # before any material, hardly anything in the robot's colour
-        assert colour_pixels(start, robot_colour(0)) < OUTLINE_PIXELS / 5
+        notice = page.page.locator("#notice")
+        thinned = page.hook("c.thinned()")
+        assert thinned and thinned["shown"] <= 200 < thinned["total"]
+        assert notice.is_visible() and f"of {thinned['total']:,} material segments" in notice.inner_text()
+        page.page.click("#notice-close")
+        assert not notice.is_visible()
+        assert page.hook("c.thinned()") == thinned  # (closed, not forgotten)
         page.assert_clean()
     finally:
         page.close()

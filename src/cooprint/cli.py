@@ -671,26 +671,44 @@ def perturbed_line(rec: dict[str, Any]) -> str:
 @click.option("--duration", type=click.FloatRange(0.5, 3600), help="Animation length, s [default: 20].")
 @click.option("--speedup", type=click.FloatRange(min=1e-3),
               help="Animation speed over real time (instead of --duration; at most a 10 min animation).")
-@click.option("--accel", is_flag=True, help="Moves accelerate, as in `simulate --accel` (the times drawn are "
-              "those of its summary).")
+@click.option("--accel/--no-accel", default=None,
+              help="Moves accelerate, as in `simulate --accel` (the times drawn are those of its summary) "
+                   "[default: as DIR's simulation was (its sim/summary.json), else --no-accel].")
 @click.option("--manifest", type=click.Path(dir_okay=False), help="TOML naming .coop files, starts, facings.")
 @click.option("--out", "-o", type=click.Path(dir_okay=False), help="File to write [default: DIR/sim/...].")
 @click.option("--force", is_flag=True, help="Replace the file if it exists.")
 def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: float, duration: float | None,
-           speedup: float | None, accel: bool, manifest: str | None, out: str | None, force: bool) -> None:
-    """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt)."""
-    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
+           speedup: float | None, accel: bool | None, manifest: str | None, out: str | None, force: bool) -> None:
+    """Draw a simulated plan: the fleet at a time (png), in motion (mp4, gif), or who works when (gantt).
+
+    INPUTS: .coop / G-code files, a `cooprint run` bundle, or a folder written by `cooprint
+    simulate FILES --out DIR` (the files its sim/summary.json names are read again)."""
+    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder, is_bundle
     from cooprint.render.sim import (animation_length, frame_count, length_text, render_animation, render_gantt,
                                      render_snapshot)
     from cooprint.jobs import read_with_progress
     from cooprint.simulation import simulate as run_sim
 
     _need_inputs(inputs, manifest)
+    for name in inputs:
+        if not os.path.lexists(name):
+            raise UserError(f"{name}: no such file or folder")
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
     fmt, inferred = _render_format(fmt, out)
     _check_render_options(fmt, inferred, at, duration, speedup)
-    sources = (*inputs, manifest)
+    folder = Path(inputs[0]) if len(inputs) == 1 and Path(inputs[0]).is_dir() and manifest is None else None
+    record = _sim_record(folder / "sim" / "summary.json") if folder is not None else None
+    paths, config = list(inputs), ()
+    if folder is not None and record is not None:  # timed as it was simulated; a `simulate --out` folder's files
+        recorded = _recorded_inputs(folder, record, is_bundle(folder))
+        if not is_bundle(folder):
+            paths, manifest = list(recorded["paths"]), recorded.get("manifest")
+            config = tuple(recorded.get("config") or ())
+        if accel is None:
+            accel = bool(recorded.get("accel"))
+    accel = bool(accel)
+    sources = (*paths, manifest)
     if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
         check_file_destination(out, force, sources, need_bytes=_SMALL_OUTPUT)
     elif len(inputs) == 1 and Path(inputs[0]).is_dir():  # a bundle: DIR/sim/<picture>
@@ -699,7 +717,8 @@ def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: floa
         raise UserError("rendering files: give --out FILE for the picture or animation")
     _heap_malloc()
     with stage_progress(True) as progress:  # bars on a terminal only
-        inp = read_with_progress(list(inputs), manifest, None, progress, programs=False)
+        inp = read_with_progress(paths, manifest, _settings(config, {}) if config else None, progress,
+                                 programs=False)
         result = run_sim(inp, checks=False, accel=accel, progress=progress)
     t = result.makespan if at is None else at
     if not 0 <= t <= result.makespan + 1e-9:
@@ -816,6 +835,35 @@ def _names_other_inputs(record: dict[str, Any] | None, root: Path) -> bool:
     inputs = record.get("inputs") if record is not None else None
     return isinstance(inputs, dict) and isinstance(inputs.get("paths"), list) and \
         inputs["paths"] != [os.path.abspath(root)]
+
+
+def _recorded_inputs(root: Path, record: dict[str, Any], bundle: bool) -> dict[str, Any]:
+    """What folder ``root``'s simulation read, from its sim/summary.json ``record`` (its ``inputs``,
+    :func:`cooprint.jobs.inputs_record`; :func:`cooprint.jobs.sim_sources` also says
+    whether they changed since): for a bundle, the bundle where it is now, timed as its simulation was;
+    for a `simulate --out` folder, the files it names, each checked to be still there."""
+    summary_path = root / "sim" / "summary.json"
+    inputs = record.get("inputs")
+    if bundle:
+        accel = inputs.get("accel") if isinstance(inputs, dict) else None
+        inputs = {"paths": [str(root)], "manifest": None, "config": [],
+                  "accel": accel if accel is not None else str(record.get("time_model", "")).startswith("trapezoidal")}
+    if not isinstance(inputs, dict) or not isinstance(inputs.get("paths"), list):
+        raise UserError(f"{summary_path}: does not say which files were simulated (written by an older cooprint?); "
+                        f"run `cooprint simulate FILES --out {root}` again")
+    manifest, config = inputs.get("manifest"), tuple(inputs.get("config") or ())
+    for name in [*inputs["paths"], *([manifest] if manifest else []), *config]:
+        if not Path(name).exists():
+            raise UserError(f"{summary_path}: names {name}, which is no longer there; simulate again")
+    return inputs
+
+
+def _sim_record(path: Path) -> dict[str, Any] | None:
+    """sim/summary.json when it is cooprint's (a ``cooprint-sim/`` format), else None."""
+    from cooprint.io.bundle import SIM_FORMAT, read_json_object
+
+    record = read_json_object(path)
+    return record if record is not None and str(record.get("format", "")).startswith(SIM_FORMAT) else None
 
 
 def _view_wording(message: str) -> str:

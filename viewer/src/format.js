@@ -3,8 +3,9 @@
 
 const DAY = 86400;
 
-// A time in s as a clock: "h:mm:ss" under a day, "Nd hh:mm:ss" from a day on (a 375-day plan
-// reads "375d 04:00:00", not "9004:00:00"); null or not a number: "–".
+// A time in s as a clock: "h:mm:ss" under a day, "N d hh:mm:ss" from a day on (a 375-day plan
+// reads "375 d 04:00:00", not "9004:00:00"; as the PNG pictures write it; a no-break space in "N d", so that a narrow
+// table breaks a clock only before its hours); null or not a number: "–".
 export function clock(t) {
   if (t == null || !Number.isFinite(t)) return '–';
   const sign = t < 0 ? '-' : '';
@@ -15,11 +16,11 @@ export function clock(t) {
   const m = Math.floor((s % 3600) / 60);
   const sec = s % 60;
   const mmss = `${String(m).padStart(2, '0')}:${String(sec).padStart(2, '0')}`;
-  return d ? `${sign}${d}d ${String(h).padStart(2, '0')}:${mmss}` : `${sign}${h}:${mmss}`;
+  return d ? `${sign}${d}\u00a0d ${String(h).padStart(2, '0')}:${mmss}` : `${sign}${h}:${mmss}`;
 }
 
 // The time axis' label of tick t (s) for ticks `step` s apart on a plan of `span` s: "h:mm"
-// ("1d 04:00" when the plan lasts a day or more), with ":ss" when the ticks are under a minute
+// ("1 d 04:00" when the plan lasts a day or more), with ":ss" when the ticks are under a minute
 // apart; under ten seconds apart, tenths of a second too.
 export function axisLabel(t, step, span) {
   const days = span >= DAY;
@@ -28,7 +29,7 @@ export function axisLabel(t, step, span) {
   const r = whole - d * DAY;
   const h = Math.floor(r / 3600);
   const m = Math.floor((r % 3600) / 60);
-  let out = days ? `${d}d ${String(h).padStart(2, '0')}:${String(m).padStart(2, '0')}`
+  let out = days ? `${d} d ${String(h).padStart(2, '0')}:${String(m).padStart(2, '0')}`
     : `${h}:${String(m).padStart(2, '0')}`;
   if (step < 60) out += `:${String(r % 60).padStart(2, '0')}`;
   if (step < 1) out += `.${Math.round((t - whole) * 10) % 10}`;

@@ -9,7 +9,7 @@
 // printing in its colour, its travelling as a grey strip under it, as tall as the share of the
 // time it travels (as the PNG chart's; at least a pixel wherever it travels, at any zoom), its waits in yellow (what it waits for in the tooltip), each chunk's id on
 // its bar where it fits, the critical path's chunks framed in red, the lower bound as a dashed
-// line, a time axis in h:mm ("1d 04:00" from a day on). The chart is drawn on one canvas when the
+// line, a time axis in h:mm ("1 d 04:00" from a day on). The chart is drawn on one canvas when the
 // width, the zoom or the pixel ratio change; the time cursor on a second canvas over it, where
 // setTime(t) (each animation frame) clears and draws only the cursor's few columns of pixels.
 // Clicking a row or the axis seeks there (a chunk's bar: its start); dragging along the axis

@@ -16,7 +16,15 @@ html, body { margin: 0; height: 100%; font: 13px/1.35 system-ui, -apple-system, 
 #view { position: absolute; inset: 0; background: #fff; }
 #view canvas { display: block; }
 #grid-label { position: absolute; left: 8px; bottom: 6px; color: #555; background: rgba(255,255,255,.8); padding: 1px 4px; pointer-events: none; }
-#notice { position: absolute; left: 8px; top: 8px; right: 230px; background: #fff6d5; border: 1px solid #e0c060; padding: 4px 8px; pointer-events: none; }
+#notice { position: absolute; left: 8px; top: 8px; right: 230px; background: #fff6d5; border: 1px solid #e0c060; padding: 4px 28px 4px 8px; pointer-events: none; }
+#notice-close { position: absolute; right: 3px; top: 2px; pointer-events: auto; border: none; background: none; font-size: 15px; line-height: 1; padding: 2px 5px; cursor: pointer; color: #6a5a20; }
+#notice-close:hover { color: #000; }
+#status { display: grid; grid-template-columns: fit-content(9em) minmax(0, 1fr) auto; gap: 2px 8px; align-items: baseline; padding: 0 2px; font-variant-numeric: tabular-nums; }
+.status-row { display: contents; }
+.status-name { font-weight: 600; white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+.status-state { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; color: #444; }
+.status-done { color: #666; font-size: 11.5px; white-space: nowrap; }
+button:disabled, option:disabled { cursor: not-allowed; }
 #views { position: absolute; right: 8px; top: 8px; display: flex; gap: 4px; }
 #side { grid-row: 2 / 4; grid-column: 2; overflow: auto; background: #fff; border-left: 1px solid #ddd; padding: 8px; }
 #side h2 { font-size: 13px; margin: 10px 0 4px; }
@@ -59,10 +67,14 @@ export function layout(body, meta, speeds) {
   const front = el('button', { id: 'view-front', type: 'button', text: 'front' });
   const side = el('button', { id: 'view-side', type: 'button', text: 'side' });
   const view = el('div', { id: 'view' });
-  const notice = el('div', { id: 'notice' });
+  const noticeText = el('span', { id: 'notice-text' });
+  const noticeClose = el('button', { id: 'notice-close', type: 'button', title: 'close this notice', 'aria-label': 'close', text: '\u00d7' });
+  const notice = el('div', { id: 'notice', role: 'status' }, noticeText, noticeClose);
+  noticeClose.addEventListener('click', () => { notice.hidden = true; });
   notice.hidden = true;
   const gridLabel = el('div', { id: 'grid-label' });
   const legend = el('div', { id: 'legend' });
+  const status = el('div', { id: 'status' });
   const summary = el('div', { id: 'summary' });
   const findings = el('div', { id: 'findings' });
   const gantt = el('div', { id: 'gantt' });
@@ -81,12 +93,15 @@ export function layout(body, meta, speeds) {
     el('label', { class: 'group' }, travel, 'travel'),
     el('label', { class: 'group' }, outlines, 'chunk outlines'));
   const main = el('div', { id: 'main' }, view, el('div', { id: 'views' }, reset, top, front, side), gridLabel, notice);
-  const sidePanel = el('div', { id: 'side' }, el('h2', { text: 'legend' }), legend, el('h2', { text: 'summary' }), summary,
+  const sidePanel = el('div', { id: 'side' }, el('h2', { text: 'legend' }), legend,
+                       el('h2', { text: 'robots at this time' }), status, el('h2', { text: 'summary' }), summary,
                        el('h2', { text: 'findings' }), findings, about);
   body.appendChild(el('div', { id: 'app' }, bar, main, sidePanel, gantt));
   return {
     play, speed, slider, clock: clockEl, prev, next, mode, layerLo, layerHi, layerLabel, travel, outlines, reset, top,
-    front, side, view, notice, gridLabel, legend, summary, findings, gantt,
+    front, side, view, notice, gridLabel, legend, status, summary, findings, gantt,
+    // Shows `text` in #notice (closed by its × button; shown again by the next notice).
+    showNotice(text) { noticeText.textContent = text; notice.hidden = false; },
     setLayerRange(lo, top, stepMm) {
       const step = Math.max(stepMm, 0.01);
       const hi = lo + Math.ceil((top - lo) / step - 1e-9) * step; // a value the slider can hold

@@ -4,9 +4,9 @@
 
 import { readMeta, readGeometry } from './data.js';
 import { View } from './scene.js';
-import { MODES, legend, css, TRAVEL_COLOUR } from './colours.js';
+import { MODES, legend, TRAVEL_COLOUR } from './colours.js';
 import { layout } from './layout.js';
-import { clock } from './format.js';
+import { clock, css } from './format.js';
 import { createGantt } from './gantt.js';
 import { createSummary, createFindings } from './panels.js';
 
@@ -19,8 +19,8 @@ hook.ready = new Promise((resolve) => { resolveReady = resolve; });
 hook.firstFrameMs = null;
 const noteError = (msg) => {
   errors.push(String(msg));
-  const n = document.getElementById('notice');
-  if (n) { n.hidden = false; n.textContent = `error: ${msg}`; }
+  const n = document.getElementById('notice'), text = document.getElementById('notice-text');
+  if (n) { n.hidden = false; (text || n).textContent = `error: ${msg}`; }
 };
 window.addEventListener('error', (e) => noteError(e.message || e.error || e));
 window.addEventListener('unhandledrejection', (e) => noteError((e.reason && (e.reason.stack || e.reason.message)) || e.reason));
@@ -94,12 +94,58 @@ async function start() {
         else if (row && inIntervals(row.travel, time)) state = 'travelling';
       }
     }
-    if (row && (row.wait || []).some((w) => w[0] <= time && time < w[1])) state = 'waiting';
+    const wait = row && (row.wait || []).find((w) => w[0] <= time && time < w[1]);
+    if (wait) state = 'waiting';
     if (time >= r.end && r.end > 0 && state !== 'waiting') state = 'done';
     if (r.end === 0 && time > 0) state = 'idle';
-    return { position, state, facing: facingAt(meta.robots[i], time) };
+    return { position, state, facing: facingAt(meta.robots[i], time), events: wait ? wait[2] || '' : null };
   }
 
+  // Robot i's printing by time: [s done, s in all] (the material's segments' durations, summed
+  // once; the segment under way counts up to time), as the PNG snapshot's "% printed".
+  const printedSums = [];
+  function printedAt(i, time) {
+    const m = geo.robots[i].material;
+    if (!printedSums[i]) {
+      const sums = new Float64Array(m.count + 1);
+      for (let s = 0; s < m.count; s++) sums[s + 1] = sums[s] + (m.t1(s) - m.t0(s));
+      printedSums[i] = sums;
+    }
+    const sums = printedSums[i], k = m.ended(time);
+    const under = k < m.count && m.t0(k) < time ? Math.min(time, m.t1(k)) - m.t0(k) : 0;
+    return [sums[k] + under, sums[m.count]];
+  }
+
+  // The robots' status lines (#status): state and share of the printing done, at time.
+  const statusRows = meta.robots.map((rec) => {
+    const name = document.createElement('span');
+    name.className = 'status-name'; name.textContent = rec.name; name.title = `robot ${rec.name}`;
+    name.style.color = css(rec.colour);
+    const state = document.createElement('span');
+    state.className = 'status-state';
+    const done = document.createElement('span');
+    done.className = 'status-done';
+    const row = document.createElement('div');
+    row.className = 'status-row';
+    row.dataset.robot = rec.name;
+    row.append(name, state, done);
+    ui.status.appendChild(row);
+    return { state, done, last: '' };
+  });
+  function showStatus(poses, time) {
+    poses.forEach((p, i) => {
+      const r = statusRows[i];
+      if (!r) return;
+      const [done, total] = printedAt(i, time);
+      const text = p.state === 'waiting' ? `waiting for ${p.events || 'an event'}` : p.state;
+      const share = p.state === 'done' ? 100 : Math.floor((100 * done) / total + 1e-9); // (times are rounded to 1 ms)
+      const pct = total > 0 ? `${share}% printed` : 'nothing to print';
+      if (text + pct === r.last) return;
+      r.last = text + pct;
+      r.state.textContent = text; r.state.title = text;
+      r.done.textContent = pct;
+    });
+  }
   // --- drawing ------------------------------------------------------------------------------
   const gantt = createGantt(ui.gantt, meta, { onSeek: (x) => seek(x) });
   createSummary(ui.summary, meta);
@@ -110,7 +156,9 @@ async function start() {
   // a few frames). The first complete frame resolves cooprint.ready.
   let shown = false;
   function draw() {
-    view.placeRobots(geo.robots.map((_, i) => robotAt(i, t)));
+    const poses = geo.robots.map((_, i) => robotAt(i, t));
+    view.placeRobots(poses);
+    showStatus(poses, t);
     const complete = view.render(t);
     frames++;
     ui.slider.value = String(t);
@@ -133,8 +181,27 @@ async function start() {
       lastWall = now;
       if (t >= makespan) setPlaying(false);
     }
-    const complete = draw();
+    complete = draw();
     if (playing || !complete) request();
+    settled();
+  }
+
+  // cooprint.idle(): resolved once the page has nothing left to draw (paused, the camera at rest,
+  // the last frame complete: a large redraw spread over frames has finished), on the frame after
+  // (so that the picture is on the screen).
+  let complete = false;
+  const idleWaiters = [];
+  const isIdle = () => complete && !scheduled && !playing && !view.moving;
+  function settled() {
+    if (!idleWaiters.length || !isIdle()) return;
+    const waiters = idleWaiters.splice(0);
+    requestAnimationFrame(() => {
+      if (isIdle()) waiters.forEach((w) => w());
+      else idleWaiters.push(...waiters); // something changed meanwhile: the next rest
+    });
+  }
+  function idle() {
+    return new Promise((resolve) => { idleWaiters.push(resolve); settled(); });
   }
 
   function request() {
@@ -174,6 +241,8 @@ async function start() {
   }
   function setColourMode(mode) {
     if (!MODES.some(([m]) => m === mode)) throw new Error(`colour mode ${mode}: expected one of ${MODES.map(([m]) => m)}`);
+    const option = [...ui.mode.options].find((o) => o.value === mode);
+    if (option && option.disabled) throw new Error(`colour mode ${mode}: ${option.title}`);
     view.setColours(mode, ctx);
     ui.mode.value = mode;
     showLegend();
@@ -225,7 +294,8 @@ async function start() {
   for (const [b, w] of [[ui.reset, 'reset'], [ui.top, 'top'], [ui.front, 'front'], [ui.side, 'side']]) {
     b.addEventListener('click', () => view.resetView(w));
   }
-  ui.setLayerRange(0, Math.max(view.partBox.max.z, header.hi[2]), Math.min(...(header.heights.length ? header.heights : [0.2])));
+  // the heights of the material (not the scene's box, which holds the travel's lifts too)
+  ui.setLayerRange(0, Math.max(view.partBox.max.z, 0.01), Math.min(...(header.heights.length ? header.heights : [0.2])));
   ui.gridLabel.textContent = `grid ${view.gridStep >= 1000 ? `${view.gridStep / 1000} m` : `${view.gridStep} mm`}`;
   new ResizeObserver(() => { view.resize(); request(); }).observe(ui.view);
   window.addEventListener('keydown', (e) => {
@@ -233,11 +303,26 @@ async function start() {
     if (e.key === ' ') { e.preventDefault(); setPlaying(!playing); }
   });
 
+  // what this plan has no data for: disabled, saying why (a G-code file has no chunks, a
+  // single printer's plan may have no events)
+  if (!eventTimes.length) {
+    for (const b of [ui.prev, ui.next]) {
+      b.disabled = true;
+      b.title = 'no NOTIFY / WAIT events in this plan';
+    }
+  }
+  if (!legend('chunk', ctx, geo).length) {
+    const o = [...ui.mode.options].find((x) => x.value === 'chunk');
+    o.disabled = true;
+    o.title = 'no chunks in this plan (a G-code file is one piece)';
+    o.textContent += ' (no chunks)';
+  }
+
   const th = header.thinned;
   const notes = [];
   if (th) notes.push(`Thinned: showing ${th.shown.toLocaleString('en')} of ${th.total.toLocaleString('en')} material segments, evenly spread: the plan has more than this page holds.`);
   if (header.travel_thinned) notes.push(`Travel: ${header.travel_thinned.shown.toLocaleString('en')} of ${header.travel_thinned.total.toLocaleString('en')} moves shown.`);
-  if (notes.length) { ui.notice.hidden = false; ui.notice.textContent = notes.join(' '); }
+  if (notes.length) ui.showNotice(notes.join(' '));
 
   // --- the test hook (tests/test_viewer_browser.py, benchmarks) --------------------------------
   Object.assign(hook, {
@@ -257,12 +342,15 @@ async function start() {
       const i = geo.robots.findIndex((r) => r.name === name);
       if (i < 0) return null;
       const s = robotAt(i, t);
-      return { position: s.position, state: s.state };
+      const [done, total] = printedAt(i, t);
+      return { position: s.position, state: s.state, events: s.events, printed: total > 0 ? done / total : null };
     },
     frames: () => frames,
     selectedFinding: () => selected,
     selectFinding,
     thinned: () => (th ? { shown: th.shown, total: th.total } : null),
+    idle,
+    gridStep: () => view.gridStep,
   });
   setSpeed(speed);
   setColourMode('robot');

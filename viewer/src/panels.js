@@ -12,18 +12,21 @@ import { clock, css, escapeHtml, gapText, injectStyle, num, percent, robotColour
 
 const STYLE = `
 .cp-summary, .cp-findings { font: 12px/1.4 system-ui, -apple-system, "Segoe UI", sans-serif; color: #222; }
-.cp-summary { padding: 6px 10px; }
+.cp-summary { padding: 6px 4px; }
 .cp-sum-makespan { font-size: 14px; }
 .cp-sum-makespan b { font-weight: 600; }
 .cp-sum-line { color: #555; }
-.cp-sum-robots { border-collapse: collapse; margin: 6px 0 4px; width: 100%; font-variant-numeric: tabular-nums; }
-.cp-sum-robots th { font-weight: 500; color: #666; text-align: right; padding: 1px 4px; white-space: nowrap; }
+.cp-sum-table { overflow-x: auto; }
+.cp-sum-robots { border-collapse: collapse; margin: 6px 0 4px; width: 100%; font-variant-numeric: tabular-nums; font-size: 11.5px; }
+.cp-sum-robots th { font-weight: 500; color: #666; text-align: right; padding: 1px 3px; white-space: nowrap; }
 .cp-sum-robots th:first-child, .cp-sum-robots td:first-child { text-align: left; }
-.cp-sum-robots td { text-align: right; padding: 1px 4px; white-space: nowrap; vertical-align: top; }
+/* a clock of days breaks before its hours ("2 d" over "06:01:50"), so that the table fits the panel */
+.cp-sum-robots td { text-align: right; padding: 1px 3px; vertical-align: top; }
+.cp-sum-robots td:last-child { white-space: nowrap; }
 .cp-sum-robots td small { display: block; color: #777; font-size: 10.5px; line-height: 1.1; }
 .cp-sum-robots tr.cp-sum-bar td { padding: 0 4px 4px; }
 .cp-sum-robots tfoot td { border-top: 1px solid #ddd; color: #444; }
-.cp-sum-name { font-weight: 600; }
+.cp-sum-name { font-weight: 600; max-width: 4.5em; overflow: hidden; text-overflow: ellipsis; white-space: nowrap; }
 .cp-share { display: flex; height: 5px; border-radius: 2px; overflow: hidden; background: #eee; }
 .cp-share i { display: block; height: 100%; }
 .cp-sum-counts { margin-top: 4px; display: flex; flex-wrap: wrap; gap: 3px 6px; align-items: center; }
@@ -98,7 +101,7 @@ export function createSummary(el, meta) {
       }).join('');
       const mm3 = Number(r.material_mm3) || 0;
       material += mm3;
-      rowsHtml += `<tr><td class="cp-sum-name" style="color:${colour}">${escapeHtml(r.name)}</td>${cells}`
+      rowsHtml += `<tr><td class="cp-sum-name" style="color:${colour}" title="robot ${escapeHtml(r.name)}">${escapeHtml(r.name)}</td>${cells}`
         + `<td>${num(mm3 / 1000, 1)}</td></tr>`;
       const seg = keys.map(([k]) => {
         const f = Math.max(0, Math.min(1, share[k] ?? (makespan > 0 ? (Number(r[`${k}_s`]) || 0) / makespan : 0)));
@@ -107,10 +110,10 @@ export function createSummary(el, meta) {
       }).join('');
       rowsHtml += `<tr class="cp-sum-bar"><td colspan="6"><div class="cp-share">${seg}</div></td></tr>`;
     }
-    parts.push(`<table class="cp-sum-robots"><thead><tr><th>robot</th>${keys.map(([, h]) => `<th>${h}</th>`).join('')}`
+    parts.push(`<div class="cp-sum-table"><table class="cp-sum-robots"><thead><tr><th>robot</th>${keys.map(([, h]) => `<th>${h}</th>`).join('')}`
       + `<th>cm³</th></tr></thead><tbody>${rowsHtml}</tbody>`
       + (robots.length > 1 ? `<tfoot><tr><td>all</td><td colspan="4"></td><td>${num(material / 1000, 1)}</td></tr></tfoot>` : '')
-      + '</table>');
+      + '</table></div>');
   }
 
   const counts = s.finding_counts || {};

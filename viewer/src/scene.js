@@ -20,6 +20,10 @@ const COARSE_SEGMENTS = 60_000;
 const COARSE_MIN = 30_000;
 // A frame adds at most this many segments to the target (about 0.1-0.2 s of software GL).
 const FRAME_SEGMENTS = 200_000;
+// The floor grid has at most about this many lines each way.
+const MAX_GRID_LINES = 300;
+// The floor grid's lines are drawn in at most about this many pieces.
+const GRID_PIECES = 100_000;
 
 
 // A box's 12 edges over the unit cube [0,1]^3, and its 6 faces (for a translucent fill).
@@ -130,23 +134,56 @@ export class View {
     return obj;
   }
 
+  // The floor grid over the part and the robots' area (the scene's box and the robots' bodies
+  // around it, with a margin), its step a round tenth of the part. Each line is made of pieces
+  // a few steps long: software GL drops a whole line that reaches behind the camera, and a grid
+  // metres wide around a small part always does (it showed only where the camera looked away
+  // from the robots' area, or nothing).
   buildGrid() {
     const g = this.geo;
     const lo = new THREE.Vector3(...g.lo), hi = new THREE.Vector3(...g.hi);
     lo.min(this.partBox.min); hi.max(this.partBox.max);
+    // the box holds the nozzles' paths and starts; a robot's body reaches this far around its nozzle
+    let reach = 0;
+    if (this.meta.placed) {
+      for (const rec of this.meta.robots) {
+        for (const box of Object.values(rec.outline || {})) {
+          if (Array.isArray(box) && box.length === 4) reach = Math.max(reach, Math.hypot(Math.max(Math.abs(box[0]), Math.abs(box[1])), Math.max(Math.abs(box[2]), Math.abs(box[3]))));
+        }
+      }
+    }
+    lo.x -= reach; lo.y -= reach; hi.x += reach; hi.y += reach;
     const extent = Math.max(hi.x - lo.x, hi.y - lo.y, 1);
     const partExtent = Math.max(this.partBox.max.x - this.partBox.min.x, this.partBox.max.y - this.partBox.min.y, 1);
-    const step = niceStep(partExtent / 10);
+    // a round tenth of the part; coarser when that would take more than MAX_GRID_LINES lines (a
+    // small part among robots a metre apart)
+    const step = niceStep(Math.max(partExtent / 10, (extent * 1.3) / MAX_GRID_LINES));
     const n = Math.ceil((extent * 1.3) / step / 2) * 2;
     const cx = Math.round(((lo.x + hi.x) / 2) / step) * step, cy = Math.round(((lo.y + hi.y) / 2) / step) * step;
-    const grid = new THREE.GridHelper(n * step, n, 0xb0b0b0, 0xdcdcdc);
-    grid.rotation.x = Math.PI / 2;
-    grid.position.set(cx, cy, 0);
-    this.accScene.add(grid);
+    const x0 = cx - (n / 2) * step, y0 = cy - (n / 2) * step;
+    // steps a piece: one (longer pieces, even as long as the part's diagonal, were dropped too in
+    // a G-code preview), more only past GRID_PIECES pieces
+    const piece = Math.max(1, Math.ceil((2 * (n + 1) * n) / GRID_PIECES));
+    const major = [], minor = [];
+    for (let i = 0; i <= n; i++) {
+      const out = (i === n / 2) ? major : minor; // the centre lines darker, as GridHelper draws them
+      for (let j = 0; j < n; j += piece) {
+        const a = j * step, b = Math.min(j + piece, n) * step, u = i * step;
+        out.push(x0 + u, y0 + a, 0, x0 + u, y0 + b, 0, x0 + a, y0 + u, 0, x0 + b, y0 + u, 0);
+      }
+    }
+    for (const [pos, colour] of [[minor, 0xdcdcdc], [major, 0xb0b0b0]]) {
+      const geom = new THREE.BufferGeometry();
+      geom.setAttribute('position', new THREE.Float32BufferAttribute(pos, 3));
+      const lines = new THREE.LineSegments(geom, new THREE.LineBasicMaterial({ color: colour }));
+      lines.frustumCulled = false;
+      this.accScene.add(lines);
+    }
     const axes = new THREE.AxesHelper(step);
-    axes.position.set(cx - (n / 2) * step, cy - (n / 2) * step, 0);
+    axes.position.set(x0, y0, 0);
     this.accScene.add(axes);
     this.gridStep = step;
+    this.gridBox = [x0, y0, x0 + n * step, y0 + n * step]; // (the test hook's)
   }
 
   buildMaterial() {

@@ -189,7 +189,9 @@ def chunk_picture(chunks: ChunkSet, size: tuple[int, int] = (1200, 800),
         its robot's colour (:func:`~cooprint.render.palette.robot_colours` of the robots in the
         order of ``sequences``, which is the plan's robot order: job.json's "robots" and the
         simulation's robots are listed in it) and labelled with the robot and its place in that
-        robot's order, from 1 ("B3"), and a legend names the robots in that order. Without it,
+        robot's order, from 1, after the chunk's id as the Gantt chart and the viewer name it
+        ("R1 · B3"; the id alone where the chunk is too small for that), and a legend names the
+        robots in that order. Without it,
         chunks are coloured by side and labelled with their ids. Each label lies wholly on its
         own chunk's visible pixels, as far inside as it fits, smaller (down to
         ``MIN_LABEL_SIZE``) where the chunk is small; labels that fit nowhere are left out and
@@ -245,7 +247,7 @@ def chunk_picture(chunks: ChunkSet, size: tuple[int, int] = (1200, 800),
         robot = _robot_of(schedule, ch.id)
         if robot is not None:
             colour = np.asarray(colours[robot], dtype=np.float64)
-            text = order_label(robot, schedule.order_of(ch.id))  # type: ignore[union-attr]
+            text = f"{ch.id} · {order_label(robot, schedule.order_of(ch.id))}"  # type: ignore[union-attr]
         elif schedule is not None:  # a chunk no robot prints: grey, by its id
             colour, text = np.asarray(UNASSIGNED_COLOUR, dtype=np.float64), ch.id
         else:
@@ -293,6 +295,9 @@ def chunk_picture(chunks: ChunkSet, size: tuple[int, int] = (1200, 800),
     left_out: list[str] = []
     for i, text, robot in sorted(labels, key=lambda lab: lab[0]):  # in the chunks' order
         spot = _label_spot(draw, ids, i, boxes[i], text, first) if boxes[i] is not None else None
+        cid = chunks.chunks[i].id
+        if spot is None and text != cid and boxes[i] is not None:  # too small for "R1 · B3": "R1" alone
+            text, spot = cid, _label_spot(draw, ids, i, boxes[i], cid, first)
         if spot is None:
             left_out.append(text)
             continue
@@ -307,9 +312,7 @@ def chunk_picture(chunks: ChunkSet, size: tuple[int, int] = (1200, 800),
         title = (f"{_count(n, 'chunk')}   theta {plan.theta_deg:.1f} deg   shift {plan.shift:.1f} mm"
                  f"   centre base {2 * plan.half_base:.1f} mm   build depth {plan.build_depth:g} mm")
         if schedule is not None:
-            title = f"{_count(n, 'chunk')}, {_count(len(robots), 'robot')}, schedule {schedule.strategy}" + (
-                f", makespan {schedule.makespan / 3600:.2f} h (LB {schedule.lower_bound / 3600:.2f} h)"
-                if getattr(schedule, "makespan", 0.0) else "")
+            title = schedule_title(n, len(robots), schedule)
     draw.text((margin, 24), title, fill=(20, 20, 20), font=_font(20))
     for j, line in enumerate(legend):
         for x, robot, text in line:
@@ -317,6 +320,17 @@ def chunk_picture(chunks: ChunkSet, size: tuple[int, int] = (1200, 800),
             draw.rectangle([x, y, x + 16, y + 16], fill=colours[robot])
             draw.text((x + 22, y - 1), text, fill=(40, 40, 40), font=font)
     return ChunkPicture(img, ids, placed, left_out)
+
+
+def schedule_title(chunks: int, robots: int, schedule: "Assignment") -> str:
+    """The chunk picture's title with a schedule: the counts, the strategy and, when the schedule
+    has one, its makespan and lower bound as the Gantt chart writes times (``0:00:43``,
+    ``2 d 11:12:52``), not in hours (a 43 s plan was "0.01 h")."""
+    from cooprint.render.sim import _hms  # the Gantt chart's clock (sim.py draws on this module)
+
+    return f"{_count(chunks, 'chunk')}, {_count(robots, 'robot')}, schedule {schedule.strategy}" + (
+        f", makespan {_hms(schedule.makespan)} (LB {_hms(schedule.lower_bound)})"
+        if getattr(schedule, "makespan", 0.0) else "")
 
 
 def _label_spot(draw: ImageDraw.ImageDraw, ids: np.ndarray, i: int, box: tuple[int, int, int, int], text: str,

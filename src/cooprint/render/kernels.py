@@ -93,17 +93,19 @@ def _paint(out, base, depth, x, y, d, r, g, b, alpha):
 
 
 @_jit
-def draw_faces(out, base, depth, quads, planes, fills, edges, alpha, edge_alpha):
+def draw_faces(out, base, depth, quads, planes, fills, edges, alpha, edge_alpha, back):
     """Convex faces ``quads`` (m, 4, 2) float64 (pixel corners in order round each) into ``out``,
     in order (far to near), each filled in ``fills`` (m, 3) uint8 and outlined in ``edges`` (m, 3),
     pixel by pixel at its depth ``planes[f] . (x, y, 1)`` against the material's ``depth``
-    (:func:`_paint`: over the material ``alpha`` of a fill, ``edge_alpha`` of an outline, the
-    rest from ``base``, the picture before any face, so that a nearer face replaces a farther one).
+    (:func:`_paint`: over the material ``alpha[f]`` (m,) of a fill, ``edge_alpha`` of an outline;
+    elsewhere ``back[f]`` (m,) of a fill (1: opaque); the rest from ``base``, the picture before
+    any face, so that a nearer face replaces a farther one).
     A face's pixels: the pixel centres of each row within half a pixel of it."""
     h, w = depth.shape
     for f in range(len(quads)):
         a, b, c0 = planes[f, 0], planes[f, 1], planes[f, 2]
         fr, fg, fb = fills[f, 0], fills[f, 1], fills[f, 2]
+        fa, bk = alpha[f], back[f]
         lo_y, hi_y = quads[f, :, 1].min(), quads[f, :, 1].max()
         for y in range(max(int(np.ceil(lo_y)), 0), min(int(np.floor(hi_y)), h - 1) + 1):
             xl, xr = np.inf, -np.inf
@@ -122,10 +124,11 @@ def draw_faces(out, base, depth, quads, planes, fills, edges, alpha, edge_alpha)
                 m = drow[x]
                 if m > a * x + at:  # the material in front
                     continue
-                if m > -1e29:
-                    orow[x, 0] = np.uint8(alpha * fr + (1.0 - alpha) * brow[x, 0] + 0.5)
-                    orow[x, 1] = np.uint8(alpha * fg + (1.0 - alpha) * brow[x, 1] + 0.5)
-                    orow[x, 2] = np.uint8(alpha * fb + (1.0 - alpha) * brow[x, 2] + 0.5)
+                k = fa if m > -1e29 else bk
+                if k < 1.0:
+                    orow[x, 0] = np.uint8(k * fr + (1.0 - k) * brow[x, 0] + 0.5)
+                    orow[x, 1] = np.uint8(k * fg + (1.0 - k) * brow[x, 1] + 0.5)
+                    orow[x, 2] = np.uint8(k * fb + (1.0 - k) * brow[x, 2] + 0.5)
                 else:
                     orow[x, 0], orow[x, 1], orow[x, 2] = fr, fg, fb
         er, eg, eb = edges[f, 0], edges[f, 1], edges[f, 2]

@@ -64,8 +64,14 @@ NOZZLE_COLOUR = (70, 70, 76)
 #: Towards the light on the robots' faces: from above, from the left front.
 LIGHT = np.array([-0.35, -0.45, 0.82]) / np.linalg.norm([-0.35, -0.45, 0.82])
 #: How much of a robot's colour covers the material behind it (the rest: the material's, so that a
-#: robot over the print, as a frame seen from above, does not hide it).
-ROBOT_ALPHA = 0.45
+#: robot over the print, as a frame seen from above, does not hide it: at 0.45 a 5 mm cube under
+#: its robot's frame was a faint trace; the faces' outlines still draw the robot).
+ROBOT_ALPHA = 0.2
+#: ... and of a face that covers material somewhere, over the floor (so that the gaps between a
+#: small part's lines are not the frame's colour: the part stays visible under a robot's frame).
+OVER_PART_ALPHA = 0.35
+#: ... and of a nozzle's rod over the material behind it (drawn over the robots' frames).
+NOZZLE_ALPHA = 0.6
 #: ... and of its outline over the material behind it.
 EDGE_ALPHA = 0.7
 #: The nozzle's tip is marked with a dot unless material nearer than this (mm) hides it.
@@ -218,18 +224,27 @@ class _Scene:
         body, frame and printhead as shaded boxes (where they are known: not for G-code
         printers), its nozzle down to the tip and a dot at the tip.
 
-        The boxes' faces are drawn far to near (each box by its centre), each pixel against the
-        material's ``depth`` there (:func:`cooprint.render.kernels.draw_faces`): behind the
+        The boxes' faces are drawn far to near (each box by its centre; the nozzles' rods last,
+        over the robots' see-through frames, so that a printhead reads as attached to its tip; a
+        face over the material is see-through over the floor too, :data:`OVER_PART_ALPHA`),
+        each pixel against the material's ``depth`` there (:func:`cooprint.render.kernels.draw_faces`): behind the
         material it is left out; in front of it, the material shows through (:data:`ROBOT_ALPHA`).
         The dot at a tip marks where the robot prints: drawn over the robots, left out only
         where material in front of it hides the tip (:data:`TIP_TOLERANCE`)."""
         solids = sorted((s for i, r in enumerate(self.result.robots) for s in self._solids(i, r, t)),
                         key=lambda s: s.depth)
-        faces = [f for s in solids for f in s.faces(self)]
-        if faces:
+        material = depth[::4, ::4] > NO_DEPTH / 2  # where material is, a pixel in 16
+        for on_top in (False, True):  # the rods over the rest
+            faces = [f for s in solids if s.on_top == on_top for f in s.faces(self)]
+            if not faces:
+                continue
             quads, planes, fills, edges = (np.array([f[k] for f in faces]) for k in range(4))
+            alpha = np.full(len(faces), NOZZLE_ALPHA if on_top else ROBOT_ALPHA)
+            # a face over the material lets it show through everywhere (a 5 mm cube under a frame)
+            over = np.array([_covers(material, q / 4) for q in quads]) & (not on_top)
+            back = np.where(over, OVER_PART_ALPHA, 1.0)
             draw_faces(rgb, rgb.copy(), depth, quads, planes, fills.astype(np.uint8), edges.astype(np.uint8),
-                       ROBOT_ALPHA, EDGE_ALPHA)
+                       alpha, EDGE_ALPHA, back)
         radius = max(4.0, 6.0 * self.k)
         for i, r in enumerate(self.result.robots):
             tip = self.nozzle(r, t)
@@ -258,10 +273,23 @@ class _Scene:
                     out.append(_Solid(parts[part], z0, z1, colour + PART_TINT[part] * (255 - colour)))
         rod = tip[:2] + NOZZLE_WIDTH / 2 * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
         if under > tip[2]:
-            out.append(_Solid(rod, float(tip[2]), under, np.array(NOZZLE_COLOUR, float)))
+            out.append(_Solid(rod, float(tip[2]), under, np.array(NOZZLE_COLOUR, float), on_top=True))
         for s in out:
             s.depth = float(s.corners.mean(axis=0) @ self.basis[2])
         return out
+
+
+def _covers(mask: np.ndarray, quad: np.ndarray) -> bool:
+    """Whether the convex ``quad`` (4, 2) pixels (of ``mask``'s scale) covers a True pixel of ``mask``."""
+    h, w = mask.shape
+    x0, y0 = np.floor(quad.min(axis=0)).astype(int)
+    x1, y1 = np.ceil(quad.max(axis=0)).astype(int)
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w - 1), min(y1, h - 1)
+    if x0 > x1 or y0 > y1 or not mask[y0:y1 + 1, x0:x1 + 1].any():
+        return False
+    inside = Image.new("1", (x1 - x0 + 1, y1 - y0 + 1), 0)
+    ImageDraw.Draw(inside).polygon([(x - x0, y - y0) for x, y in quad.tolist()], fill=1, outline=1)
+    return bool((np.asarray(inside) & mask[y0:y1 + 1, x0:x1 + 1]).any())
 
 
 class _Solid:
@@ -276,13 +304,15 @@ class _Solid:
     FACES = {(0, 0): (0, 2, 6, 4), (0, 1): (1, 3, 7, 5), (1, 0): (0, 1, 5, 4), (1, 1): (2, 3, 7, 6),
              (2, 0): (0, 1, 3, 2), (2, 1): (4, 5, 7, 6)}
 
-    def __init__(self, xy: np.ndarray, z0: float, z1: float, colour: np.ndarray):
+    def __init__(self, xy: np.ndarray, z0: float, z1: float, colour: np.ndarray, on_top: bool = False):
         du, dv = xy[1] - xy[0], xy[3] - xy[0]
         bits = np.array([[c & 1, (c >> 1) & 1, c >> 2] for c in range(8)], float)
         self.corners = np.column_stack([xy[0] + bits[:, :1] * du + bits[:, 1:2] * dv,
                                         np.where(bits[:, 2] > 0, z1, z0)])
         self.axes = np.array([[*du / np.linalg.norm(du), 0.0], [*dv / np.linalg.norm(dv), 0.0], [0.0, 0.0, 1.0]])
         self.colour = colour
+        #: Drawn after every other box (a nozzle's rod: never lost behind a frame).
+        self.on_top = on_top
         self.depth = 0.0  # of its centre, set by the scene (the order it is drawn in)
 
     def sides(self, scene: _Scene) -> list[tuple[int, int]]:
@@ -613,8 +643,9 @@ def _outline_at(result: SimResult, r, nozzle: np.ndarray, t: float) -> dict[str,
 class OverlayCell:
     """One robot's place in the overlay: ``text`` (its name) written at ``at`` (left, top) in a
     font of ``font`` pixels, covering ``box``; its progress bar ``bar``; where its state is
-    written (``state_at``, left and middle, in ``state_font``; ``None`` in the compact layout,
-    where a waiting robot's bar is grey instead). Boxes are ``(x0, y0, x1, y1)``, pixels."""
+    written (``state_at``, left and middle, in ``state_font``; ``None`` in a compact layout with
+    no room for it). A waiting robot's bar is framed in the Gantt chart's yellow in every layout.
+    Boxes are ``(x0, y0, x1, y1)``, pixels."""
 
     text: str
     at: tuple[int, int]
@@ -713,7 +744,15 @@ def _overlay_compact(names: list[str], size: tuple[int, int], clock: str, k: flo
         widths = [_cached_font(font).getlength(n) for n in names]
         cell_w = room + 2 * gap
     name_w = math.ceil(max(widths))
+    # the state after the bar where the rows stay within 15 % of the picture's height, or add none
+    state_w = math.ceil(gap + max(_cached_font(font).getlength(t) for t in STATES))
     pitch = font + max(3, round(8 * k))
+    rows = -(-len(names) // per_row)
+    more = -(-len(names) // max(1, (room + 2 * gap) // (cell_w + state_w)))
+    stated = cell_w + state_w - 2 * gap <= room and (more == rows or top + pitch * more <= 0.15 * size[1])
+    if stated:
+        cell_w += state_w
+        per_row = max(1, (room + 2 * gap) // cell_w)
     cells = []
     for j, name in enumerate(names):
         at = (x0 + cell_w * (j % per_row), top + pitch * (j // per_row))
@@ -721,7 +760,7 @@ def _overlay_compact(names: list[str], size: tuple[int, int], clock: str, k: flo
         bx = at[0] + name_w + gap
         mid = (box[1] + box[3]) // 2
         cells.append(OverlayCell(name, at, font, box, (bx, mid - bar_h // 2, bx + bar_w, mid - bar_h // 2 + bar_h),
-                                 None, font))
+                                 (bx + bar_w + gap, mid) if stated else None, font))
     bottom = max([clock_box[3]] + [max(c.box[3], c.bar[3]) for c in cells]) + pad // 2
     return OverlayLayout(clock_at, clock_font, clock_box, tuple(cells), bottom)
 
@@ -757,9 +796,10 @@ def _overlay(rgb: np.ndarray, scene: _Scene, t: float) -> None:
         draw.text(cell.at, cell.text, fill=_colour(i), font=_cached_font(cell.font))
         x0, y0, x1, y1 = cell.bar
         draw.rectangle(cell.bar, outline=(90, 90, 90))
-        if frac > 0:
-            fill = (150, 150, 150) if waiting and cell.state_at is None else _colour(i)
-            draw.rectangle([x0, y0, x0 + round((x1 - x0) * frac), y1], fill=fill)
+        if frac > 0:  # the robot's colour in every layout
+            draw.rectangle([x0, y0, x0 + round((x1 - x0) * frac), y1], fill=_colour(i))
+        if waiting:  # the Gantt chart's yellow, around the bar
+            draw.rectangle(cell.bar, outline=WAIT_COLOUR, width=max(2, (y1 - y0) // 4))
         if cell.state_at is not None:
             label = ("waiting" if waiting else "idle" if not total else "done" if t >= tl.end
                      else f"{100 * frac:.0f}% printed")
@@ -812,6 +852,8 @@ GANTT_TOP, GANTT_AXIS = 80, 60
 #: The Gantt chart's margins, pixels: the robots' names left of the bars, room for the last
 #: time label right of them.
 GANTT_LEFT, GANTT_RIGHT = 110, 30
+#: Where a Gantt row's label starts, and the least gap between it and the bars, pixels.
+GANTT_NAME_X, GANTT_NAME_GAP = 15, 10
 
 
 def gantt_height(robots: int, header: int = GANTT_TOP) -> int:
@@ -950,8 +992,10 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     size
         Width and height, pixels; height 0: :func:`gantt_height` (taller when the header wraps).
     critical
-        Chunk ids of the schedule's critical path (job.json ``schedule.critical_path``): the
-        printing of each is framed in red, so the chain that bounds the makespan can be seen.
+        The schedule's critical path (job.json ``schedule.critical_path``), given when the plan
+        has a schedule: the printing of each chunk on the chain that set the simulated makespan
+        (:func:`simulated_critical_path`, which the precedence chain alone misses where a robot's
+        own order or a wait set it) is framed in red.
     lower_bound
         The schedule's lower bound LB, s (job.json ``schedule.lower_bound_s``): a dashed vertical
         line, so the distance from the simulated makespan to the best possible can be seen.
@@ -964,14 +1008,16 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     strip = max(3, round(bar / 4))  # the travel strip at the bottom of the bar
     lane = bar - strip - 1  # the printing above it
     w = size[0]
-    marked = set(critical or ())
+    marked = set(simulated_critical_path(result)) if critical else set()
     title = gantt_title(result.makespan, lower_bound)
     header = gantt_header(title, rows, w, critical=bool(marked), bound=bool(lower_bound))
     top = max(GANTT_TOP, header.bottom)
     h = size[1] or gantt_height(rows, top)
     img = Image.new("RGB", (w, h), BACKGROUND)
     draw = ImageDraw.Draw(img)
-    left, right = GANTT_LEFT, w - GANTT_RIGHT
+    row_font = _font(min(16, max(10, bar - 2)))
+    names, left = gantt_names([r.name for r in result.robots], row_font.size, w)
+    right = w - GANTT_RIGHT
     cols = right - left
     span = max(result.makespan, lower_bound or 0.0, 1e-9)
 
@@ -981,13 +1027,12 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     for tx, ty, text, fs in header.title:
         draw.text((tx, ty), text, fill=(20, 20, 20), font=_font(fs))
     _legend(draw, header, [_colour(i) for i in range(rows)])
-    row_font = _font(min(16, max(10, bar - 2)))
     label_font = _font(min(13, max(9, lane - 4)))
     for i, r in enumerate(result.robots):
         tl = result.timelines[r.name]
         y0 = top + pitch * i
         y1 = y0 + bar
-        draw.text((15, y0 + (bar - 16) / 2 if bar >= 16 else y0), f"robot {r.name}", fill=_colour(i), font=row_font)
+        draw.text((GANTT_NAME_X, y0 + (bar - 16) / 2 if bar >= 16 else y0), names[i], fill=_colour(i), font=row_font)
         printing, travel = _column_shares(tl, span, cols)
         for a, b in _true_runs(printing > 0):
             draw.rectangle([left + a, y0, left + b - 1, y0 + lane - 1], fill=_colour(i))
@@ -1034,6 +1079,55 @@ def render_gantt(result: SimResult, path: str | Path, size: tuple[int, int] = (1
     path = Path(path)
     img.save(path, format="PNG", pnginfo=info)
     return path
+
+
+def gantt_names(names: Sequence[str], font: int, width: int) -> tuple[list[str], int]:
+    """The Gantt rows' labels ("robot A") in a font of ``font`` pixels and where the bars start
+    (``left``, pixels) in a chart ``width`` pixels wide: :data:`GANTT_LEFT`, or further right as far
+    as the widest label needs, up to a third of the picture; a label wider than that is cut short
+    with "…" (never under the bars)."""
+    texts = [f"robot {n}" for n in names]
+    f = _cached_font(font)
+    room = max(GANTT_LEFT, width // 3) - GANTT_NAME_X - GANTT_NAME_GAP
+    need = max([f.getlength(t) for t in texts] + [0.0])
+    left = max(GANTT_LEFT, min(math.ceil(need), room) + GANTT_NAME_X + GANTT_NAME_GAP)
+    return [_cut(t, room, font) for t in texts], left
+
+
+def simulated_critical_path(result: SimResult, slack: float = 1e-6) -> list[str]:
+    """The chunk ids of the chain that sets the simulated makespan, last first: from the robot
+    that ends last, its chunks back in time, and where it waited before a chunk for another
+    robot's NOTIFY, that robot's chunks before the notice, and so on. With one robot it is all its
+    chunks (its work alone sets the makespan), where the schedule's precedence chain (job.json
+    ``critical_path``) would leave out a chunk that depends on no other."""
+    spans = {r.name: _chunk_spans(r, result.timelines[r.name]) for r in result.robots}
+    notices: dict[str, list[tuple[float, str]]] = {}
+    for r in result.robots:
+        for tn, event in result.timelines[r.name].notifies:
+            notices.setdefault(str(event), []).append((float(tn), r.name))
+    live = [r.name for r in result.robots if spans[r.name]]
+    if not live:
+        return []
+    robot = max(live, key=lambda n: result.timelines[n].end)
+    t, chain, seen = result.timelines[robot].end + slack, [], set()
+    while True:
+        done = [s for s in spans[robot] if s[2] <= t and s[0] not in seen]
+        if not done:
+            return chain
+        cid, start, _ = max(done, key=lambda s: s[2])
+        chain.append(cid)
+        seen.add(cid)
+        earlier = max([s[2] for s in spans[robot] if s[2] <= start + slack and s[0] not in seen], default=-np.inf)
+        waits = [(b, ev) for a, b, ev in result.timelines[robot].waits if earlier - slack <= b <= start + slack
+                 and b - a > slack]
+        t = start + slack
+        if waits:  # it went on when told: the chain goes on in the robot that told it
+            b, events = max(waits, key=lambda w: w[0])
+            told = [(tn, n) for ev in ([events] if isinstance(events, str) else list(events))
+                    for tn, n in notices.get(str(ev), []) if tn <= b + slack and n != robot]
+            if told:
+                tn, robot = max(told)
+                t = tn + slack
 
 
 def _column_shares(tl, span: float, cols: int) -> tuple[np.ndarray, np.ndarray]:

@@ -19,7 +19,7 @@ import numpy as np
 
 from cooprint.render.palette import robot_colour
 from cooprint.render.sim import (BLOCK_MOVES, BOUND_COLOUR, CRITICAL_COLOUR, TRAVEL_COLOUR, WAIT_COLOUR,
-                                 _chunk_spans, _column_shares, _runs)
+                                 _chunk_spans, _column_shares, _runs, simulated_critical_path)
 from cooprint.simulation import KINDS, SimResult
 from cooprint.simulation.timeline import severity
 
@@ -121,7 +121,9 @@ def viewer_meta(result: SimResult, record: dict[str, Any], critical: Sequence[st
         "events": record.get("events", []),
         "gantt": gantt_rows(result),
         "gantt_resolution_s": max(span, 1e-9) / GANTT_BINS,
-        "critical_path": list(critical or ()),
+        # the chain that sets the simulated makespan, as the PNG Gantt chart frames it (the
+        # schedule's precedence chain alone misses a robot's own last chunks)
+        "critical_path": simulated_critical_path(result) if critical else [],
         "lower_bound": lower_bound,
         "colours": {"travelling": list(TRAVEL_COLOUR), "waiting": list(WAIT_COLOUR),
                     "critical": list(CRITICAL_COLOUR), "bound": list(BOUND_COLOUR)},
