@@ -689,10 +689,7 @@ def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: floa
     from cooprint.jobs import read_with_progress
     from cooprint.simulation import simulate as run_sim
 
-    _need_inputs(inputs, manifest)
-    for name in inputs:
-        if not os.path.lexists(name):
-            raise UserError(f"{name}: no such file or folder")
+    _need_inputs(inputs, manifest)  # each input there
     if duration is not None and speedup is not None:
         raise UserError("give --duration or --speedup, not both")
     fmt, inferred = _render_format(fmt, out)
