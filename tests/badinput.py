@@ -48,3 +48,20 @@ def assert_rejected(args: Iterable[object], capsys, watch: Iterable[Path] = (), 
     if contains is not None:
         assert contains in lines[0], (contains, lines[0])
     return lines[0]
+
+
+def restate_counts(bundle: Path) -> None:
+    """Make job.json's per-robot counts (``stats``: commands, moves, NOTIFY, WAIT) those of the
+    bundle's programs as they are now: for tests that edit a program on purpose (the simulator
+    refuses a program whose counts job.json does not state, as a truncated file)."""
+    import json
+
+    from cooprint.program.commands import parse_coop
+    from cooprint.simulation.inputs import program_counts
+
+    record = json.loads((bundle / "job.json").read_text())
+    for robot in record["robots"]:
+        path = bundle / robot["program"]
+        if "stats" in robot and path.exists():
+            robot["stats"].update(program_counts(parse_coop(path.read_text(), robot["name"], str(path))))
+    (bundle / "job.json").write_text(json.dumps(record, indent=1))

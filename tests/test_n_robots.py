@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import solids
-from badinput import assert_rejected
+from badinput import assert_rejected, restate_counts
 from cooprint.cli import main
 from cooprint.config import load_settings
 from cooprint.io.bundle import write_stl
@@ -107,6 +107,7 @@ def test_without_its_guard_waits_the_plan_collides(plan4, tmp_path, capsys):
             lines.append(line)
         f.write_text("".join(lines))
     assert removed > 0
+    restate_counts(bare)  # job.json's counts follow the edit (else the programs are refused as truncated)
     code = main(["simulate", str(bare), "--perturb", "0.3", "--runs", "3", "--seed", "1", "-q"])
     capsys.readouterr()
     assert code == 1
