@@ -683,10 +683,10 @@ def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: floa
 
     INPUTS: .coop / G-code files, a `cooprint run` bundle, or a folder written by `cooprint
     simulate FILES --out DIR` (the files its sim/summary.json names are read again)."""
-    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder, is_bundle
+    from cooprint.io.bundle import atomic_file, check_file_destination, check_sim_folder
     from cooprint.render.sim import (animation_length, frame_count, length_text, render_animation, render_gantt,
                                      render_snapshot)
-    from cooprint.jobs import read_with_progress
+    from cooprint.jobs import read_summary, read_with_progress, sim_sources
     from cooprint.simulation import simulate as run_sim
 
     _need_inputs(inputs, manifest)  # each input there
@@ -695,15 +695,18 @@ def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: floa
     fmt, inferred = _render_format(fmt, out)
     _check_render_options(fmt, inferred, at, duration, speedup)
     folder = Path(inputs[0]) if len(inputs) == 1 and Path(inputs[0]).is_dir() and manifest is None else None
-    record = _sim_record(folder / "sim" / "summary.json") if folder is not None else None
+    record = None
+    if folder is not None:
+        try:
+            record = read_summary(folder / "sim" / "summary.json")
+        except UserError:  # unreadable, or not cooprint's: the inputs are read as given
+            record = None
     paths, config = list(inputs), ()
-    if folder is not None and record is not None:  # timed as it was simulated; a `simulate --out` folder's files
-        recorded = _recorded_inputs(folder, record, is_bundle(folder))
-        if not is_bundle(folder):
-            paths, manifest = list(recorded["paths"]), recorded.get("manifest")
-            config = tuple(recorded.get("config") or ())
+    if record is not None:  # timed as it was simulated; a `simulate --out` folder's files
+        recorded = sim_sources(folder, record)  # type: ignore[arg-type]
+        paths, manifest, config = list(recorded.paths), recorded.manifest, recorded.config
         if accel is None:
-            accel = bool(recorded.get("accel"))
+            accel = recorded.accel
     accel = bool(accel)
     sources = (*paths, manifest)
     if out is not None:  # before the work; the name of a snapshot in sim/ is known only after it
@@ -832,35 +835,6 @@ def _names_other_inputs(record: dict[str, Any] | None, root: Path) -> bool:
     inputs = record.get("inputs") if record is not None else None
     return isinstance(inputs, dict) and isinstance(inputs.get("paths"), list) and \
         inputs["paths"] != [os.path.abspath(root)]
-
-
-def _recorded_inputs(root: Path, record: dict[str, Any], bundle: bool) -> dict[str, Any]:
-    """What folder ``root``'s simulation read, from its sim/summary.json ``record`` (its ``inputs``,
-    :func:`cooprint.jobs.inputs_record`; :func:`cooprint.jobs.sim_sources` also says
-    whether they changed since): for a bundle, the bundle where it is now, timed as its simulation was;
-    for a `simulate --out` folder, the files it names, each checked to be still there."""
-    summary_path = root / "sim" / "summary.json"
-    inputs = record.get("inputs")
-    if bundle:
-        accel = inputs.get("accel") if isinstance(inputs, dict) else None
-        inputs = {"paths": [str(root)], "manifest": None, "config": [],
-                  "accel": accel if accel is not None else str(record.get("time_model", "")).startswith("trapezoidal")}
-    if not isinstance(inputs, dict) or not isinstance(inputs.get("paths"), list):
-        raise UserError(f"{summary_path}: does not say which files were simulated (written by an older cooprint?); "
-                        f"run `cooprint simulate FILES --out {root}` again")
-    manifest, config = inputs.get("manifest"), tuple(inputs.get("config") or ())
-    for name in [*inputs["paths"], *([manifest] if manifest else []), *config]:
-        if not Path(name).exists():
-            raise UserError(f"{summary_path}: names {name}, which is no longer there; simulate again")
-    return inputs
-
-
-def _sim_record(path: Path) -> dict[str, Any] | None:
-    """sim/summary.json when it is cooprint's (a ``cooprint-sim/`` format), else None."""
-    from cooprint.io.bundle import SIM_FORMAT, read_json_object
-
-    record = read_json_object(path)
-    return record if record is not None and str(record.get("format", "")).startswith(SIM_FORMAT) else None
 
 
 def _view_wording(message: str) -> str:
