@@ -8,6 +8,7 @@ view in one line. The page in a real browser: tests/test_viewer_browser.py."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 
@@ -339,3 +340,22 @@ def test_view_of_a_gcode_folder_simulates_again_when_the_gcode_changed(bundle, t
         in capsys.readouterr().out
     stamp = json.loads((out / "sim" / "summary.json").read_text())["inputs"]["fingerprint"]
     assert stamp[str(gcode)] == [st.st_size, st.st_mtime_ns + 10 ** 9]
+
+
+@built
+def test_view_simulates_again_as_the_bundle_was_simulated_with_acceleration(bundle, tmp_path, capsys):
+    """A bundle simulated with --accel whose programs changed since is simulated again with
+    acceleration too (its page and summary keep the time model the user chose)."""
+    job = tmp_path / "job"
+    shutil.copytree(bundle, job)
+    assert main(["simulate", str(job), "--accel", "--force", "-q"]) == 0
+    accel = json.loads((job / "sim" / "summary.json").read_text())
+    assert accel["inputs"]["accel"] and accel["time_model"].startswith("trapezoidal")
+    program = job / "robots" / "A.coop"
+    st = program.stat()
+    os.utime(program, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))  # touched: the fingerprint no longer matches
+    assert main(["view", str(job)]) == 0
+    assert "simulating again" in capsys.readouterr().out
+    again = json.loads((job / "sim" / "summary.json").read_text())
+    assert again["inputs"]["accel"] and again["time_model"] == accel["time_model"]
+    assert again["makespan_s"] == pytest.approx(accel["makespan_s"], rel=1e-9)

@@ -798,13 +798,15 @@ def view(folder: str, open_page: bool, force: bool) -> None:
         click.echo(why)
         users = target.exists() and not is_derived_output(target)  # replaced below (--force)
         with stage_progress(True) as progress:
-            record = simulate_bundle(root, progress=progress, viewer=not users, inp=inp)
+            # timed as it was simulated before (a summary of `simulate --accel`), else at constant speed
+            record = simulate_bundle(root, progress=progress, viewer=not users, inp=inp,
+                                     accel=bool(sources is not None and sources.accel))
         report_simulation(record)
         if not users:
             _viewer_done(target, open_page)
             _judge(record, False, False, "the simulation", summary_path)
             return
-    accel = False if why is not None and bundle else sources.accel  # (simulate_bundle: constant speed)
+    accel = bool(sources is not None and sources.accel)  # as it was simulated (simulate_bundle: the same)
     checked = why is not None and not bundle  # a simulated folder's inputs changed: its summary too
     if checked:
         click.echo(why)

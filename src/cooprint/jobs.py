@@ -789,7 +789,8 @@ def run_job(mesh: str | Path | Solid, settings: JobSettings, out: str | Path, ro
 
 
 def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation: bool = False,
-                    progress: Progress | None = None, viewer: bool = True, inp: Any = None) -> dict[str, Any]:
+                    progress: Progress | None = None, viewer: bool = True, inp: Any = None,
+                    accel: bool = False) -> dict[str, Any]:
     """Simulate the bundle in ``out`` (written by :func:`run`) and write ``out/sim/``:
     ``summary.json``, ``gantt.png``, ``snapshot.png`` (at ``snapshot_at`` s, default half the
     makespan), with ``viewer`` the interactive ``viewer.html`` (:mod:`cooprint.render.viewer`)
@@ -800,7 +801,8 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
     stages ``read`` (bytes of the programs), ``timelines``, ``checks`` and ``pictures``. ``inp``:
     the bundle already loaded without its programs (``load_inputs([out], programs=False)``).
     The summary's ``inputs`` (:func:`inputs_record`) say what was simulated and its files' sizes
-    and times, so that ``cooprint view`` sees when they change."""
+    and times, so that ``cooprint view`` sees when they change. ``accel``: moves accelerate
+    (``simulate --accel``), else each keeps its speed."""
     from cooprint.io.bundle import check_sim_folder, is_derived_output
     from cooprint.render.sim import render_animation, render_gantt, render_snapshot
     from cooprint.simulation import simulate, summary
@@ -823,9 +825,9 @@ def simulate_bundle(out: str | Path, snapshot_at: float | None = None, animation
             viewer = False
     if inp is None:
         inp = read_with_progress([str(out)], None, None, progress, programs=False)  # timed piece by piece
-    result = simulate(inp, progress=progress)
+    result = simulate(inp, accel=accel, progress=progress)
     record = summary(result)
-    record["inputs"] = inputs_record([str(out)], None, (), False, inp)
+    record["inputs"] = inputs_record([str(out)], None, (), accel, inp)
     pictures = 2 + int(viewer) + int(animation)
     with atomic_dir(out / "sim", force=True, sim=True) as tmp:
         write_json(tmp / "summary.json", record)
