@@ -756,9 +756,9 @@ def view(folder: str, open_page: bool, force: bool) -> None:
     A simulation it runs (no sim/summary.json yet, or inputs changed since) prints its summary
     as `simulate` does and exits 1 on errors, after writing the page."""
     from cooprint.errors import OutputError
-    from cooprint.io.bundle import atomic_file, check_file_destination, is_bundle, is_derived_output, write_json
+    from cooprint.io.bundle import atomic_file, is_derived_output, write_json
     from cooprint.jobs import (SummaryUnreadable, inputs_record, read_summary, read_with_progress, sim_sources,
-                               simulate_bundle)
+                               simulate_bundle, simulated_as_bundle)
     from cooprint.render.viewer import check_assets, write_viewer
     from cooprint.simulation import simulate as run_sim, summary
     from cooprint.simulation.inputs import read_chunk_meshes
@@ -774,8 +774,7 @@ def view(folder: str, open_page: bool, force: bool) -> None:
         record = read_summary(summary_path)
     except SummaryUnreadable as exc:
         record, unreadable = None, exc
-    # a job.json that does not read is still the bundle's (its loader says what is wrong with it)
-    bundle = is_bundle(root) or (os.path.lexists(root / "job.json") and not _names_other_inputs(record, root))
+    bundle = simulated_as_bundle(root, record)
     if not bundle and record is None:
         if unreadable is not None:
             raise UserError(f"{unreadable}; run `cooprint simulate FILES --out {folder}` again")
@@ -785,28 +784,26 @@ def view(folder: str, open_page: bool, force: bool) -> None:
     sources = None if record is None else sim_sources(root, record)
     inputs = (str(root),) if sources is None else sources.paths
     manifest, config = (None, ()) if sources is None else (sources.manifest, sources.config)
-    _view_destination(check_file_destination, target, force, (*inputs, manifest))
+    _view_destination(target, force, (*inputs, manifest))
     if record is None:
         why = (f"{unreadable}; simulating again" if unreadable is not None else
                f"{folder} has no simulation yet (sim/summary.json): simulating it first")
     else:
         why = None if sources.changed is None else (f"{folder}: {sources.changed} since sim/summary.json was "
                                                     "written: simulating again")
+    accel = bool(sources is not None and sources.accel)  # timed as it was simulated (else at constant speed)
     _heap_malloc()
     if why is not None and bundle:
         inp = read_with_progress([str(root)], None, None, None, programs=False)  # job.json refused before a word
         click.echo(why)
         users = target.exists() and not is_derived_output(target)  # replaced below (--force)
         with stage_progress(True) as progress:
-            # timed as it was simulated before (a summary of `simulate --accel`), else at constant speed
-            record = simulate_bundle(root, progress=progress, viewer=not users, inp=inp,
-                                     accel=bool(sources is not None and sources.accel))
+            record = simulate_bundle(root, progress=progress, viewer=not users, inp=inp, accel=accel)
         report_simulation(record)
         if not users:
             _viewer_done(target, open_page)
             _judge(record, False, False, "the simulation", summary_path)
             return
-    accel = bool(sources is not None and sources.accel)  # as it was simulated (simulate_bundle: the same)
     checked = why is not None and not bundle  # a simulated folder's inputs changed: its summary too
     if checked:
         click.echo(why)
@@ -831,14 +828,6 @@ def view(folder: str, open_page: bool, force: bool) -> None:
         _judge(record, False, False, "the simulation", summary_path)
 
 
-def _names_other_inputs(record: dict[str, Any] | None, root: Path) -> bool:
-    """Whether a simulation summary names inputs other than the folder ``root`` itself (a
-    ``simulate FILES --out`` folder, even one holding a ``job.json``)."""
-    inputs = record.get("inputs") if record is not None else None
-    return isinstance(inputs, dict) and isinstance(inputs.get("paths"), list) and \
-        inputs["paths"] != [os.path.abspath(root)]
-
-
 def _view_wording(message: str) -> str:
     """An output check's message worded for ``view``, which has no ``--out`` and writes one fixed
     file (``sim/viewer.html``): what the user can do is move the entry in the way."""
@@ -849,12 +838,13 @@ def _view_wording(message: str) -> str:
     return message
 
 
-def _view_destination(check: Any, target: Path, force: bool, sources: tuple[Any, ...]) -> None:
+def _view_destination(target: Path, force: bool, sources: tuple[Any, ...]) -> None:
     """``check_file_destination`` of the page, its errors worded for ``view``."""
     from cooprint.errors import OutputError
+    from cooprint.io.bundle import check_file_destination
 
     try:
-        check(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=1)
+        check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=1)
     except OutputError as exc:
         raise OutputError(_view_wording(str(exc))) from None
 

@@ -958,6 +958,20 @@ class SimSources:
     changed: str | None
 
 
+def simulated_as_bundle(folder: str | Path, record: dict[str, Any] | None) -> bool:
+    """Whether ``folder`` is simulated as a ``cooprint run`` bundle (itself), with ``record`` its
+    sim/summary.json (``None``: none yet): a bundle, or a folder holding a ``job.json`` (one that
+    does not read is still the bundle's: its loader says what is wrong with it) whose summary
+    names no other inputs (a ``simulate FILES --out`` folder may hold a job.json too)."""
+    from cooprint.io.bundle import is_bundle
+
+    root = Path(folder)
+    inputs = record.get("inputs") if record is not None else None
+    others = (isinstance(inputs, dict) and isinstance(inputs.get("paths"), list)
+              and inputs["paths"] != [os.path.abspath(root)])
+    return is_bundle(root) or (os.path.lexists(root / "job.json") and not others)
+
+
 def sim_sources(folder: str | Path, record: dict[str, Any] | None = None) -> SimSources:
     """The inputs of a simulated folder, to read and time them again (``cooprint view``,
     ``cooprint render DIR``): a ``cooprint run`` bundle (itself) or a folder written by
@@ -966,8 +980,6 @@ def sim_sources(folder: str | Path, record: dict[str, Any] | None = None) -> Sim
     s.config else None, ...)`` and time them with ``simulate(..., accel=s.accel)``. ``record``:
     the summary already read (:func:`read_summary`). A missing or unreadable summary, one that
     does not say what it simulated, or inputs no longer there are a one-line :class:`UserError`."""
-    from cooprint.io.bundle import is_bundle
-
     root = Path(folder)
     summary_path = root / "sim" / "summary.json"
     if record is None:
@@ -976,7 +988,7 @@ def sim_sources(folder: str | Path, record: dict[str, Any] | None = None) -> Sim
         raise UserError(f"{folder}: no simulation (sim/summary.json); run `cooprint simulate` first")
     inputs = record.get("inputs")
     saved = isinstance(inputs, dict) and isinstance(inputs.get("paths"), list)
-    if is_bundle(root) or os.path.lexists(root / "job.json") and (not saved or inputs["paths"] == [os.path.abspath(root)]):
+    if simulated_as_bundle(root, record):
         accel = inputs.get("accel") if isinstance(inputs, dict) else None  # the bundle where it is now
         return SimSources((str(root),), None, (), bool(accel) if accel is not None else
                           str(record.get("time_model", "")).startswith("trapezoidal"), record,

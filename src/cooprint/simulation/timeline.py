@@ -653,7 +653,8 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     starts.resize(k + 1, refcheck=False)
     for a in (mv, on, dur):
         a.resize(k, refcheck=False)
-    program = Program(r.name, kind, _constant(np.float64, np.nan, (at, 3)), cols["role"], cols["width"], _constant(np.int32, -1, (at,)), cols["height"], cols["chunk"], cols["event"],
+    program = Program(r.name, kind, _constant(np.float64, np.nan, (at, 3)), cols["role"], cols["width"],
+                      _constant(np.int32, -1, (at,)), cols["height"], cols["chunk"], cols["event"],
                       chunks=tuple(chunks), events=tuple(events), turns=tuple(turns))
     r2 = replace(r, program=program)
     return r2, (r2, ends[:-1], ends[1:], on, None, dur, mv, starts, before, sync)  # lengths: computed when asked

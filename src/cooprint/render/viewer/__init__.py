@@ -78,8 +78,9 @@ def write_viewer(result: SimResult, record: Mapping[str, Any], path: str | Path,
 
     ``record``: the simulation's summary (what sim/summary.json holds: its findings are listed);
     ``chunks``: the bundle's chunk meshes by id (:func:`cooprint.simulation.inputs.read_chunk_meshes`)
-    for their outlines; ``critical``, ``lower_bound``: the schedule's critical path and lower
-    bound for the Gantt chart; ``max_segments``: the most material segments the page holds
+    for their outlines; ``critical``, ``lower_bound``: the schedule's critical path (given when
+    the plan has one: the Gantt chart then frames the chain that sets the simulated makespan,
+    :func:`cooprint.render.sim.simulated_critical_path`, as the PNG chart does) and lower bound; ``max_segments``: the most material segments the page holds
     (above, thinned evenly, and the page says so). A :class:`UserError` when the JavaScript
     bundle is not built."""
     check_assets()  # before the work
