@@ -77,5 +77,3 @@ export function legend(mode, ctx, geo) {
   }
   return robots.map((r) => ({ label: `robot ${r.name}`, colour: r.colour }));
 }
-
-export function css([r, g, b]) { return `rgb(${r},${g},${b})`; }
