@@ -8,7 +8,7 @@ import numpy as np
 
 from cooprint.program.commands import MOVE
 from cooprint.simulation.inputs import _read_gcode_lines, read_gcode
-from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
+from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TOP_SKIN, TRAVEL
 
 GCODE = """G90
 M83
@@ -38,7 +38,7 @@ G1 X16 Y16 ; TYPE:Perimeter in a comment after a move changes nothing
 G1 X17 Y16 E0.3
 """
 WANT = [INFILL, INFILL, INFILL, PERIMETER_OUTER, PERIMETER_INNER, PERIMETER_INNER, SKIN, INFILL, PERIMETER_OUTER,
-        PERIMETER_INNER, SKIN, SKIN, INFILL, INFILL, INFILL]
+        PERIMETER_INNER, SKIN, TOP_SKIN, INFILL, INFILL, INFILL]
 
 
 def test_type_comments_give_the_moves_roles_in_both_readers(tmp_path):
@@ -51,8 +51,8 @@ def test_type_comments_give_the_moves_roles_in_both_readers(tmp_path):
         assert prog.role[moves].tolist() == WANT
         assert np.all(prog.role[~moves] == TRAVEL)
     assert swept.role.tolist() == reference.role.tolist()
-    on = swept.width > 0  # the material: all four roles, not only infill
-    assert set(swept.role[on].tolist()) == {PERIMETER_OUTER, PERIMETER_INNER, SKIN, INFILL}
+    on = swept.width > 0  # the material: all its roles, not only infill
+    assert set(swept.role[on].tolist()) == {PERIMETER_OUTER, PERIMETER_INNER, SKIN, TOP_SKIN, INFILL}
 
 
 def test_a_file_with_host_lines_keeps_its_roles(tmp_path):

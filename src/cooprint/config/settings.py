@@ -49,6 +49,10 @@ MAX_LAYER_PER_NOZZLE = 1.0
 MIN_WIDTH_PER_NOZZLE = 1.0
 #: ... to this many (PrusaSlicer refuses 3 x nozzle and more).
 MAX_WIDTH_PER_NOZZLE = 3.0
+#: The slicing fields that are extrusion widths (each within the nozzle's range, :func:`check_slicing`).
+WIDTH_FIELDS = ("extrusion_width", "external_perimeter_extrusion_width", "perimeter_extrusion_width",
+                "infill_extrusion_width", "solid_infill_extrusion_width", "top_infill_extrusion_width",
+                "first_layer_extrusion_width")
 #: Most layers a part may ask for (1.5 m at 0.05 mm is 30,000).
 MAX_LAYERS = 200_000
 #: Longest total tool path a part may ask for, mm (its upper bound volume / (width x height)):
@@ -181,7 +185,7 @@ class SlicingSettings:
     top_layers: int = field(default=4, metadata=_num(0, 1000, integer=True))
     bottom_layers: int = field(default=4, metadata=_num(0, 1000, integer=True))
     infill_density: float = field(default=0.2, metadata=_num(0, 1, doc="0 = hollow, 1 = solid"))
-    infill_pattern: str = field(default="rectilinear", metadata=_choice("rectilinear", "grid", "triangles"))
+    infill_pattern: str = field(default="rectilinear", metadata=_choice("rectilinear", "grid", "triangles", "gyroid"))
     infill_angle_deg: float = field(default=45.0, metadata=_num(-360, 360, unit="deg"))
     solid_infill_below_area: float = field(default=70.0, metadata=_num(0, 1e6, unit="mm2",
                                            doc="sparse regions smaller than this are filled solid"))
@@ -190,9 +194,52 @@ class SlicingSettings:
     min_area: float = field(default=0.05, metadata=_num(0, 1e6, unit="mm2",
                             doc="islands and infill regions smaller than this are not printed"))
     filament_diameter: float = field(default=1.75, metadata=_num(0, 10, unit="mm", lo_open=True))
-    perimeter_speed: float = field(default=45.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    # per-role extrusion widths (issue 17); absent: extrusion_width (top solid infill: the nozzle's
+    # diameter, the first layer: 2 x first_layer_height within the width rule), as PrusaSlicer 2.5
+    external_perimeter_extrusion_width: float | None = field(default=None, metadata=_num(
+        0, 30, unit="mm", lo_open=True, optional=True, doc="outer perimeter; absent: extrusion_width"))
+    perimeter_extrusion_width: float | None = field(default=None, metadata=_num(
+        0, 30, unit="mm", lo_open=True, optional=True, doc="inner perimeters; absent: extrusion_width"))
+    infill_extrusion_width: float | None = field(default=None, metadata=_num(
+        0, 30, unit="mm", lo_open=True, optional=True, doc="sparse infill; absent: extrusion_width"))
+    solid_infill_extrusion_width: float | None = field(default=None, metadata=_num(
+        0, 30, unit="mm", lo_open=True, optional=True, doc="solid infill; absent: extrusion_width"))
+    top_infill_extrusion_width: float | None = field(default=None, metadata=_num(
+        0, 30, unit="mm", lo_open=True, optional=True, doc="top solid infill; absent: nozzle_diameter"))
+    first_layer_extrusion_width: float | None = field(default=None, metadata=_num(
+        0, 30, unit="mm", lo_open=True, optional=True,
+        doc="every role on the first layer; absent: 2 x first_layer_height, within 1 to 3 x nozzle_diameter"))
+    # bridges (issue 17): over air or over sparse infill, a round thread of bridge_flow_ratio x the
+    # nozzle's cross-section, in the direction that anchors best (absent bridge_angle_deg)
+    bridge_flow_ratio: float = field(default=1.0, metadata=_num(0, 2, lo_open=True,
+                                     doc="bridge thread cross-section / the nozzle's (PrusaSlicer: 1)"))
+    bridge_angle_deg: float | None = field(default=None, metadata=_num(-360, 360, unit="deg", optional=True,
+                                           doc="direction of every bridge's lines; absent: detected per bridge"))
+    overhangs: bool = field(default=True, metadata={"boolean": True, "doc": "perimeters with nothing under "
+                            "them are laid with bridge flow and speed (overhang perimeter)"})
+    gap_fill: bool = field(default=True, metadata={"boolean": True, "doc": "fill the gaps between perimeters "
+                           "too narrow for another loop"})
+    thin_walls: bool = field(default=True, metadata={"boolean": True, "doc": "walls too thin for two sides of a "
+                             "perimeter are printed as one line along their middle"})
+    infill_anchor: float = field(default=2.7, metadata=_num(0, 1000, unit="mm", doc="sparse infill lines are "
+                                 "anchored along the perimeters by up to this much (PrusaSlicer: 600% of the infill "
+                                 "width); 0: not anchored"))
+    infill_anchor_max: float = field(default=50.0, metadata=_num(0, 1000, unit="mm", doc="two infill lines whose "
+                                     "ends are at most this far apart along the perimeter are joined; 0: never"))
+    ensure_vertical_shell_thickness: bool = field(default=False, metadata={"boolean": True, "doc": "add solid "
+                                                  "infill where a sloped wall would be thinner than the perimeters"})
+    # speeds per role, mm/s (issue 17: the one source of every feed rate; a robot's own
+    # max_print_speed / max_travel_speed only cap them). PrusaSlicer 2.5's defaults.
+    perimeter_speed: float = field(default=60.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    external_perimeter_speed: float = field(default=30.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     infill_speed: float = field(default=80.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
-    first_layer_speed: float = field(default=30.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    solid_infill_speed: float = field(default=20.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    top_solid_infill_speed: float = field(default=15.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    bridge_speed: float = field(default=60.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True,
+                                doc="bridges and overhang perimeters"))
+    gap_fill_speed: float = field(default=20.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    first_layer_speed: float = field(default=30.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True,
+                                     doc="every role on the first layer, at most"))
     travel_speed: float = field(default=130.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     retract_length: float = field(default=0.8, metadata=_num(0, 50, unit="mm"))
     retract_speed: float = field(default=35.0, metadata=_num(0, 1e3, unit="mm/s", lo_open=True))
@@ -204,6 +251,20 @@ class SlicingSettings:
                            doc="printable size of a single-printer run (cooprint slice)"))
     build_y: float = field(default=1000.0, metadata=_num(0, 1e6, unit="mm", lo_open=True))
     build_z: float = field(default=1000.0, metadata=_num(0, 1e6, unit="mm", lo_open=True))
+
+    def role_width(self, role: str, first_layer: bool = False) -> float:
+        """The extrusion width of a role, mm: ``external_perimeter``, ``perimeter``, ``infill``,
+        ``solid_infill``, ``top_infill`` (the ``*_extrusion_width`` fields, absent ones resolved as
+        PrusaSlicer 2.5 does), or any role on the first layer (``first_layer=True``)."""
+        if first_layer:
+            if self.first_layer_extrusion_width is not None:
+                return self.first_layer_extrusion_width
+            d = self.nozzle_diameter
+            return min(max(2 * self.first_layer_height, MIN_WIDTH_PER_NOZZLE * d), MAX_WIDTH_PER_NOZZLE * d * 0.999)
+        own = getattr(self, f"{role}_extrusion_width")
+        if own is not None:
+            return own
+        return self.nozzle_diameter if role == "top_infill" else self.extrusion_width
 
 
 @dataclass(frozen=True)
@@ -388,12 +449,13 @@ def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -
         where = where_of("perimeters", "infill_density", "top_layers", "bottom_layers")
         raise ConfigError(f"{where}slicing.perimeters = 0, infill_density = 0, top_layers = 0 and bottom_layers = 0 "
                           f"print nothing; expected at least one perimeter, some infill or a solid layer")
-    w = s.extrusion_width
     lo, hi = MIN_WIDTH_PER_NOZZLE * d, MAX_WIDTH_PER_NOZZLE * d
-    if not lo - 1e-12 <= w <= hi + 1e-12:
-        where = where_of("extrusion_width", "nozzle_diameter")
-        raise ConfigError(f"{where}slicing.extrusion_width = {w:g} mm: expected {MIN_WIDTH_PER_NOZZLE:g} to "
-                          f"{MAX_WIDTH_PER_NOZZLE:g} x slicing.nozzle_diameter = {lo:g} to {hi:g} mm")
+    for name in WIDTH_FIELDS:  # every width, the per-role ones where they are given
+        w = getattr(s, name)
+        if w is not None and not lo - 1e-12 <= w <= hi + 1e-12:
+            where = where_of(name, "nozzle_diameter")
+            raise ConfigError(f"{where}slicing.{name} = {w:g} mm: expected {MIN_WIDTH_PER_NOZZLE:g} to "
+                              f"{MAX_WIDTH_PER_NOZZLE:g} x slicing.nozzle_diameter = {lo:g} to {hi:g} mm")
 
 
 def check_robot(r: RobotProfile, origin: Mapping[str, str] | None = None) -> None:

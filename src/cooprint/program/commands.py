@@ -53,7 +53,8 @@ import numpy as np
 
 from cooprint.errors import UserError, clip
 from cooprint.geometry import MAX_COORD_MM
-from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL
+from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
+                                    TOP_SKIN, TRAVEL)
 from cooprint.io.files import regular_file
 from cooprint.program.comment import comment_safe
 from cooprint.program.numtext import NONE, Table, Templates, assemble
@@ -63,7 +64,8 @@ MOVE, TOOL_ON, TOOL_OFF, NOTIFY, WAIT = range(5)
 KIND_NAMES = ("MOVE", "TOOL ON", "TOOL OFF", "NOTIFY", "WAIT")
 #: Path roles as annotations name them (index = role number of :mod:`cooprint.slicing.paths`).
 ROLE_WORDS = {PERIMETER_OUTER: "outer-perimeter", PERIMETER_INNER: "perimeter", SKIN: "skin",
-              INFILL: "infill", TRAVEL: "travel"}
+              INFILL: "infill", TRAVEL: "travel", TOP_SKIN: "top-skin", BRIDGE: "bridge", GAP_FILL: "gap-fill",
+              OVERHANG: "overhang-perimeter"}
 _ROLE_OF_WORD = {w: r for r, w in ROLE_WORDS.items()}
 #: Coordinates of a program lie on this grid, mm (what the writer's three decimals hold).
 RESOLUTION = 1e-3

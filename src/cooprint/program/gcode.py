@@ -40,10 +40,14 @@ from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_ON, WAIT, Program, program_rows
 from cooprint.program.numtext import NONE, Table, Templates, assemble
 from cooprint.program.comment import comment_safe
-from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, extrusion_area
+from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
+                                    TOP_SKIN, TRAVEL, flow_area)
 
-ROLE_TYPES = {PERIMETER_OUTER: "WALL-OUTER", PERIMETER_INNER: "WALL-INNER", SKIN: "SKIN", INFILL: "FILL",
-              TRAVEL: "TRAVEL"}
+#: ``;TYPE:`` names, PrusaSlicer's (its G-code viewer and cooprint's reader know them; travel has
+#: none in PrusaSlicer, cooprint marks it as Cura does).
+ROLE_TYPES = {PERIMETER_OUTER: "External perimeter", PERIMETER_INNER: "Perimeter", SKIN: "Solid infill",
+              INFILL: "Internal infill", TRAVEL: "TRAVEL", TOP_SKIN: "Top solid infill", BRIDGE: "Bridge infill",
+              GAP_FILL: "Gap fill", OVERHANG: "Overhang perimeter"}
 
 
 @dataclass(frozen=True)
@@ -332,7 +336,7 @@ class GcodeWriter:
         length = np.sqrt(sq[:, 0] + sq[:, 1] + sq[:, 2])  # NaN for a first move from nowhere (np.linalg.norm's sum)
         extr = on[mv] & (length > 0)
         with np.errstate(invalid="ignore"):  # (the first move from nowhere: no length)
-            e = np.where(extr, extrusion_area(p.width[mv], p.height[mv]) * length / self.fil_area, 0.0)
+            e = np.where(extr, flow_area(p.width[mv], p.height[mv], p.role[mv]) * length / self.fil_area, 0.0)
         names = [*p.chunks, None]  # chunk -1: between chunks
         turns: dict[int, list[float]] = {}  # command index -> the facings turned to before it
         for t, deg in p.turns:

@@ -298,18 +298,18 @@ class ProgramStats:
 
     def add(self, p: Program) -> "ProgramStats":
         from cooprint.program.commands import NOTIFY, WAIT
-        from cooprint.slicing.paths import extrusion_area
+        from cooprint.slicing.paths import flow_area
 
         mv = np.flatnonzero(p.kind == MOVE)
         xyz = p.xyz[mv]
         on = p.tool_on(self._tool)[mv]
-        width, height = p.width[mv], p.height[mv]
+        width, height, role = p.width[mv], p.height[mv], p.role[mv]
         if self._prev is None:  # the first move comes from nowhere: no length
-            xyz_from, on, width, height = xyz, on[1:], width[1:], height[1:]
+            xyz_from, on, width, height, role = xyz, on[1:], width[1:], height[1:], role[1:]
         else:
             xyz_from = np.vstack([self._prev[None], xyz])
         seg = np.linalg.norm(np.diff(xyz_from, axis=0), axis=1)
-        area = extrusion_area(width, height)
+        area = flow_area(width, height, role)
         self.volume += float((np.where(on, area, 0.0) * seg).sum())
         self.print_mm += float(seg[on].sum())
         self.travel_mm += float(seg[~on].sum())

@@ -10,10 +10,14 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from cooprint.render.chunks import BACKGROUND, _font, _view_basis
-from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, ROLE_NAMES, SKIN, TRAVEL, LayerPaths
+from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER,
+                                    ROLE_NAMES, SKIN, TOP_SKIN, TRAVEL, LayerPaths)
 
-ROLE_COLOURS = {PERIMETER_OUTER: (200, 60, 50), PERIMETER_INNER: (240, 150, 60), SKIN: (60, 110, 200),
-                INFILL: (60, 160, 90), TRAVEL: (170, 170, 170)}
+#: One colour per path role (near PrusaSlicer's preview legend: walls warm, solid fills purple and
+#: red, sparse infill dark red, bridges blue, gap fill white-grey).
+ROLE_COLOURS = {PERIMETER_OUTER: (255, 125, 56), PERIMETER_INNER: (255, 230, 77), SKIN: (150, 84, 204),
+                INFILL: (176, 48, 41), TRAVEL: (170, 170, 170), TOP_SKIN: (240, 64, 64), BRIDGE: (77, 128, 186),
+                GAP_FILL: (120, 120, 120), OVERHANG: (0, 0, 255)}
 
 
 def _segments(layer: LayerPaths) -> tuple[np.ndarray, np.ndarray]:
@@ -55,7 +59,7 @@ def render_layer(layer: LayerPaths, path: str | Path, size: tuple[int, int] = (9
         lo, scale, off = _fit(seg[:, :, :2].reshape(-1, 2), size, 40, 80)
         px = (seg[:, :, :2] - lo) * scale * np.array([1, -1]) + off
         width = max(1, int(round(float(layer.width.max(initial=0.45)) * scale)))
-        for r in (TRAVEL, INFILL, SKIN, PERIMETER_INNER, PERIMETER_OUTER):
+        for r in (TRAVEL, INFILL, SKIN, TOP_SKIN, BRIDGE, GAP_FILL, PERIMETER_INNER, PERIMETER_OUTER, OVERHANG):
             lines = px[role == r].round(1).tolist()
             for (x0, y0), (x1, y1) in lines:
                 draw.line([(x0, y0), (x1, y1)], fill=ROLE_COLOURS[r], width=1 if r == TRAVEL else width)
@@ -89,7 +93,7 @@ def render_model(layers: Sequence[LayerPaths], path: str | Path, size: tuple[int
         px = (proj[order, :, :2] - lo) * scale * np.array([1, -1]) + off
         depth = proj[order, :, 2].mean(axis=1)
         shade = 0.6 + 0.4 * (depth - depth.min()) / max(float(np.ptp(depth)), 1e-9)
-        colours = (np.array([ROLE_COLOURS[int(r)] for r in range(5)])[role[order]] * shade[:, None]).astype(int)
+        colours = (np.array([ROLE_COLOURS[int(r)] for r in range(len(ROLE_NAMES))])[role[order]] * shade[:, None]).astype(int)
         for ((x0, y0), (x1, y1)), c in zip(px.round(1).tolist(), colours.tolist()):
             draw.line([(x0, y0), (x1, y1)], fill=tuple(c), width=1)
     n = len(layers)

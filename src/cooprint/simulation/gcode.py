@@ -40,7 +40,8 @@ from cooprint.interrupts import hold_compiles
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT
 from cooprint.program.scan import POW10, decimal
 from cooprint.simulation.inputs import SimInputError
-from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, extrusion_width
+from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
+                                    TOP_SKIN, TRAVEL, extrusion_width)
 
 hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
 
@@ -389,11 +390,13 @@ def gcode_rows(data: bytes, filament_diameter: float, where: str = "G-code") -> 
 #: (:mod:`cooprint.slicing.paths`); any other type (support, skirt, brim, wipe tower, custom)
 #: is infill, as material with no type is.
 TYPE_ROLES = {
-    **dict.fromkeys(("external perimeter", "overhang perimeter", "wall-outer", "outer wall", "overhang wall"),
-                    PERIMETER_OUTER),
+    **dict.fromkeys(("external perimeter", "wall-outer", "outer wall"), PERIMETER_OUTER),
     **dict.fromkeys(("perimeter", "wall-inner", "inner wall"), PERIMETER_INNER),
-    **dict.fromkeys(("solid infill", "top solid infill", "bridge infill", "internal bridge infill", "gap fill",
-                     "skin", "internal solid infill", "top surface", "bottom surface", "bridge", "gap infill"), SKIN),
+    **dict.fromkeys(("overhang perimeter", "overhang wall"), OVERHANG),
+    **dict.fromkeys(("solid infill", "skin", "internal solid infill", "bottom surface"), SKIN),
+    **dict.fromkeys(("top solid infill", "top surface", "ironing"), TOP_SKIN),
+    **dict.fromkeys(("bridge infill", "internal bridge infill", "bridge"), BRIDGE),
+    **dict.fromkeys(("gap fill", "gap infill"), GAP_FILL),
     **dict.fromkeys(("internal infill", "fill", "sparse infill"), INFILL),
 }
 

@@ -11,9 +11,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Path roles.
-PERIMETER_OUTER, PERIMETER_INNER, SKIN, INFILL, TRAVEL = range(5)
-ROLE_NAMES = ("outer perimeter", "perimeter", "skin", "infill", "travel")
+#: Path roles (PrusaSlicer's extrusion roles, issue 17). ``SKIN`` is internal solid infill (the
+#: solid layers under a top and over a bottom, and small sparse regions filled solid), ``INFILL``
+#: sparse infill, ``TOP_SKIN`` the top surface itself, ``BRIDGE`` solid infill laid over air or
+#: over sparse infill (bridge flow and speed), ``GAP_FILL`` the lines that fill what is left
+#: between perimeters and thin walls too narrow for a loop, ``OVERHANG`` a perimeter, or the part
+#: of one, with nothing under it (bridge flow and speed). The numbers are those of the ``.coop``
+#: files and the simulator's arrays: new roles are appended, never renumbered.
+PERIMETER_OUTER, PERIMETER_INNER, SKIN, INFILL, TRAVEL, TOP_SKIN, BRIDGE, GAP_FILL, OVERHANG = range(9)
+ROLE_NAMES = ("outer perimeter", "perimeter", "solid infill", "infill", "travel", "top solid infill", "bridge",
+              "gap fill", "overhang perimeter")
+#: Roles laid as a round thread (a bridge: nothing under it squashes the bead): their cross-section
+#: is a circle of the path's width (:func:`flow_area`), PrusaSlicer's "thick bridges".
+ROUND_ROLES = (BRIDGE, OVERHANG)
+#: Roles that are perimeters (walls) and roles that are solid fill, for speeds and statistics.
+PERIMETER_ROLES = (PERIMETER_OUTER, PERIMETER_INNER, OVERHANG)
+SOLID_ROLES = (SKIN, TOP_SKIN, BRIDGE)
 
 
 @dataclass(frozen=True)
@@ -31,9 +44,10 @@ class LayerPaths:
     offsets : (m + 1,) int64
         Path k is ``points[offsets[k]:offsets[k + 1]]``.
     role : (m,) uint8
-        One of ``PERIMETER_OUTER, PERIMETER_INNER, SKIN, INFILL, TRAVEL``.
+        One of the roles above (``PERIMETER_OUTER`` ... ``OVERHANG``).
     width : (m,) float64
-        Extrusion width, mm (0 for travel).
+        Extrusion width, mm (0 for travel); for a round role (``ROUND_ROLES``) the thread's
+        diameter.
     """
 
     z: float
@@ -72,6 +86,15 @@ def extrusion_area(width: np.ndarray | float, height: float) -> np.ndarray | flo
     """Cross-section of an extruded line, mm^2: a rectangle with semicircular sides (the flow
     model of Slic3r and PrusaSlicer), ``(w - h) h + pi (h / 2)^2``."""
     return (np.asarray(width) - height) * height + np.pi * (height / 2) ** 2
+
+
+def flow_area(width: np.ndarray | float, height: np.ndarray | float, role: np.ndarray | int) -> np.ndarray:
+    """Cross-section of the line each path lays, mm^2: :func:`extrusion_area` (a squashed bead),
+    or for a round role (``ROUND_ROLES``: bridges and overhang perimeters, laid in the air) a
+    circle of diameter ``width``, whatever the layer height (PrusaSlicer's thick bridges)."""
+    w, h = np.asarray(width, dtype=np.float64), np.asarray(height, dtype=np.float64)
+    round_ = np.isin(np.asarray(role), ROUND_ROLES)
+    return np.where(round_, np.pi * (w / 2) ** 2, (w - h) * h + np.pi * (h / 2) ** 2)
 
 
 def extrusion_width(area: np.ndarray | float, height: np.ndarray | float) -> np.ndarray | float:
