@@ -66,37 +66,23 @@ def medial_lines(region: manifold3d.CrossSection, min_width: float, max_width: f
     polys = [np.asarray(p, dtype=np.float64) for p in region.to_polygons() if len(p) >= 3]
     if not polys:
         return []
-    h = float(np.clip(min_width / 4.0, 0.01, 0.05))
+    h = float(np.clip(min_width / 3.0, 0.02, 0.05))
     r_max = 0.5 * max_width * 1.05
     pts, nrm, edge, point_like, cstart = _sample_boundary(polys, h, r_max)
-    radius, partner = _inscribed_discs(pts, nrm, r_max, h)
+    grid = _grid(pts, r_max, h)
+    radius, partner = _inscribed_discs(pts, nrm, r_max, h, *grid)
     centres = pts + radius[:, None] * nrm
     widths = 2.0 * radius
-    keep = _keep_mask(pts, centres, radius, partner, point_like, min_width, max_width, r_max)
+    keep = _keep_mask(pts, centres, radius, partner, point_like, min_width, max_width)
     chains = _chain(centres, widths, keep, cstart, h)
     chains = _join_chains(chains, centres, widths, h)
     seg_a, seg_b = _edges(polys)
-    out: list[tuple[np.ndarray, float]] = []
-    for idx, closed in chains:
-        m = centres[idx]
-        w = widths[idx]
-        if not closed:
-            m, w = _extend_ends(m, w, pts, edge, seg_a, seg_b, h)
-        if closed:
-            m = np.vstack([m, m[:1]])
-            w = np.append(w, w[0])
-        lo, hi = _pieces(m, w, _WIDTH_STEP)
-        for a, b in zip(lo, hi):
-            seg = m[a:b + 1]
-            ww = w[a:b + 1]
-            lens = np.hypot(*np.diff(seg, axis=0).T)
-            length = lens.sum()
-            if length < min_width:
-                continue
-            width = float(np.dot(0.5 * (ww[1:] + ww[:-1]), lens) / length)
-            keep_pt = _simplify(seg, 0.25 * h)
-            out.append((seg[keep_pt], width))
-    return out
+    idx = np.concatenate([c for c, _ in chains]) if chains else np.zeros(0, np.int64)
+    offs = np.concatenate([[0], np.cumsum([len(c) for c, _ in chains])]).astype(np.int64)
+    closed = np.array([z for _, z in chains], dtype=np.bool_)
+    out_pts, out_offs, out_w = _finish(centres, widths, idx, offs, closed, edge, seg_a, seg_b,
+                                       min_width, h, *grid)
+    return [(out_pts[out_offs[k]:out_offs[k + 1]], float(out_w[k])) for k in range(len(out_w))]
 
 
 def _edges(polys: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -114,117 +100,208 @@ def _sample_boundary(polys: list[np.ndarray], h: float, r_max: float):
     reflex corner that is a point site), ``cstart`` (c + 1,) the first sample of each contour.
     The region lies left of each contour (manifold3d: outer contours counter-clockwise).
     """
-    sizes = np.array([len(p) for p in polys])
-    v = np.concatenate(polys)
-    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
-    local = np.arange(len(v)) - first
-    nxt = first + (local + 1) % np.repeat(sizes, sizes)
-    prv = first + (local - 1) % np.repeat(sizes, sizes)
-    e_out = v[nxt] - v
-    length = np.hypot(e_out[:, 0], e_out[:, 1])
-    length = np.maximum(length, 1e-12)
-    d_out = e_out / length[:, None]
-    d_in = d_out[prv]
-    n_out = np.stack([-d_out[:, 1], d_out[:, 0]], axis=1)
-    n_in = n_out[prv]
-    turn = np.arctan2(d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0],
-                      (d_in * d_out).sum(axis=1))
-    reflex = turn < -1e-9
-    # samples per vertex: the vertex itself (fanned at a reflex corner), then the edge's interior
-    step = h / r_max
-    n_fan = np.where(reflex, np.minimum(np.ceil(-turn / step).astype(np.int64) + 1, 64), 1)
-    n_edge = np.maximum(np.ceil(length / h).astype(np.int64), 1) - 1
-    per = n_fan + n_edge
-    total = int(per.sum())
-    start = np.cumsum(per) - per
-    owner = np.repeat(np.arange(len(v)), per)
-    j = np.arange(total) - start[owner]
-    is_vertex = j < n_fan[owner]
-    # vertex samples: normal angle from n_in turning by `turn` (fan) or the bisector (convex)
-    frac = np.where(n_fan[owner] > 1, j / np.maximum(n_fan[owner] - 1, 1), 0.5)
-    ang_in = np.arctan2(n_in[owner, 1], n_in[owner, 0])
-    ang = ang_in + frac * turn[owner]
-    nv = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    t = (j - n_fan[owner] + 1) / (n_edge[owner] + 1)
-    t = np.where(is_vertex, 0.0, t)
-    pts = v[owner] + t[:, None] * e_out[owner]
-    nrm = np.where(is_vertex[:, None], nv, n_out[owner])
-    edge = owner
-    point_site = reflex & (-turn > _POINT_TURN)
-    dist_start = t * length[owner]
-    dist_end = (1.0 - t) * length[owner]
-    point_like = ((point_site[owner] & (dist_start <= 1.5 * h))
-                  | (point_site[nxt[owner]] & (dist_end <= 1.5 * h)))
-    cstart = np.concatenate([[0], np.cumsum(np.add.reduceat(per, np.cumsum(sizes) - sizes))])
+    sizes = np.array([len(p) for p in polys], dtype=np.int64)
+    return _sample_nb(np.concatenate(polys), sizes, h, h / r_max)
+
+
+@numba.njit(cache=True)
+def _sample_nb(v, sizes, h, fan_step):
+    """:func:`_sample_boundary` on the concatenated contours ``v`` (m, 2)."""
+    m = v.shape[0]
+    nxt = np.empty(m, np.int64)
+    prv = np.empty(m, np.int64)
+    cend = np.cumsum(sizes)
+    ncont = sizes.shape[0]
+    for c in range(ncont):
+        s0 = cend[c] - sizes[c]
+        for k in range(sizes[c]):
+            nxt[s0 + k] = s0 + (k + 1) % sizes[c]
+            prv[s0 + k] = s0 + (k - 1) % sizes[c]
+    length = np.empty(m)
+    dx = np.empty(m)
+    dy = np.empty(m)
+    for i in range(m):
+        ex = v[nxt[i], 0] - v[i, 0]
+        ey = v[nxt[i], 1] - v[i, 1]
+        length[i] = max(np.hypot(ex, ey), 1e-12)
+        dx[i] = ex / length[i]
+        dy[i] = ey / length[i]
+    turn = np.empty(m)
+    n_fan = np.empty(m, np.int64)
+    n_edge = np.empty(m, np.int64)
+    for i in range(m):
+        j = prv[i]
+        turn[i] = np.arctan2(dx[j] * dy[i] - dy[j] * dx[i], dx[j] * dx[i] + dy[j] * dy[i])
+        n_fan[i] = min(np.int64(np.ceil(-turn[i] / fan_step)) + 1, 64) if turn[i] < -1e-9 else 1
+        n_edge[i] = max(np.int64(np.ceil(length[i] / h)), 1) - 1
+    total = 0
+    for i in range(m):
+        total += n_fan[i] + n_edge[i]
+    pts = np.empty((total, 2))
+    nrm = np.empty((total, 2))
+    edge = np.empty(total, np.int64)
+    point_like = np.zeros(total, np.bool_)
+    cstart = np.empty(ncont + 1, np.int64)
+    k = 0
+    c = 0
+    for i in range(m):
+        if i == cend[c] - sizes[c]:
+            cstart[c] = k
+            c += 1
+        j = prv[i]
+        site = turn[i] < -_POINT_TURN
+        site_next = turn[nxt[i]] < -_POINT_TURN
+        ang_in = np.arctan2(dx[j], -dy[j])            # angle of the incoming edge's normal
+        for f in range(n_fan[i]):
+            frac = f / (n_fan[i] - 1) if n_fan[i] > 1 else 0.5
+            ang = ang_in + frac * turn[i]
+            pts[k, 0] = v[i, 0]
+            pts[k, 1] = v[i, 1]
+            nrm[k, 0] = np.cos(ang)
+            nrm[k, 1] = np.sin(ang)
+            edge[k] = i
+            point_like[k] = site or (site_next and length[i] <= 1.5 * h)
+            k += 1
+        for e in range(1, n_edge[i] + 1):
+            t = e / (n_edge[i] + 1)
+            pts[k, 0] = v[i, 0] + t * dx[i] * length[i]
+            pts[k, 1] = v[i, 1] + t * dy[i] * length[i]
+            nrm[k, 0] = -dy[i]
+            nrm[k, 1] = dx[i]
+            edge[k] = i
+            point_like[k] = ((site and t * length[i] <= 1.5 * h)
+                             or (site_next and (1.0 - t) * length[i] <= 1.5 * h))
+            k += 1
+    cstart[ncont] = k
     return pts, nrm, edge, point_like, cstart
 
 
 @numba.njit(cache=True)
-def _grid(pts, cell):
-    """Samples bucketed by square cells of side ``cell``: (order, sorted keys, x0, y0, ny)."""
-    x0 = pts[:, 0].min() - cell
-    y0 = pts[:, 1].min() - cell
-    ny = np.int64((pts[:, 1].max() - y0) / cell) + 3
+def _grid(pts, r_max, h):
+    """Samples bucketed by square cells (column-major, so that a column of cells is one
+    contiguous run): (samples in cell order, order, start (nx * ny + 1,), x0, y0, ny, cell).
+    The cell side is a quarter of the largest disc, coarser when the grid would pass 2 M cells."""
     n = pts.shape[0]
+    lo_x, lo_y, hi_x, hi_y = np.inf, np.inf, -np.inf, -np.inf
+    for i in range(n):
+        lo_x = min(lo_x, pts[i, 0])
+        hi_x = max(hi_x, pts[i, 0])
+        lo_y = min(lo_y, pts[i, 1])
+        hi_y = max(hi_y, pts[i, 1])
+    cell = max(0.25 * r_max, 2.0 * h)
+    cell = max(cell, np.sqrt((hi_x - lo_x + 4.0 * cell) * (hi_y - lo_y + 4.0 * cell) / 2e6))
+    x0 = lo_x - 2.0 * cell
+    y0 = lo_y - 2.0 * cell
+    nx = np.int64((hi_x - x0) / cell) + 5
+    ny = np.int64((hi_y - y0) / cell) + 5
     keys = np.empty(n, np.int64)
+    start = np.zeros(nx * ny + 1, np.int64)
     for i in range(n):
         keys[i] = np.int64((pts[i, 0] - x0) / cell) * ny + np.int64((pts[i, 1] - y0) / cell)
-    order = np.argsort(keys, kind="mergesort")
-    return order, keys[order], x0, y0, ny
+        start[keys[i] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, np.int64)
+    spts = np.empty((n, 2))
+    for i in range(n):
+        k = fill[keys[i]]
+        fill[keys[i]] += 1
+        order[k] = i
+        spts[k, 0] = pts[i, 0]
+        spts[k, 1] = pts[i, 1]
+    return spts, order, start, x0, y0, ny, cell
 
 
 @numba.njit(cache=True)
-def _inscribed_discs(pts, nrm, r_max, h):
+def _cells(start, ny, ix0, ix1, iy0, iy1):
+    """(lo, hi) ranges of the sorted samples in the cell block [ix0..ix1] x [iy0..iy1] (one per
+    column; the block is clamped to the grid)."""
+    nx = (start.shape[0] - 1) // ny
+    ix0 = max(ix0, 0)
+    ix1 = min(ix1, nx - 1)
+    iy0 = max(iy0, 0)
+    iy1 = min(iy1, ny - 1)
+    n = max(ix1 - ix0 + 1, 0)
+    lo = np.empty(n, np.int64)
+    hi = np.empty(n, np.int64)
+    for k in range(n):
+        col = (ix0 + k) * ny
+        lo[k] = start[col + iy0]
+        hi[k] = start[col + iy1 + 1]
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def _disc(pts, nrm, i, r_try, spts, order, start, x0, y0, ny, cell):
+    """Smallest ``|q - p|^2 / (2 n.(q - p))`` over the samples q in the box of the disc of radius
+    ``r_try`` tangent at sample i (exact when the result is below ``r_try``), and its q."""
+    px, py = pts[i, 0], pts[i, 1]
+    nx_, nyy = nrm[i, 0], nrm[i, 1]
+    cx, cy = px + r_try * nx_, py + r_try * nyy
+    ix0 = np.int64((cx - r_try - x0) / cell)
+    ix1 = np.int64((cx + r_try - x0) / cell)
+    iy0 = np.int64((cy - r_try - y0) / cell)
+    iy1 = np.int64((cy + r_try - y0) / cell)
+    nx = (start.shape[0] - 1) // ny
+    ix0 = max(ix0, 0)
+    ix1 = min(ix1, nx - 1)
+    iy0 = max(iy0, 0)
+    iy1 = min(iy1, ny - 1)
+    best = np.inf
+    bj = -1
+    for ix in range(ix0, ix1 + 1):
+        for k in range(start[ix * ny + iy0], start[ix * ny + iy1 + 1]):
+            dx = spts[k, 0] - px
+            dy = spts[k, 1] - py
+            proj = dx * nx_ + dy * nyy
+            if proj <= 1e-12:
+                continue
+            r = (dx * dx + dy * dy) / (2.0 * proj)
+            if r < best:
+                best = r
+                bj = k
+    return best, (order[bj] if bj >= 0 else -1)
+
+
+@numba.njit(cache=True)
+def _inscribed_discs(pts, nrm, r_max, h, spts, order, start, x0, y0, ny, cell):
     """Radius (n,) of the largest sample-free disc tangent at each sample (<= ``r_max``) and the
-    sample it touches (``partner``, -1 when none within ``r_max``)."""
-    cell = max(r_max * 0.5, 2.0 * h)
-    order, skeys, x0, y0, ny = _grid(pts, cell)
+    sample it touches (``partner``, -1 when none within ``r_max``). Each search first tries a
+    disc a little larger than the previous sample's (neighbours have nearly equal discs), and
+    the full ``r_max`` only when that one is empty."""
     n = pts.shape[0]
     radius = np.full(n, r_max)
     partner = np.full(n, -1, np.int64)
+    guess = r_max
     for i in range(n):
-        px, py = pts[i, 0], pts[i, 1]
-        nx, ny_ = nrm[i, 0], nrm[i, 1]
-        best = r_max
-        bj = -1
-        cx, cy = px + r_max * nx, py + r_max * ny_
-        ix0 = np.int64((cx - r_max - x0) / cell)
-        ix1 = np.int64((cx + r_max - x0) / cell)
-        iy0 = np.int64((cy - r_max - y0) / cell)
-        iy1 = np.int64((cy + r_max - y0) / cell)
-        for ix in range(ix0, ix1 + 1):
-            lo = np.searchsorted(skeys, ix * ny + iy0)
-            hi = np.searchsorted(skeys, ix * ny + iy1 + 1)
-            for k in range(lo, hi):
-                q = order[k]
-                dx = pts[q, 0] - px
-                dy = pts[q, 1] - py
-                d2 = dx * dx + dy * dy
-                if d2 < 1e-18:
-                    continue
-                proj = dx * nx + dy * ny_
-                if proj <= 0.0:
-                    continue
-                r = d2 / (2.0 * proj)
-                if r < best:
-                    best = r
-                    bj = q
-        radius[i] = best
-        partner[i] = bj
+        r_try = min(r_max, 1.15 * guess + 2.0 * h)
+        best, bj = _disc(pts, nrm, i, r_try, spts, order, start, x0, y0, ny, cell)
+        if best > r_try and r_try < r_max:
+            best, bj = _disc(pts, nrm, i, r_max, spts, order, start, x0, y0, ny, cell)
+        if best <= r_max:
+            radius[i] = best
+            partner[i] = bj
+        guess = radius[i]
     return radius, partner
 
 
-def _keep_mask(pts, centres, radius, partner, point_like, min_width, max_width, r_max):
+@numba.njit(cache=True)
+def _keep_mask(pts, centres, radius, partner, point_like, min_width, max_width):
     """Medial points to lay: opposite sides, width in range, one of each pair of sides."""
-    has = partner >= 0
-    q = pts[np.where(has, partner, 0)]
-    a = pts - centres
-    b = q - centres
-    cos = (a * b).sum(axis=1) / np.maximum(radius * np.hypot(b[:, 0], b[:, 1]), 1e-18)
-    pl = point_like | point_like[np.where(has, partner, 0)]
-    opposite = cos <= np.where(pl, _COS_POINT, _COS_OPPOSITE)
-    w = 2.0 * radius
-    return has & opposite & (w >= min_width) & (w <= max_width) & (np.arange(len(pts)) < partner)
+    n = pts.shape[0]
+    keep = np.zeros(n, np.bool_)
+    for i in range(n):
+        q = partner[i]
+        w = 2.0 * radius[i]
+        if q <= i or w < min_width or w > max_width:
+            continue
+        ax, ay = pts[i, 0] - centres[i, 0], pts[i, 1] - centres[i, 1]
+        bx, by = pts[q, 0] - centres[i, 0], pts[q, 1] - centres[i, 1]
+        cos = (ax * bx + ay * by) / max(radius[i] * np.hypot(bx, by), 1e-18)
+        limit = _COS_POINT if (point_like[i] or point_like[q]) else _COS_OPPOSITE
+        keep[i] = cos <= limit
+    return keep
 
 
 @numba.njit(cache=True)
@@ -315,85 +392,123 @@ def _join_chains(chains, centres, widths, h):
     return out
 
 
-def _extend_ends(m, w, pts, edge, seg_a, seg_b, h):
-    """(m, w) with free ends carried along their direction to the boundary when it is within 0.75 of the
-    end's width ahead (the square end of a strip, where the axis stops half a width short)."""
-    m = m.copy()
-    for end in (0, -1):
-        tip = m[end]
-        wend = w[end]
-        back = m[::-1] if end == -1 else m
-        dist = np.hypot(*(back - tip).T)
-        k = int(np.searchsorted(dist > 0.5 * wend, True)) if (dist > 0.5 * wend).any() else len(m) - 1
-        k = max(k, 1)
-        d = tip - back[min(k, len(m) - 1)]
-        nd = np.hypot(*d)
-        if nd < 1e-9:
-            continue
-        d = d / nd
-        reach = 0.75 * wend
-        near = np.hypot(*(pts - tip).T) <= reach + 2.0 * h
-        cand = np.unique(edge[near])
-        if len(cand) == 0:
-            continue
-        a = seg_a[cand]
-        b = seg_b[cand]
-        e = b - a
-        den = d[0] * e[:, 1] - d[1] * e[:, 0]
-        ok = np.abs(den) > 1e-12
-        rel = a - tip
-        s = np.where(ok, (rel[:, 0] * e[:, 1] - rel[:, 1] * e[:, 0]) / np.where(ok, den, 1.0), np.inf)
-        u = np.where(ok, (rel[:, 0] * d[1] - rel[:, 1] * d[0]) / np.where(ok, den, 1.0), -1.0)
-        hit = ok & (s > 0) & (u >= 0) & (u <= 1)
-        if not hit.any():
-            continue
-        s_hit = s[hit].min()
-        if s_hit > reach:
-            continue
-        ext = tip + d * max(s_hit - 0.005, 0.0)
-        if end == 0:
-            m = np.vstack([ext, m])
-            w = np.append(w[0], w)
-        else:
-            m = np.vstack([m, ext])
-            w = np.append(w, w[-1])
-    return m, w
+@numba.njit(cache=True)
+def _ray_to_boundary(tip, d, reach, edge, seg_a, seg_b, spts, order, start, x0, y0, ny, cell):
+    """Distance from ``tip`` along unit ``d`` to the first boundary edge, if below ``reach``
+    (else inf); the edges are those of the samples within ``reach`` of the tip."""
+    box = reach + cell
+    lo, hi = _cells(start, ny, np.int64((tip[0] - box - x0) / cell), np.int64((tip[0] + box - x0) / cell),
+                    np.int64((tip[1] - box - y0) / cell), np.int64((tip[1] + box - y0) / cell))
+    best = np.inf
+    for c in range(lo.shape[0]):
+        for k in range(lo[c], hi[c]):
+            e = edge[order[k]]
+            ax, ay = seg_a[e, 0] - tip[0], seg_a[e, 1] - tip[1]
+            ex, ey = seg_b[e, 0] - seg_a[e, 0], seg_b[e, 1] - seg_a[e, 1]
+            den = d[0] * ey - d[1] * ex
+            if abs(den) < 1e-12:
+                continue
+            s = (ax * ey - ay * ex) / den
+            u = (ax * d[1] - ay * d[0]) / den
+            if s > 0.0 and 0.0 <= u <= 1.0 and s < best:
+                best = s
+    return best if best <= reach else np.inf
 
 
 @numba.njit(cache=True)
-def _pieces_nb(m, w, step):
-    """Piece bounds (first, last point) along one chain: a new piece where the width leaves the
-    running (length-weighted) mean of the piece by more than ``step``."""
-    n = m.shape[0]
-    lo = np.empty(n, np.int64)
-    hi = np.empty(n, np.int64)
-    k = 0
-    a = 0
-    acc = 0.0
-    tot = 0.0
-    for i in range(1, n):
-        seg = np.hypot(m[i, 0] - m[i - 1, 0], m[i, 1] - m[i - 1, 1])
-        wi = 0.5 * (w[i] + w[i - 1])
-        if tot > 0.0:
-            mean = acc / tot
-            if abs(wi - mean) > step * mean:
-                lo[k] = a
-                hi[k] = i - 1
-                k += 1
+def _extend(m, w, edge, seg_a, seg_b, spts, order, start, x0, y0, ny, cell):
+    """Free ends of chain ``m`` (k, 2) carried along their direction to the boundary when it is
+    within 0.75 of the end's width ahead (the square end of a strip, where the axis stops half a
+    width short; PrusaSlicer extends such ends too). Returns (m, w) with up to 2 more points."""
+    k = m.shape[0]
+    out_m = np.empty((k + 2, 2))
+    out_w = np.empty(k + 2)
+    out_m[1:k + 1] = m
+    out_w[1:k + 1] = w
+    first = 1
+    last = k
+    for end in range(2):
+        t = 0 if end == 0 else k - 1
+        step = 1 if end == 0 else -1
+        tip = m[t]
+        j = t
+        while 0 <= j + step < k:
+            j += step
+            if np.hypot(m[j, 0] - tip[0], m[j, 1] - tip[1]) > 0.5 * w[t]:
+                break
+        d = tip - m[j]
+        nd = np.hypot(d[0], d[1])
+        if nd < 1e-9:
+            continue
+        d = d / nd
+        s = _ray_to_boundary(tip, d, 0.75 * w[t], edge, seg_a, seg_b, spts, order, start, x0, y0, ny, cell)
+        if s == np.inf:
+            continue
+        slot = 0 if end == 0 else k + 1
+        out_m[slot] = tip + d * max(s - 0.005, 0.0)
+        out_w[slot] = w[t]
+        if end == 0:
+            first = 0
+        else:
+            last = k + 1
+    return out_m[first:last + 1], out_w[first:last + 1]
+
+
+@numba.njit(cache=True)
+def _finish(centres, widths, idx, offs, closed, edge, seg_a, seg_b, min_width, h,
+            spts, order, start, x0, y0, ny, cell):
+    """Chains -> pieces: ends extended, split where the width leaves the piece's running mean by
+    more than 10%, pieces shorter than ``min_width`` dropped, each simplified. Returns the
+    pieces as a ragged array (points (p, 2), offsets (q + 1,), width (q,))."""
+    nch = offs.shape[0] - 1
+    cap = 2 * idx.shape[0] + 4 * nch + 4
+    out_p = np.empty((cap, 2))
+    out_o = np.empty(cap + 1, np.int64)
+    out_w = np.empty(cap)
+    npts = 0
+    npc = 0
+    out_o[0] = 0
+    for c in range(nch):
+        sel = idx[offs[c]:offs[c + 1]]
+        k = sel.shape[0]
+        extra = 1 if closed[c] else 0
+        m = np.empty((k + extra, 2))
+        w = np.empty(k + extra)
+        for i in range(k):
+            m[i] = centres[sel[i]]
+            w[i] = widths[sel[i]]
+        if closed[c]:
+            m[k] = m[0]
+            w[k] = w[0]
+        else:
+            m, w = _extend(m, w, edge, seg_a, seg_b, spts, order, start, x0, y0, ny, cell)
+        n = m.shape[0]
+        a = 0
+        acc = 0.0
+        tot = 0.0
+        for i in range(1, n + 1):
+            split = i == n
+            if not split:
+                seg = np.hypot(m[i, 0] - m[i - 1, 0], m[i, 1] - m[i - 1, 1])
+                wi = 0.5 * (w[i] + w[i - 1])
+                split = tot > 0.0 and abs(wi - acc / tot) > _WIDTH_STEP * acc / tot
+            if split:
+                if tot >= min_width:
+                    keep = _simplify(m[a:i], 0.25 * h)
+                    for j in range(a, i):
+                        if keep[j - a]:
+                            out_p[npts] = m[j]
+                            npts += 1
+                    out_w[npc] = acc / tot
+                    npc += 1
+                    out_o[npc] = npts
                 a = i - 1
                 acc = 0.0
                 tot = 0.0
-        acc += wi * seg
-        tot += seg
-    lo[k] = a
-    hi[k] = n - 1
-    k += 1
-    return lo[:k], hi[:k]
-
-
-def _pieces(m, w, step):
-    """Pieces of one chain at near-constant width (see :func:`_pieces_nb`)."""
-    return _pieces_nb(np.ascontiguousarray(m), np.ascontiguousarray(w), step)
+            if i < n:
+                acc += wi * seg
+                tot += seg
+    return out_p[:npts].copy(), out_o[:npc + 1].copy(), out_w[:npc].copy()
 
 
 @numba.njit(cache=True)
