@@ -68,36 +68,26 @@ def medial_lines(region: manifold3d.CrossSection, min_width: float, max_width: f
         return []
     h = float(np.clip(min_width / 3.0, 0.02, 0.05))
     r_max = 0.5 * max_width * 1.05
-    pts, nrm, edge, point_like, cstart = _sample_boundary(polys, h, r_max)
+    pts, nrm, edge, point_like, cstart, seg_a, seg_b = _sample_boundary(polys, h, r_max)
     grid = _grid(pts, r_max, h)
     radius, partner = _inscribed_discs(pts, nrm, r_max, h, *grid)
     centres = pts + radius[:, None] * nrm
     widths = 2.0 * radius
     keep = _keep_mask(pts, centres, radius, partner, point_like, min_width, max_width)
-    chains = _chain(centres, widths, keep, cstart, h)
-    chains = _join_chains(chains, centres, widths, h)
-    seg_a, seg_b = _edges(polys)
-    idx = np.concatenate([c for c, _ in chains]) if chains else np.zeros(0, np.int64)
-    offs = np.concatenate([[0], np.cumsum([len(c) for c, _ in chains])]).astype(np.int64)
-    closed = np.array([z for _, z in chains], dtype=np.bool_)
+    idx, offs = _chain_nb(centres, widths, keep, cstart, h)
+    idx, offs, closed = _join_nb(centres, widths, idx, offs, h)
     out_pts, out_offs, out_w = _finish(centres, widths, idx, offs, closed, edge, seg_a, seg_b,
                                        min_width, h, *grid)
     return [(out_pts[out_offs[k]:out_offs[k + 1]], float(out_w[k])) for k in range(len(out_w))]
-
-
-def _edges(polys: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end points (m, 2) of every boundary edge, in the order of :func:`_sample_boundary`."""
-    a = np.concatenate(polys)
-    b = np.concatenate([np.roll(p, -1, axis=0) for p in polys])
-    return a, b
 
 
 def _sample_boundary(polys: list[np.ndarray], h: float, r_max: float):
     """Boundary samples every <= ``h`` with inward normals, fanned at reflex corners.
 
     Returns ``pts`` (n, 2), ``nrm`` (n, 2) unit inward normals, ``edge`` (n,) the boundary edge
-    of each sample (index into :func:`_edges`), ``point_like`` (n,) bool (at or within 1.5 h of a
-    reflex corner that is a point site), ``cstart`` (c + 1,) the first sample of each contour.
+    of each sample, ``point_like`` (n,) bool (at or within 1.5 h of a reflex corner that is a
+    point site), ``cstart`` (c + 1,) the first sample of each contour, and the edges' start and
+    end points ``seg_a``, ``seg_b`` (m, 2).
     The region lies left of each contour (manifold3d: outer contours counter-clockwise).
     """
     sizes = np.array([len(p) for p in polys], dtype=np.int64)
@@ -173,14 +163,14 @@ def _sample_nb(v, sizes, h, fan_step):
                              or (site_next and (1.0 - t) * length[i] <= 1.5 * h))
             k += 1
     cstart[ncont] = k
-    return pts, nrm, edge, point_like, cstart
+    return pts, nrm, edge, point_like, cstart, v, v[nxt]
 
 
 @numba.njit(cache=True)
 def _grid(pts, r_max, h):
     """Samples bucketed by square cells (column-major, so that a column of cells is one
     contiguous run): (samples in cell order, order, start (nx * ny + 1,), x0, y0, ny, cell).
-    The cell side is a quarter of the largest disc, coarser when the grid would pass 2 M cells."""
+    The cell side is 0.15 of the largest disc, coarser when the grid would pass 2 M cells."""
     n = pts.shape[0]
     lo_x, lo_y, hi_x, hi_y = np.inf, np.inf, -np.inf, -np.inf
     for i in range(n):
@@ -188,7 +178,7 @@ def _grid(pts, r_max, h):
         hi_x = max(hi_x, pts[i, 0])
         lo_y = min(lo_y, pts[i, 1])
         hi_y = max(hi_y, pts[i, 1])
-    cell = max(0.25 * r_max, 2.0 * h)
+    cell = max(0.15 * r_max, 2.0 * h)
     cell = max(cell, np.sqrt((hi_x - lo_x + 4.0 * cell) * (hi_y - lo_y + 4.0 * cell) / 2e6))
     x0 = lo_x - 2.0 * cell
     y0 = lo_y - 2.0 * cell
@@ -269,16 +259,17 @@ def _inscribed_discs(pts, nrm, r_max, h, spts, order, start, x0, y0, ny, cell):
     """Radius (n,) of the largest sample-free disc tangent at each sample (<= ``r_max``) and the
     sample it touches (``partner``, -1 when none within ``r_max``). Each search first tries a
     disc a little larger than the previous sample's (neighbours have nearly equal discs), and
-    the full ``r_max`` only when that one is empty."""
+    doubles it while it is empty, up to ``r_max``."""
     n = pts.shape[0]
     radius = np.full(n, r_max)
     partner = np.full(n, -1, np.int64)
     guess = r_max
     for i in range(n):
-        r_try = min(r_max, 1.15 * guess + 2.0 * h)
+        r_try = min(r_max, 1.05 * guess + 0.5 * h)
         best, bj = _disc(pts, nrm, i, r_try, spts, order, start, x0, y0, ny, cell)
-        if best > r_try and r_try < r_max:
-            best, bj = _disc(pts, nrm, i, r_max, spts, order, start, x0, y0, ny, cell)
+        while best > r_try and r_try < r_max:
+            r_try = min(r_max, 2.0 * r_try)
+            best, bj = _disc(pts, nrm, i, r_try, spts, order, start, x0, y0, ny, cell)
         if best <= r_max:
             radius[i] = best
             partner[i] = bj
@@ -337,59 +328,99 @@ def _chain_nb(centres, widths, keep, cstart, h):
     return idx[:m], offs[:nc + 1]
 
 
-def _chain(centres, widths, keep, cstart, h):
-    """Chains of kept samples as a list of index arrays (each >= 2 points)."""
-    idx, offs = _chain_nb(centres, widths, keep, cstart, h)
-    return [idx[a:b] for a, b in zip(offs[:-1], offs[1:]) if b - a >= 2]
-
-
-def _join_chains(chains, centres, widths, h):
+@numba.njit(cache=True)
+def _join_nb(centres, widths, idx, offs, h):
     """Chains joined where their ends meet (the seam of a contour, a switch of the side that
-    carries a branch); a chain whose ends meet is closed. Returns [(indices, closed)]."""
-    if not chains:
-        return []
-    ends = np.array([[c[0], c[-1]] for c in chains])          # (m, 2) sample indices
-    p = centres[ends.ravel()]                                    # end points, 2 per chain
-    w = widths[ends.ravel()]
-    tol = np.maximum(4.0 * h, 0.35 * np.minimum(w[:, None], w[None, :]))
-    d = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
-    ii, jj = np.nonzero((d <= tol) & (np.arange(len(p))[:, None] < np.arange(len(p))[None, :]))
-    order = np.argsort(d[ii, jj], kind="stable")
-    link = np.full(len(p), -1)                                    # end -> end it joins
-    for a, b in zip(ii[order], jj[order]):
-        if link[a] < 0 and link[b] < 0 and a // 2 != b // 2:
-            link[a] = b
-            link[b] = a
-    out = []
-    seen = np.zeros(len(chains), bool)
-    # walk from chain ends that are free (or anything left: cycles)
-    starts = [e for e in range(len(p)) if link[e] < 0] + list(range(len(p)))
-    for e in starts:
-        c = e // 2
-        if seen[c]:
-            continue
-        parts = []
-        closed = False
-        cur = e
-        while True:
-            c = cur // 2
-            seen[c] = True
-            parts.append(chains[c] if cur % 2 == 0 else chains[c][::-1])
-            other = link[cur ^ 1]
-            if other < 0:
+    carries a branch), nearest pairs first; a chain whose own ends meet is closed. Chains of one
+    point are dropped. Returns (indices, offsets, closed) of the joined chains."""
+    keep = np.empty(offs.shape[0] - 1, np.int64)
+    nc = 0
+    for c in range(offs.shape[0] - 1):
+        if offs[c + 1] - offs[c] >= 2:
+            keep[nc] = c
+            nc += 1
+    ne = 2 * nc
+    ends = np.empty(ne, np.int64)                    # end e: chain e // 2, start (even) or end (odd)
+    for c in range(nc):
+        ends[2 * c] = idx[offs[keep[c]]]
+        ends[2 * c + 1] = idx[offs[keep[c] + 1] - 1]
+    reach = 4.0 * h
+    for e in range(ne):
+        reach = max(reach, 0.35 * widths[ends[e]])
+    by_x = np.argsort(centres[ends, 0])
+    pa = np.empty(0, np.int64)
+    pb = np.empty(0, np.int64)
+    pd = np.empty(0)
+    na = 0
+    for u in range(ne):
+        a = by_x[u]
+        for v in range(u + 1, ne):
+            b = by_x[v]
+            dx = centres[ends[b], 0] - centres[ends[a], 0]
+            if dx > reach:
                 break
-            if seen[other // 2]:
-                closed = True
-                break
-            cur = other
-        idx = np.concatenate(parts)
-        if not closed:
-            gap = np.hypot(*(centres[idx[0]] - centres[idx[-1]]))
-            seg = np.hypot(*np.diff(centres[idx], axis=0).T).sum()
-            wmin = min(widths[idx[0]], widths[idx[-1]])
-            closed = gap <= max(4.0 * h, 0.35 * wmin) and seg > 4.0 * wmin
-        out.append((idx, closed))
-    return out
+            if a // 2 == b // 2:
+                continue
+            d = np.hypot(dx, centres[ends[b], 1] - centres[ends[a], 1])
+            if d <= max(4.0 * h, 0.35 * min(widths[ends[a]], widths[ends[b]])):
+                if na == pa.shape[0]:
+                    grow = max(16, 2 * na)
+                    pa = np.concatenate((pa, np.empty(grow, np.int64)))
+                    pb = np.concatenate((pb, np.empty(grow, np.int64)))
+                    pd = np.concatenate((pd, np.empty(grow)))
+                pa[na] = a
+                pb[na] = b
+                pd[na] = d
+                na += 1
+    link = np.full(ne, -1, np.int64)
+    for k in np.argsort(pd[:na]):
+        if link[pa[k]] < 0 and link[pb[k]] < 0:
+            link[pa[k]] = pb[k]
+            link[pb[k]] = pa[k]
+    out = np.empty(idx.shape[0], np.int64)
+    out_offs = np.zeros(nc + 1, np.int64)
+    closed = np.zeros(nc, np.bool_)
+    seen = np.zeros(nc, np.bool_)
+    m = 0
+    nout = 0
+    for sweep in range(2):                           # from free ends first, then what is left: cycles
+        for e0 in range(ne):
+            if seen[e0 // 2] or (sweep == 0 and link[e0] >= 0):
+                continue
+            cur = e0
+            is_loop = False
+            while True:
+                c = cur // 2
+                seen[c] = True
+                lo, hi = offs[keep[c]], offs[keep[c] + 1]
+                if cur % 2 == 0:
+                    for k in range(lo, hi):
+                        out[m] = idx[k]
+                        m += 1
+                else:
+                    for k in range(hi - 1, lo - 1, -1):
+                        out[m] = idx[k]
+                        m += 1
+                other = link[cur ^ 1]
+                if other < 0:
+                    break
+                if seen[other // 2]:
+                    is_loop = True
+                    break
+                cur = other
+            first, last = out[out_offs[nout]], out[m - 1]
+            if not is_loop:
+                gap = np.hypot(centres[first, 0] - centres[last, 0], centres[first, 1] - centres[last, 1])
+                wmin = min(widths[first], widths[last])
+                run = 0.0
+                for k in range(out_offs[nout] + 1, m):
+                    run += np.hypot(centres[out[k], 0] - centres[out[k - 1], 0],
+                                    centres[out[k], 1] - centres[out[k - 1], 1])
+                is_loop = gap <= max(4.0 * h, 0.35 * wmin) and run > 4.0 * wmin
+            closed[nout] = is_loop
+            nout += 1
+            out_offs[nout] = m
+    return out[:m], out_offs[:nout + 1], closed[:nout]
 
 
 @numba.njit(cache=True)
