@@ -146,3 +146,28 @@ def test_hundred_gaps_take_under_50_ms():
     assert len(lines) == 100
     assert covered(lines) == pytest.approx(gaps.area(), rel=0.05)
     assert best < 0.050
+
+
+def thin_wall(points, width):
+    """A wall of ``width`` along the polyline ``points`` (k, 2), round-ended (a union of stadiums)."""
+    ring = np.stack([np.cos(np.linspace(0, 2 * np.pi, 24, endpoint=False)),
+                     np.sin(np.linspace(0, 2 * np.pi, 24, endpoint=False))], axis=1) * (width / 2)
+    parts = [CS.hull_points(np.vstack([a + ring, b + ring])) for a, b in zip(points[:-1], points[1:])]
+    return CS.batch_boolean(parts, manifold3d.OpType.Add)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(steps=st.lists(st.tuples(st.floats(1.5, 5.0), st.floats(-3.0, 3.0)), min_size=2, max_size=6),
+       width=st.floats(0.15, 0.8))
+def test_zigzag_thin_wall_lines_cover_it_inside_and_in_range(steps, width):
+    # a wall along a polyline going on in x (it never folds onto itself, so it stays thin)
+    steps = np.array(steps)
+    pts = np.stack([np.cumsum(steps[:, 0]), steps[:, 1]], axis=1)
+    region = thin_wall(pts, width)
+    min_w, max_w = 0.1, 0.9
+    lines = medial_lines(region, min_w, max_w)
+    for p, w in lines:
+        assert inside(region, p).all()
+        assert min_w <= w <= max_w
+        assert length(p) >= min_w
+    assert covered(lines) == pytest.approx(region.area(), rel=0.15)
