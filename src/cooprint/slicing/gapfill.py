@@ -11,8 +11,9 @@ CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
   region's area (PrusaSlicer's gap fill: ThickPolylines of variable width). Pieces shorter than
   ``min_width`` are dropped. Whole-array work; no Python loop per point.
 
-How (a sampled medial axis, no Voronoi library): the boundary is sampled every ``h`` (a quarter
-of ``min_width``, 0.01-0.05 mm), each sample with its inward normal; at a reflex corner the
+How (a sampled medial axis, no Voronoi library): the boundary is sampled every ``h`` (a third of
+``min_width``, 0.025-0.05 mm: the samples lie on the exact edges, so the widths are exact to
+``h^2 / 4 w``), each sample with its inward normal; at a reflex corner the
 sample is repeated with normals fanned from one edge's normal to the next (the corner is a point
 site, its medial branch a parabola). For each sample ``p`` with normal ``n`` the largest disc
 tangent at ``p`` and empty of samples has radius ``min_q |q - p|^2 / (2 n.(q - p))`` (discs
@@ -66,7 +67,7 @@ def medial_lines(region: manifold3d.CrossSection, min_width: float, max_width: f
     polys = [np.asarray(p, dtype=np.float64) for p in region.to_polygons() if len(p) >= 3]
     if not polys:
         return []
-    h = float(np.clip(min_width / 3.0, 0.02, 0.05))
+    h = float(np.clip(min_width / 3.0, 0.025, 0.05))
     r_max = 0.5 * max_width * 1.05
     pts, nrm, edge, point_like, cstart, seg_a, seg_b = _sample_boundary(polys, h, r_max)
     grid = _grid(pts, r_max, h)
