@@ -298,8 +298,8 @@ def _keep_mask(pts, centres, radius, partner, point_like, min_width, max_width):
 
 @numba.njit(cache=True)
 def _chain_nb(centres, widths, keep, cstart, h):
-    """Chains of kept samples in boundary order: (sample indices, chain offsets, contour of each
-    chain, whether it starts at its contour's first kept sample, ends at its last)."""
+    """Chains of kept samples in boundary order, a new chain at each contour and wherever the
+    medial point jumps (a branch): (sample indices (m,), chain offsets (c + 1,))."""
     n = centres.shape[0]
     idx = np.empty(n, np.int64)
     offs = np.empty(n + 1, np.int64)
