@@ -160,7 +160,7 @@ def test_a_model_sliced_alone_and_planned_for_one_robot_gets_the_same_overhangs(
     run(stl, tmp_path / "job", robots=1, picture=False)
     found, bridged = [], []
     for inputs in ([str(gcode)], [str(tmp_path / "job")]):
-        res = simulate(load_inputs(inputs))
+        res = simulate(load_inputs(inputs, programs=False))  # a bundle's programs piece by piece, as the CLI
         hits = [f for f in res.findings if f.kind == "overhang"]
         found.append((sum(f.count for f in hits), sorted({round(f.position[2], 2) for f in hits})))
         tl = res.timelines[res.robots[0].name]
@@ -175,3 +175,22 @@ def test_a_model_sliced_alone_and_planned_for_one_robot_gets_the_same_overhangs(
         assert found[0][0] > 0 and found[0][1][0] == pytest.approx(6.2)
     elif bridged[0]:  # the table's slab laid as a bridge from leg to leg: nothing found
         assert found[0][0] == found[1][0] == 0
+
+
+def test_timelines_timed_piece_by_piece_hold_the_same_bridges():
+    """A bundle's programs are timed piece by piece and their moves' lengths computed on demand
+    (timeline.Lengths): the overhang check holds the same threads as with the lengths kept."""
+    from cooprint.simulation.checks import STEP, Material, overhangs
+    from cooprint.simulation.timeline import Lengths
+
+    for legs, slab in (([(0.0, 10.0), (30.0, 40.0)], (0.0, 40.0)), ([(0.0, 10.0)], (0.0, 30.0))):
+        for joined in (True, False):
+            prog = canonical_program("C", _model(legs, slab, BRIDGE, joined))
+            robot = SimRobot("A", prog, None, np.array([0.0, 1.0]))
+            res = simulate(SimInput([robot], RobotProfile(), SlicingSettings(), "test"), checks=False)
+            tl = res.timelines["A"]
+            lazy = {"A": dataclasses.replace(tl, length=Lengths(tl.p0, tl.p1))}
+            material = Material.sample(res.robots, res.timelines, STEP, H)
+            kept = overhangs(res.robots, res.timelines, material, SlicingSettings())
+            assert overhangs(res.robots, lazy, material, SlicingSettings()) == kept
+            assert bool(kept) == (len(legs) == 1)

@@ -534,11 +534,19 @@ def anchored(material: Material, block: slice, bad: np.ndarray, moves: np.ndarra
     thread = np.isin(r.program.role[tl.index[moves]], ROUND_ROLES)
     if not thread.any():
         return held
-    # extrusions: the moves between two travels (moves that go somewhere without depositing)
-    breaks = np.flatnonzero(~tl.on & (tl.length > 0))
+    # runs of consecutive unsupported points, the points right before and after each, their moves
+    new = np.r_[True, np.diff(bad) != 1]
+    before, after = bad[new] - 1, bad[np.r_[new[1:], True]] + 1
+    ends = np.clip(np.stack([before, after]), block.start, block.stop - 1)  # (2, runs)
+    end_moves = material.moves(ends.ravel(), tl)
+    # extrusions: the moves between two travels (moves that go somewhere without depositing),
+    # numbered over the moves these points lie on (a timeline's lengths may be computed on demand)
+    lo, hi = int(min(moves.min(), end_moves.min())), int(max(moves.max(), end_moves.max())) + 1
+    off = lo + np.flatnonzero(~tl.on[lo:hi])
+    breaks = off[tl.length[off] > 0]
     extrusion = np.searchsorted(breaks, moves)
-    # stretches of consecutive unsupported points on one extrusion
-    new = np.r_[True, (np.diff(bad) != 1) | (np.diff(extrusion) != 0)]
+    # stretches: the runs cut where the extrusion changes
+    new |= np.r_[True, np.diff(extrusion) != 0]
     first = np.flatnonzero(new)
     last = np.r_[first[1:], len(bad)] - 1
     before, after = bad[first] - 1, bad[last] + 1
