@@ -489,10 +489,10 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
     bridge's thread anchored at both ends (:func:`anchored`).
 
     Cells of ``radius / 2`` from half a cell before the material's lowest x and y (the same
-    material laid elsewhere gets the same findings): each (cell, height) keeps the earliest time material was there; a
-    point looks in its band of heights in its own cell, then in the 24 cells around. So a point
-    with material within ``radius`` below is never an overhang, and one is found when nothing lies
-    within ``radius`` (up to about 2.1 ``radius`` on the diagonals)."""
+    material laid elsewhere gets the same findings): each (cell, height) keeps the earliest time
+    material was there; a point looks in its band of heights in its own cell, then in the 24 cells
+    around. So a point with material within ``radius`` below is never an overhang, and one is
+    found when nothing lies within ``radius`` (up to about 2.1 ``radius`` on the diagonals)."""
     if radius is None:
         spacing = slicing.extrusion_width / slicing.infill_density if slicing.infill_density > 0 else 0.0
         radius = max(OVERHANG_RADIUS, spacing / 2 + STEP)
@@ -561,9 +561,9 @@ def anchored(material: Material, block: slice, bad: np.ndarray, moves: np.ndarra
     p = material.xyz[bad, :2].astype(np.float64)
     ab = b - a
     u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
-    off = np.hypot(*(p - a - u[:, None] * ab).T)
+    aside = np.hypot(*(p - a - u[:, None] * ab).T)
     straight = np.ones(len(first), dtype=bool)
-    np.logical_and.at(straight, stretch, off <= reach)
+    np.logical_and.at(straight, stretch, aside <= reach)
     return thread & (held_ends & straight)[stretch]
 
 
