@@ -364,3 +364,50 @@ def test_the_thinned_notice_says_so_and_can_be_closed(plan, chromium, tmp_path):
         page.assert_clean()
     finally:
         page.close()
+
+
+def test_the_role_colours_name_every_role_of_the_plan(chromium, viewer_bundle, tmp_path):
+    """Issue 17's roles in the viewer's "role" mode: a G-code with a patch of every extrusion role
+    (PrusaSlicer's ;TYPE: names, written by cooprint's writer), simulated and viewed: the legend
+    names each role present, with ROLE_COLOURS' colours, and the colourful ones are drawn."""
+    import dataclasses
+
+    from cooprint.config import SlicingSettings
+    from cooprint.program.gcode import gcode_text
+    from cooprint.program.stream import canonical_program
+    from cooprint.render.paths import ROLE_COLOURS
+    from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER,
+                                        ROLE_NAMES, SKIN, TOP_SKIN, TRAVEL, LayerPaths)
+
+    def patch(x0, y0, step, n=12):
+        ys = np.arange(y0, y0 + n + 1e-9, step)
+        return np.vstack([np.array([[x0, y], [x0 + n, y]])[::1 - 2 * (k % 2)] for k, y in enumerate(ys)])
+
+    roles = (INFILL, SKIN, TOP_SKIN, BRIDGE, GAP_FILL, PERIMETER_OUTER, PERIMETER_INNER, OVERHANG)
+    layers = []
+    for i in range(3):
+        paths = []
+        for k, role in enumerate(roles):
+            if paths:
+                paths.append((np.array([paths[-1][0][-1], [14 * (k % 4), 14 * (k // 4)]]), TRAVEL, 0.0))
+            paths.append((patch(14 * (k % 4), 14 * (k // 4), 0.5), role, 0.5))
+        layers.append((i, LayerPaths.build(0.2 * (i + 1), 0.2, paths)))
+    prog = canonical_program("C", layers)
+    gcode = tmp_path / "roles.gcode"
+    gcode.write_text(gcode_text([dataclasses.replace(prog, xyz=prog.xyz + [100.0, 100.0, 0.0])], SlicingSettings()))
+    _cli("simulate", gcode, "--out", tmp_path / "roles", "-q")
+    _cli("view", tmp_path / "roles")
+    view = open_viewer(chromium, tmp_path / "roles" / "sim" / "viewer.html")
+    try:
+        view.hook(f"(c.pause(), c.seek({view.hook('c.makespan')}))")
+        view.page.select_option("#colour-mode", "role")
+        assert view.hook("c.colourMode()") == "role"
+        legend = view.page.locator("#legend").inner_text()
+        lines = [line.strip() for line in legend.splitlines() if line.strip()]
+        assert sorted(lines) == sorted(ROLE_NAMES[r] for r in roles), legend
+        img = shot(view)
+        for role in (BRIDGE, OVERHANG, SKIN, PERIMETER_INNER):  # hues of their own (the reds and greys share)
+            assert colour_pixels(img, ROLE_COLOURS[role]) > 200, ROLE_NAMES[role]
+        view.assert_clean()
+    finally:
+        view.page.close()

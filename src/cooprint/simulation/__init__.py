@@ -24,6 +24,7 @@ from cooprint.simulation.inputs import (ScheduleEstimate, SimInput, SimInputErro
                                         read_chunk_meshes)
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, schedule, schedule_pieces, severity
+from cooprint.slicing.paths import ROUND_ROLES
 
 #: Finding kinds, in the order summaries list them: the robot's outline against material and
 #: other robots, the nozzle and the material it lays (in material, twice, in the chunks' order,
@@ -196,10 +197,15 @@ def _concurrently(groups: list[list]) -> list[Finding]:
 
 
 def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings, a: int = 0, e: int | None = None) -> np.ndarray:
-    """(k,) mm^3 each move of a robot lays down (its moves ``a:e``, all by default): width x
-    height x length with the tool on, 0 without (a program without width and height annotations
-    prints at the slicing settings' width and layer)."""
-    w, h = r.bead(tl.index[a:e], s.extrusion_width, s.layer_height)
+    """(k,) mm^3 each move of a robot lays down (its moves ``a:e``, all by default): the flow
+    cross-section of its role (:func:`~cooprint.slicing.paths.flow_area`: a squashed bead, or
+    the round thread of a bridge or overhang perimeter) x length with the tool on, 0 without
+    (a program without width and height annotations prints at the slicing settings' width and
+    layer). The G-code writer's E is this area x length, so a summary's material is its E."""
+    index = tl.index[a:e]
+    w, h = r.bead(index, s.extrusion_width, s.layer_height)
+    round_ = np.flatnonzero(np.isin(r.program.role[index], ROUND_ROLES))
+    thread = np.pi * (w[round_] / 2) ** 2  # flow_area of the round roles
     # extrusion_area(w, h) * length, 0 where the tool is off, in w's array (the same operations
     # in the same order: the same numbers, without a temporary of each)
     np.subtract(w, h, out=w)
@@ -209,6 +215,7 @@ def move_volumes(r: SimRobot, tl: Timeline, s: SlicingSettings, a: int = 0, e: i
     h *= np.pi
     w += h
     del h
+    w[round_] = thread
     w *= tl.length[a:e]
     np.copyto(w, 0.0, where=~tl.on[a:e])
     return w
@@ -234,7 +241,7 @@ class Frames:
         How many of each robot's moves are finished (its timeline's ``[:done]``): the material
         so far is their deposits, and the move under way up to the nozzle.
     material : (T, R) float64
-        mm^3 each robot has laid down (width x height x length, the part of the move under way
+        mm^3 each robot has laid down (:func:`move_volumes`, the part of the move under way
         included).
     facing : (T, R, 2) float64
         The direction each robot faces (from its body to its nozzle), as its turns leave it.

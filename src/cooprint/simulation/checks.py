@@ -46,6 +46,7 @@ from cooprint.geometry import unit_xy
 from cooprint.simulation import kernels
 from cooprint.simulation.inputs import ChunkMesh
 from cooprint.simulation.timeline import Finding, SimRobot, Timeline, changes, segment_max
+from cooprint.slicing.paths import ROUND_ROLES
 
 #: Spacing of nozzle and material samples, mm.
 STEP = 2.0
@@ -484,28 +485,86 @@ def overhangs(robots: list[SimRobot], timelines: dict[str, Timeline], material: 
               slicing: SlicingSettings, radius: float | None = None) -> list[Finding]:
     """Material laid down with nothing below it: no material laid down before whose top is at most
     one layer of air lower (between 2.5 and 0.5 of the point's layer height below it) within
-    ``radius`` mm, and not on the floor (a warning; one finding per robot and chunk).
+    ``radius`` mm, and not on the floor (a warning; one finding per robot and chunk); except a
+    bridge's thread anchored at both ends (:func:`anchored`).
 
-    Cells of ``radius / 2``: each (cell, height) keeps the earliest time material was there; a
-    point looks in its band of heights in its own cell, then in the 24 cells around. So a point
-    with material within ``radius`` below is never an overhang, and one is found when nothing lies
-    within ``radius`` (up to about 2.1 ``radius`` on the diagonals)."""
+    Cells of ``radius / 2`` from half a cell before the material's lowest x and y (the same
+    material laid elsewhere gets the same findings): each (cell, height) keeps the earliest time
+    material was there; a point looks in its band of heights in its own cell, then in the 24 cells
+    around. So a point with material within ``radius`` below is never an overhang, and one is
+    found when nothing lies within ``radius`` (up to about 2.1 ``radius`` on the diagonals)."""
     if radius is None:
         spacing = slicing.extrusion_width / slicing.infill_density if slicing.infill_density > 0 else 0.0
         radius = max(OVERHANG_RADIUS, spacing / 2 + STEP)
     xyz, t, h = material.xyz, material.t, material.h
     if len(t) == 0:
         return []
-    todo = np.flatnonzero(kernels.overhang_flags(xyz, h, t, radius / 2))
+    # cells from half a cell before the material's corner: the same material laid anywhere gets the
+    # same cells (not the floating point's rounding at cell edges when its sizes are whole cells)
+    origin = (float(xyz[:, 0].min()) - radius / 4, float(xyz[:, 1].min()) - radius / 4)
+    todo = np.flatnonzero(kernels.overhang_flags(xyz, h, t, radius / 2, origin=origin))
     findings = []
     for i, r in enumerate(robots):
         block = material.robot(i)
         bad = todo[np.searchsorted(todo, block.start):np.searchsorted(todo, block.stop)]
-        findings += _group([(t[bad], xyz[bad], material.moves(bad, timelines[r.name]))], "overhang", r,
-                           timelines[r.name],
+        moves = material.moves(bad, timelines[r.name])
+        keep = ~anchored(material, block, bad, moves, r, timelines[r.name], radius)
+        bad, moves = bad[keep], moves[keep]
+        findings += _group([(t[bad], xyz[bad], moves)], "overhang", r, timelines[r.name],
                            f"material laid down with nothing below it within {radius:g} mm (more than one layer "
                            "of air)")
     return findings
+
+
+def anchored(material: Material, block: slice, bad: np.ndarray, moves: np.ndarray, r: SimRobot, tl: Timeline,
+             reach: float) -> np.ndarray:
+    """(k,) bool: which of the points ``bad`` (a robot's material with nothing below it, indices
+    into ``material`` in ``block``, laid by its ``moves``) are a bridge's thread held at both ends:
+    laid with a round role (``ROUND_ROLES``: bridge infill, overhang perimeter; the slicer lays
+    them over air on purpose, as a thread with bridge flow and speed), in a stretch of unsupported
+    points along one continuous extrusion (no travel between them) that has a supported point
+    (material within ``reach`` below) right before it and right after it on the same extrusion,
+    and that runs straight between those two anchors (every point within ``reach`` of the segment
+    joining them, in XY). A bridge line from one anchor to the other is held; a bridge that runs
+    out into the air (a cantilever: an end with nothing within reach), or that goes out and back
+    from one side, is not. Other roles keep the rule (their points are never held)."""
+    held = np.zeros(len(bad), dtype=bool)
+    if not len(bad):
+        return held
+    thread = np.isin(r.program.role[tl.index[moves]], ROUND_ROLES)
+    if not thread.any():
+        return held
+    # runs of consecutive unsupported points, the points right before and after each, their moves
+    new = np.r_[True, np.diff(bad) != 1]
+    before, after = bad[new] - 1, bad[np.r_[new[1:], True]] + 1
+    ends = np.clip(np.stack([before, after]), block.start, block.stop - 1)  # (2, runs)
+    end_moves = material.moves(ends.ravel(), tl)
+    # extrusions: the moves between two travels (moves that go somewhere without depositing),
+    # numbered over the moves these points lie on (a timeline's lengths may be computed on demand)
+    lo, hi = int(min(moves.min(), end_moves.min())), int(max(moves.max(), end_moves.max())) + 1
+    off = lo + np.flatnonzero(~tl.on[lo:hi])
+    breaks = off[tl.length[off] > 0]
+    extrusion = np.searchsorted(breaks, moves)
+    # stretches: the runs cut where the extrusion changes
+    new |= np.r_[True, np.diff(extrusion) != 0]
+    first = np.flatnonzero(new)
+    last = np.r_[first[1:], len(bad)] - 1
+    before, after = bad[first] - 1, bad[last] + 1
+    inside = (before >= block.start) & (after < block.stop)
+    ends = np.clip(np.stack([before, after]), block.start, block.stop - 1)  # (2, stretches)
+    ends_extrusion = np.searchsorted(breaks, material.moves(ends.ravel(), tl)).reshape(2, -1)
+    held_ends = inside & (ends_extrusion[0] == extrusion[first]) & (ends_extrusion[1] == extrusion[last])
+    # every point within reach of the segment between its stretch's anchors
+    stretch = np.cumsum(new) - 1
+    a = material.xyz[ends[0], :2].astype(np.float64)[stretch]
+    b = material.xyz[ends[1], :2].astype(np.float64)[stretch]
+    p = material.xyz[bad, :2].astype(np.float64)
+    ab = b - a
+    u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0.0, 1.0)
+    aside = np.hypot(*(p - a - u[:, None] * ab).T)
+    straight = np.ones(len(first), dtype=bool)
+    np.logical_and.at(straight, stretch, aside <= reach)
+    return thread & (held_ends & straight)[stretch]
 
 
 def robots_collide(robots: list[SimRobot], timelines: dict[str, Timeline], profile: RobotProfile,

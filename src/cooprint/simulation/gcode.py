@@ -40,8 +40,8 @@ from cooprint.interrupts import hold_compiles
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT
 from cooprint.program.scan import POW10, decimal
 from cooprint.simulation.inputs import SimInputError
-from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
-                                    TOP_SKIN, TRAVEL, extrusion_width)
+from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER,
+                                    ROUND_ROLES, SKIN, TOP_SKIN, TRAVEL, extrusion_width, round_width)
 
 hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
 
@@ -522,8 +522,9 @@ def _move_rows(m: int, xyz: np.ndarray, feed: np.ndarray, de: np.ndarray, dep: n
     speed[row] = feed
     pushed = np.zeros(rows)
     pushed[row] = de
-    # the width whose flow cross-section carries the filament pushed: the length as the line
-    # reader's np.linalg.norm (a BLAS dot, which np.vecdot calls too), then its extrusion_width
+    # the width whose flow cross-section (flow_area, by role) carries the filament pushed: the
+    # length as the line reader's np.linalg.norm (a BLAS dot, which np.vecdot calls too), then its
+    # extrusion_width, or for a round role its round_width
     d = np.flatnonzero(dep)
     start = np.empty((len(d), 3))
     start[d > 0] = xyz[d[d > 0] - 1]
@@ -531,7 +532,11 @@ def _move_rows(m: int, xyz: np.ndarray, feed: np.ndarray, de: np.ndarray, dep: n
     step = xyz[d] - start
     length = np.sqrt(np.vecdot(step, step))
     width = np.zeros(rows)
-    width[row[d]] = _widths(de[d] * fil_area / length, layer_h[d])
+    area = de[d] * fil_area / length
+    w = _widths(area, layer_h[d])
+    round_ = np.isin(role[d], ROUND_ROLES)  # a bridge's thread: the circle of that area (flow_area)
+    w[round_] = round_width(area[round_])
+    width[row[d]] = w
     height = np.zeros(rows)
     height[row[d]] = layer_h[d]
     roles = np.full(rows, TRAVEL, np.uint8)

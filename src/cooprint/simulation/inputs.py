@@ -25,7 +25,7 @@ from cooprint.io.files import path_kind, regular_file
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, iter_coop, make_program, read_coop
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
-from cooprint.slicing.paths import INFILL, TRAVEL, extrusion_width
+from cooprint.slicing.paths import INFILL, ROUND_ROLES, TRAVEL, extrusion_width, round_width
 
 
 class SimInputError(SchemaError):
@@ -761,8 +761,10 @@ def _read_gcode_lines(p: Path, text: str, filament_diameter: float = 1.75) -> Si
             roles.append(role)
             xyz.append(tuple(target))
             speeds.append(feed)
-            # the width whose flow cross-section carries the filament pushed
-            widths.append(float(extrusion_width(de * fil_area / length, layer_h)) if deposit else 0.0)
+            # the width whose flow cross-section (flow_area, by role) carries the filament pushed
+            area = de * fil_area / length if deposit else 0.0
+            widths.append(0.0 if not deposit else float(round_width(area)) if role in ROUND_ROLES
+                          else float(extrusion_width(area, layer_h)))
             heights.append(layer_h if deposit else 0.0)
             pushed.append(de)
             pos = target

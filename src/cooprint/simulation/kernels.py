@@ -380,36 +380,36 @@ OVERHANG_HEIGHT = np.dtype([("z", "<i4"), ("t", "<f8")])
 
 
 @_inline
-def _column(x, cell, ox):
-    return int(np.floor(x / cell)) - ox
+def _column(x, cell, ox, x0):
+    return int(np.floor((x - x0) / cell)) - ox
 
 
 @_jit
-def overhang_grid(xyz, cell):
-    """The cells of the overhang test: ``ox, oy`` (the first cell, 2 below the lowest so that
-    the 24 around each point exist), ``nx, ny`` (how many), ``zmin`` (the lowest height) and
-    how many points lie in each column of cells (nx,)."""
+def overhang_grid(xyz, cell, x0, y0):
+    """The cells of the overhang test (squares of ``cell`` from ``x0, y0``): ``ox, oy`` (the
+    first cell, 2 below the lowest so that the 24 around each point exist), ``nx, ny`` (how
+    many), ``zmin`` (the lowest height) and how many points lie in each column of cells (nx,)."""
     mx, my, zmin, top_x, top_y = np.inf, np.inf, np.inf, -np.inf, -np.inf
     for i in range(len(xyz)):
-        fx, fy = np.floor(xyz[i, 0] / cell), np.floor(xyz[i, 1] / cell)
+        fx, fy = np.floor((xyz[i, 0] - x0) / cell), np.floor((xyz[i, 1] - y0) / cell)
         mx, my, top_x, top_y = min(mx, fx), min(my, fy), max(top_x, fx), max(top_y, fy)
         zmin = min(zmin, float(xyz[i, 2]))
     ox, oy = int(mx) - 2, int(my) - 2
     nx, ny = int(top_x) - ox + 3, int(top_y) - oy + 3
     columns = np.zeros(nx, np.int64)
     for i in range(len(xyz)):
-        columns[_column(xyz[i, 0], cell, ox)] += 1
+        columns[_column(xyz[i, 0], cell, ox, x0)] += 1
     return ox, oy, nx, ny, zmin, columns
 
 
 @_jit
-def overhang_cells(xyz, cell, ox, oy, ny):
+def overhang_cells(xyz, cell, ox, oy, ny, x0, y0):
     """(k,) int32: the cell of each point (``column * ny + row`` of :func:`overhang_grid`'s
     cells), computed once so that each band of :func:`overhang_band` finds its points by one
     comparison instead of two divisions per point and band."""
     out = np.empty(len(xyz), np.int32)
     for i in range(len(xyz)):
-        out[i] = _column(xyz[i, 0], cell, ox) * ny + int(np.floor(xyz[i, 1] / cell)) - oy
+        out[i] = _column(xyz[i, 0], cell, ox, x0) * ny + int(np.floor((xyz[i, 1] - y0) / cell)) - oy
     return out
 
 
@@ -557,7 +557,7 @@ OVERHANG_MAX_CELLS = 1 << 23
 
 
 def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, budget: int = 1 << 21,
-                   max_cells: int = OVERHANG_MAX_CELLS) -> np.ndarray:
+                   max_cells: int = OVERHANG_MAX_CELLS, origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
     """(k,) bool: :func:`overhang_band`'s test of every point, band by band of columns of cells
     with at most about ``budget`` points each (and the two columns on each side), so that the
     work space stays small whatever the print's size.
@@ -565,13 +565,18 @@ def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, b
     A plan spread over a very large area (a program that jumps a kilometre) would need bands of
     more than ``max_cells`` cells: then each band holds only its own points, with its own rows
     (from its lowest to its highest point), and a band still too large is split in two, so that
-    the cells and the work stay proportional to the points, not to the area."""
+    the cells and the work stay proportional to the points, not to the area.
+
+    The cells are squares of ``cell`` from ``origin`` (x, y, mm): the simulator puts it at the
+    material's lowest corner, so that the same material laid anywhere gets the same cells and
+    the same flags (a model sliced for a printer's bed and planned for a robot on the floor)."""
     out = np.zeros(len(t), dtype=bool)
     if len(t) == 0:
         return out
-    ox, oy, nx, ny, zmin, columns = overhang_grid(xyz, cell)
+    x0, y0 = origin
+    ox, oy, nx, ny, zmin, columns = overhang_grid(xyz, cell, x0, y0)
     if (nx + 4) * ny > max_cells:
-        _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out)
+        _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out, x0, y0)
         return out
     counts = np.cumsum(columns)
     cuts = [0]
@@ -581,13 +586,13 @@ def overhang_flags(xyz: np.ndarray, h: np.ndarray, t: np.ndarray, cell: float, b
     cuts[-1] = nx
     most = max(int(columns[max(a - 2, 0):b + 2].sum()) for a, b in zip(cuts[:-1], cuts[1:]))
     rec, heights = np.empty(most, OVERHANG_POINT), np.empty(most, OVERHANG_HEIGHT)
-    cellid = overhang_cells(xyz, cell, ox, oy, ny)
+    cellid = overhang_cells(xyz, cell, ox, oy, ny, x0, y0)
     for a, b in zip(cuts[:-1], cuts[1:]):
         overhang_band(xyz, h, t, cellid, ny, zmin, a, b, rec, heights, out)
     return out
 
 
-def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
+def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out, x0, y0) -> None:
     """:func:`overhang_flags` over a very large area: bands of columns, each given only the
     points of its columns and the two on each side (in their order, so times keep their order).
 
@@ -596,8 +601,8 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
     (neighbours within two rows stay so, points farther apart stay farther), and its points are
     handed over at the centres of their renumbered cells, with cells of 1: the cells a band needs
     go with its points, not with the area. A band of too many cells or points is split in two."""
-    col = (np.floor(xyz[:, 0].astype(np.float64) / cell) - ox).astype(np.int64)  # as _column computes it
-    row = np.floor(xyz[:, 1].astype(np.float64) / cell)
+    col = (np.floor((xyz[:, 0].astype(np.float64) - x0) / cell) - ox).astype(np.int64)  # as _column computes it
+    row = np.floor((xyz[:, 1].astype(np.float64) - y0) / cell)
     order = np.argsort(col, kind="stable")
     sorted_col = col[order]
     todo = [(int(sorted_col[0]), int(sorted_col[-1]) + 1)]
@@ -622,7 +627,7 @@ def _overhang_sparse(xyz, h, t, cell, ox, zmin, budget, max_cells, out) -> None:
         local[:, 1] = renumbered[inverse.ravel()[in_order]] + 0.5
         local[:, 2] = xyz[idx, 2]
         sub = np.zeros(len(idx), dtype=bool)
-        overhang_band(local, h[idx], t[idx], overhang_cells(local, 1.0, 0, -2, ny), ny, zmin, 2, b - a + 2,
+        overhang_band(local, h[idx], t[idx], overhang_cells(local, 1.0, 0, -2, ny, 0.0, 0.0), ny, zmin, 2, b - a + 2,
                       np.empty(len(idx), OVERHANG_POINT), np.empty(len(idx), OVERHANG_HEIGHT), sub)
         out[idx] |= sub
 

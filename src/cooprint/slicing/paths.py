@@ -103,6 +103,12 @@ def extrusion_width(area: np.ndarray | float, height: np.ndarray | float) -> np.
     return (np.asarray(area) - np.pi * (h / 2) ** 2) / h + h
 
 
+def round_width(area: np.ndarray | float) -> np.ndarray | float:
+    """The diameter of the round thread (a ``ROUND_ROLES`` path's width) whose cross-section is
+    ``area``, mm: :func:`flow_area`'s inverse for those roles, ``2 sqrt(area / pi)``."""
+    return np.sqrt(np.asarray(area) / np.pi) * 2.0
+
+
 def extrusion_spacing(width: float, height: float) -> float:
     """Centre distance of two touching lines of that flow, mm: ``w - h (1 - pi / 4)``.
 
