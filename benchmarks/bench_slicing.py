@@ -63,6 +63,8 @@ TYPE_CATEGORY = {
     **dict.fromkeys(("internal infill", "fill"), "sparse"),
     "gap fill": "gap fill",
 }
+#: Roles that a tool's ``;TYPE:`` names do not tell apart: what its cell in the table says.
+UNTYPED = {"CuraEngine": {"bridge": "in solid (SKIN)", "gap fill": "no type"}}
 #: Issue 17's targets for cooprint: extruded volume against PrusaSlicer's (total, solid +
 #: bridge, sparse), wall time against CuraEngine's (meshes of >= 1 M faces, benchy), peak memory.
 TOTAL_TOLERANCE, SOLID_TOLERANCE, SPARSE_TOLERANCE = 0.05, 0.10, 0.10
@@ -185,19 +187,19 @@ def read_gcode(path: Path, keep_moves: bool = False) -> tuple[dict, np.ndarray |
     (the default); G92 sets the E origin. Layers are the distinct heights (to 1 µm) at which
     something is extruded. Each extrusion counts for the role of the last ``;TYPE:`` comment
     before it (:data:`TYPE_CATEGORY`); ``roles_mm3`` is None when the file has no such comment.
+    ``types_mm3`` keeps the volume of each ``;TYPE:`` name as written.
     """
     pos = {"X": 0.0, "Y": 0.0, "Z": 0.0, "E": 0.0}
     relative_e = False
-    typed = False
-    category = CATEGORIES.index("other")
-    per_category = [0.0] * len(CATEGORIES)
+    name = ""
+    per_name = {name: 0.0}  # filament per ;TYPE: name ("" before the first)
     moves = array("d")
     heights = set()
     with open(path) as f:
         for raw in f:
             if raw.startswith(";TYPE:"):
-                typed = True
-                category = CATEGORIES.index(TYPE_CATEGORY.get(raw[6:].strip().lower(), "other"))
+                name = raw[6:].strip()
+                per_name.setdefault(name, 0.0)
                 continue
             line = raw.split(";", 1)[0].strip()
             if not line:
@@ -219,16 +221,19 @@ def read_gcode(path: Path, keep_moves: bool = False) -> tuple[dict, np.ndarray |
                     if keep_moves:
                         moves.extend((pos["X"], pos["Y"], words.get("X", pos["X"]),
                                       words.get("Y", pos["Y"]), words.get("Z", pos["Z"])))
-                    per_category[category] += e_step
+                    per_name[name] += e_step
                     heights.add(round(words.get("Z", pos["Z"]), 3))
                 pos |= {k: words[k] for k in "XYZ" if k in words}
     area = math.pi * (FILAMENT_MM / 2) ** 2
-    filament = sum(per_category)
+    filament = sum(per_name.values())
+    roles = dict.fromkeys(CATEGORIES, 0.0)
+    for type_name, e in per_name.items():
+        roles[TYPE_CATEGORY.get(type_name.lower(), "other")] += e * area
     estimate = PRUSA_ESTIMATE.search(tail(path))
     summary = {"layers": len(heights), "filament_mm": round(filament, 2),
                "volume_mm3": round(filament * area, 1),
-               "roles_mm3": {c: round(e * area, 1) for c, e in zip(CATEGORIES, per_category)}
-               if typed else None,
+               "roles_mm3": {c: round(v, 1) for c, v in roles.items()} if len(per_name) > 1 else None,
+               "types_mm3": {n or "(before any ;TYPE:)": round(e * area, 1) for n, e in per_name.items()},
                "estimated_time": estimate.group(1) if estimate else None}
     return summary, (np.frombuffer(moves, dtype=np.float64).reshape(-1, 5) if keep_moves else None)
 
@@ -466,7 +471,8 @@ def render(result: dict) -> str:
         "the start, middle and end of every extrusion move of cooprint's G-code against the "
         "mesh's cross-section at the middle of that layer, computed by the benchmark from the "
         f"triangles; a point more than {HALF_WIDTH_MM:g} mm (half the 0.45 mm extrusion width) "
-        "outside it counts as outside.",
+        "outside it counts as outside (on an open mesh the sections have gaps where its holes "
+        "are, so points near them may be counted outside wrongly).",
         "",
         *[verdict(row) for row in rows],
     ]
@@ -532,7 +538,9 @@ def role_rows(row: dict) -> list[str]:
             cells = ["no `;TYPE:` comments"] + ["—"] * (len(columns) - 2) + [
                 f"{data['volume_mm3']:,.0f} ({ratio(data['volume_mm3'], ref.get('total'), '×')})"]
         else:
-            cells = [f"{volumes[c]:,.0f} ({ratio(volumes[c], ref.get(c), '×')})" for c in columns]
+            untyped = UNTYPED.get(tool, {})
+            cells = [untyped.get(c) or f"{volumes[c]:,.0f} ({ratio(volumes[c], ref.get(c), '×')})"
+                     for c in columns]
         lines.append("| " + " | ".join([mesh_label(row), tool, *cells]) + " |")
     return lines
 
@@ -572,7 +580,7 @@ def checks(row: dict) -> list[tuple[str, bool]]:
         out.append((f"layers {coop['layers']} vs {ref['layers']}", coop["layers"] == ref["layers"]))
     inside = coop.get("inside")
     if inside and "skipped" not in inside:
-        out.append((f"{inside['outside']:,} of {inside['points']:,} extrusion points outside",
+        out.append((f"outside the model: {inside['outside']:,} of {inside['points']:,} points",
                     inside["outside"] == 0))
     if coop["wall_median_s"] and speed.get("wall_median_s"):
         times = coop["wall_median_s"] / speed["wall_median_s"]
