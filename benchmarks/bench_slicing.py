@@ -233,7 +233,8 @@ def read_gcode(path: Path, keep_moves: bool = False) -> tuple[dict, np.ndarray |
     summary = {"layers": len(heights), "filament_mm": round(filament, 2),
                "volume_mm3": round(filament * area, 1),
                "roles_mm3": {c: round(v, 1) for c, v in roles.items()} if len(per_name) > 1 else None,
-               "types_mm3": {n or "(before any ;TYPE:)": round(e * area, 1) for n, e in per_name.items()},
+               "types_mm3": {n or "(before any ;TYPE:)": round(e * area, 1)
+                             for n, e in per_name.items() if n or e},
                "estimated_time": estimate.group(1) if estimate else None}
     return summary, (np.frombuffer(moves, dtype=np.float64).reshape(-1, 5) if keep_moves else None)
 

@@ -130,6 +130,7 @@ def test_large_part_is_the_size_asked():
 def test_types_kept_as_written(tmp_path):
     summary, _ = read(tmp_path, CURA)
     assert set(summary["types_mm3"]) == {"(before any ;TYPE:)", "WALL-OUTER", "WALL-INNER", "SKIN", "FILL"}
+    assert "(before any ;TYPE:)" not in read(tmp_path, PRUSA)[0]["types_mm3"]
     assert summary["types_mm3"]["SKIN"] == pytest.approx(4.0 * AREA, abs=0.1)
 
 
