@@ -17,6 +17,7 @@ import struct
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 GNU_TIME = "/usr/bin/time"
 TIMEOUT_S = 1800
@@ -41,13 +42,19 @@ class BenchContext:
     skip_peers: bool
 
 
-def resolve_meshes(shared: Path, names: list[str]) -> list[Path]:
+def resolve_meshes(shared: Path, names: list[str], work: Path | None = None,
+                   generated: dict[str, Callable[[Path], Path]] | None = None) -> list[Path]:
     """Paths of the named meshes in ``shared/meshes`` (``.stl``/``.stl.gz`` may be left off).
 
-    Absent meshes are reported and skipped.
+    A name of ``generated`` (a stage's meshes made in code) is made by its function, which gets
+    the ``work`` folder and returns the mesh's path there. Absent meshes are reported and skipped.
     """
     found = []
     for name in names:
+        make = next((generated[n] for n in (name, name + ".stl") if n in (generated or {})), None)
+        if make is not None and work is not None:
+            found.append(make(work))
+            continue
         candidates = [shared / "meshes" / (name + ext) for ext in ("", ".stl", ".stl.gz")]
         path = next((p for p in candidates if p.is_file()), None)
         if path is None:

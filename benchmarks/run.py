@@ -4,8 +4,10 @@
                                        [--skip-peers]
 
 A stage is a module ``bench_<stage>.py`` with NAME, TITLE, DEFAULT_MESHES, PEER_PACKAGES
-(Debian packages of its peers), ``run(ctx, meshes) -> dict`` (JSON-ready, with at least
-``runs``, ``tools`` and ``sources_changed``) and ``render(result) -> str``; add it to STAGES.
+(Debian packages of its peers), optionally GENERATED (mesh name -> function that makes the mesh
+in the work folder and returns its path), ``run(ctx, meshes) -> dict`` (JSON-ready, with at
+least ``runs``, ``tools`` and ``sources_changed``) and ``render(result) -> str``; add it to
+STAGES.
 Each stage's result is kept in docs/bench/<NAME>.json and the page is rebuilt from all of them,
 so re-running one stage keeps the sections of the others.
 """
@@ -56,7 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     machine = machine_info()
     for stage in stages:
         print(f"== {stage.TITLE}", flush=True)
-        meshes = resolve_meshes(SHARED, args.meshes or stage.DEFAULT_MESHES)
+        meshes = resolve_meshes(SHARED, args.meshes or stage.DEFAULT_MESHES, WORK,
+                                getattr(stage, "GENERATED", None))
         result = stage.run(ctx, meshes)
         result.update(stage=stage.NAME, date=now(), machine=machine, revision=revision())
         if result["sources_changed"]:
