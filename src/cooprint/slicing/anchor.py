@@ -12,14 +12,285 @@ CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
   (PrusaSlicer's connect_infill); a line end left unjoined gets an anchor: the ring followed from
   it for at most ``anchor`` mm (not into another line's end). ``anchor = 0`` and
   ``anchor_max = 0`` return ``lines`` unchanged. No added stretch leaves the region.
+
+How (written from PrusaSlicer 2.5's Fill::connect_infill, not copied): every line end is placed
+on its ring by arc length; "consecutive" ends are neighbours along a ring (no other line end
+between them). The stretches between neighbours are taken shortest first: one shorter than
+``anchor_max`` joins its two lines unless they already belong to one polyline (no loops); a
+longer one gets an anchor from each end into it. Ends still free then join a neighbour within
+``anchor_max`` or get an anchor along the side with more free ring. An anchor stops half a line
+width short of the neighbouring end, and the neighbour's own anchor stops where it begins, so
+no stretch of ring is printed twice. Ends farther than ``END_TOL`` from every ring stay as they
+are. (PrusaSlicer also masks the ring where an infill line runs along it; not done here.)
 """
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 
+from cooprint.slicing.patterns import chain_order
+from cooprint.slicing.rings import RingSet
 
-def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float
-                  ) -> list[np.ndarray]:
-    """``lines`` joined and anchored along ``rings`` (module docstring)."""
-    return list(lines)
+#: A line end within this distance of a ring is on it, mm.
+END_TOL = 1e-3
+#: Default line width (``anchor_infill``'s ``width``): anchors stop half of it short of the next
+#: line's end, mm (PrusaSlicer's sparse infill width for a 0.4 mm nozzle).
+LINE_WIDTH = 0.45
+
+
+def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float,
+                  width: float = LINE_WIDTH) -> list[np.ndarray]:
+    """``lines`` joined and anchored along ``rings`` (module docstring).
+
+    Parameters
+    ----------
+    lines : list of (k, 2) float
+        Infill polylines (k >= 2) in print order, ends on the rings.
+    rings : list of (m, 2) float
+        The region's closed rings (outlines and holes).
+    anchor : float
+        Longest anchor, mm (PrusaSlicer's infill_anchor); 0: no anchors.
+    anchor_max : float
+        Longest stretch of ring that joins two lines, mm (infill_anchor_max); 0: no joins.
+    width : float
+        Line width, mm: an anchor stops half of it short of a neighbouring line's end.
+
+    Returns
+    -------
+    list of (j, 2) float64
+        The joined and anchored polylines, in nearest-next order from the first line's start.
+    """
+    lines = [np.asarray(p, dtype=np.float64)[:, :2] for p in lines if len(p) >= 2]
+    if (anchor <= 0 and anchor_max <= 0) or not lines:
+        return list(lines)
+    rs = RingSet(rings)
+    if not len(rs):
+        return list(lines)
+    n = len(lines)
+    ends = np.empty((2 * n, 2))
+    ends[0::2] = [p[0] for p in lines]
+    ends[1::2] = [p[-1] for p in lines]
+    edge, t, _ = rs.nearest(ends, END_TOL)
+    on = edge >= 0
+    ring = np.where(on, rs.ring_of[np.maximum(edge, 0)], -1)
+    param = np.where(on, rs.param[np.maximum(edge, 0)] + t * rs.seg_len[np.maximum(edge, 0)], 0.0)
+    # neighbours along each ring: sort the ends on rings by (ring, arc length)
+    idx = np.flatnonzero(on)
+    idx = idx[np.lexsort((param[idx], ring[idx]))]
+    nxt = np.full(2 * n, -1, np.int64)
+    prv = np.full(2 * n, -1, np.int64)
+    if len(idx):
+        r = ring[idx]
+        first = np.r_[True, r[1:] != r[:-1]]
+        last = np.r_[r[1:] != r[:-1], True]
+        heads = np.maximum.accumulate(np.where(first, np.arange(len(idx)), 0))
+        after = np.where(last, heads, np.arange(len(idx)) + 1)
+        nxt[idx] = idx[after]
+        prv[idx[after]] = idx
+    ring_len = np.where(on, rs.ring_len[np.maximum(ring, 0)], 0.0)
+    arc = np.where(on, np.mod(param[np.maximum(nxt, 0)] - param, np.where(on, ring_len, 1.0)), 0.0)
+    arc = np.where(on & (nxt == np.arange(2 * n)), ring_len, arc)
+    join, hook = _connect(nxt, prv, arc, ring_len, float(anchor), float(anchor_max), 0.5 * float(width))
+    return _assemble(lines, rs, ring, param, join, hook)
+
+
+@numba.njit(cache=True)
+def _find(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@numba.njit(cache=True)
+def _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook):
+    """Anchor end ``e`` along its ring, forward (side 1) or backward (-1), into the stretch
+    towards its neighbour; the neighbour's free stretch on that side shrinks accordingly."""
+    eps = 1e-9
+    free = nt_next[e] if side > 0 else nt_prev[e]
+    if consumed[e] or free <= eps:
+        return
+    f = nxt[e] if side > 0 else prv[e]
+    if f == e:
+        stretch = ring_len[e]
+    else:
+        stretch = arc[e] if side > 0 else arc[prv[e]]
+    length = max(0.0, min(anchor, free, stretch - hw))
+    consumed[e] = True
+    if side > 0:
+        nt_next[e] = 0.0
+        trim_next[e] = True
+    else:
+        nt_prev[e] = 0.0
+        trim_prev[e] = True
+    if f == e:
+        nt_next[e] = 0.0
+        nt_prev[e] = 0.0
+        trim_next[e] = True
+        trim_prev[e] = True
+    elif side > 0:
+        if stretch - length < nt_prev[f]:
+            nt_prev[f] = stretch - length
+            trim_prev[f] = True
+    else:
+        if stretch - length < nt_next[f]:
+            nt_next[f] = stretch - length
+            trim_next[f] = True
+    if length > eps:
+        hook[e] = side * length
+
+
+@numba.njit(cache=True)
+def _connect(nxt, prv, arc, ring_len, anchor, anchor_max, hw):
+    """Which ends join which (``join[e]``: the other end, -1: none; the stretch runs forward
+    along the ring from the end ``e`` with ``join_forward``) and the signed anchor of every
+    free end (``hook[e]``: + forward, - backward, 0 none). Returns (join * 2 + forward flag
+    encoded as join_code (-1 none; 2 * other + 1 forward; 2 * other backward), hook)."""
+    m = nxt.shape[0]
+    consumed = nxt < 0
+    nt_next = np.full(m, np.inf)
+    nt_prev = np.full(m, np.inf)
+    trim_next = np.zeros(m, np.bool_)
+    trim_prev = np.zeros(m, np.bool_)
+    parent = np.arange(m // 2)
+    code = np.full(m, -1, np.int64)
+    hook = np.zeros(m)
+    # stretches between neighbours, shortest first
+    cand = np.empty(m, np.int64)
+    nc = 0
+    for e in range(m):
+        if nxt[e] >= 0 and nxt[e] != e:
+            cand[nc] = e
+            nc += 1
+    cand = cand[:nc]
+    cand = cand[np.argsort(arc[cand], kind="mergesort")]
+    for e in cand:
+        f = nxt[e]
+        if consumed[e] or consumed[f] or trim_next[e] or trim_prev[f]:
+            continue
+        g1, g2 = _find(parent, e // 2), _find(parent, f // 2)
+        if g1 == g2:
+            continue
+        if arc[e] < anchor_max:
+            code[e] = 2 * f + 1
+            code[f] = 2 * e
+            consumed[e] = consumed[f] = True
+            nt_next[e] = nt_prev[f] = 0.0
+            trim_next[e] = trim_prev[f] = True
+            parent[max(g1, g2)] = min(g1, g2)
+        elif anchor > 0:
+            _hook(e, 1, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook)
+            _hook(f, -1, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook)
+    # the ends still free: join a neighbour within anchor_max, else anchor on the freer side
+    for e in range(m):
+        if consumed[e]:
+            continue
+        p, f = prv[e], nxt[e]
+        lp = arc[p] if (p != e and not consumed[p] and not trim_prev[e] and not trim_next[p]) else np.inf
+        ln = arc[e] if (f != e and not consumed[f] and not trim_next[e] and not trim_prev[f]) else np.inf
+        joined = False
+        for k in range(2):
+            back = (lp <= ln) if k == 0 else (lp > ln)
+            length = lp if back else ln
+            if length == np.inf or length > anchor_max:
+                break
+            o = p if back else f
+            g1, g2 = _find(parent, e // 2), _find(parent, o // 2)
+            if g1 == g2:
+                continue
+            if back:
+                code[e] = 2 * o
+                code[o] = 2 * e + 1
+                nt_prev[e] = nt_next[o] = 0.0
+                trim_prev[e] = trim_next[o] = True
+            else:
+                code[e] = 2 * o + 1
+                code[o] = 2 * e
+                nt_next[e] = nt_prev[o] = 0.0
+                trim_next[e] = trim_prev[o] = True
+            consumed[e] = consumed[o] = True
+            parent[max(g1, g2)] = min(g1, g2)
+            joined = True
+            break
+        if not joined and anchor > 0:
+            side = -1 if nt_prev[e] > nt_next[e] else 1
+            _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook)
+    return code, hook
+
+
+def _stretch(rs: RingSet, r: int, p0: float, p1: float, forward: bool) -> np.ndarray:
+    """The ring vertices strictly between arc lengths ``p0`` and ``p1`` of ring ``r`` going
+    forward (increasing arc length) or backward, then the point at ``p1``: (j, 2)."""
+    s, e = rs.ring_start[r], rs.ring_start[r + 1]
+    verts = rs.a[s:e]
+    par = rs.param[s:e]
+    total = rs.ring_len[r]
+    k = e - s
+    p1m = p1 % total
+    j = int(np.searchsorted(par, p1m, side="right")) - 1
+    seg = rs.seg_len[s + j]
+    end = verts[j] + ((p1m - par[j]) / seg if seg > 0 else 0.0) * (rs.b[s + j] - verts[j])
+    if forward:
+        span = (p1 - p0) % total
+        rel = (par - p0) % total
+        lo = int(np.searchsorted(par, p0 % total, side="right"))
+    else:
+        span = (p0 - p1) % total
+        rel = (p0 - par) % total
+        lo = int(np.searchsorted(par, p0 % total, side="left")) - 1
+    # walk the indices from lo in the direction of travel; keep those strictly inside the span
+    count = int(np.count_nonzero((rel > 1e-12) & (rel < span - 1e-12)))
+    step = 1 if forward else -1
+    order = (lo + step * np.arange(count)) % k
+    return np.concatenate([verts[order], end[None]])
+
+
+def _assemble(lines, rs, ring, param, code, hook) -> list[np.ndarray]:
+    """Chains of lines joined by ring stretches, with their anchors, as polylines."""
+    n = len(lines)
+    seen = np.zeros(n, dtype=bool)
+    chains = []
+    free = np.flatnonzero(code < 0)
+
+    def tail_piece(e):  # the anchor leaving end e, excluding e itself
+        h = hook[e]
+        if h == 0:
+            return None
+        return _stretch(rs, int(ring[e]), param[e], param[e] + h, h > 0)
+
+    for start in free:
+        li = start // 2
+        if seen[li]:
+            continue
+        parts = []
+        h = tail_piece(start)
+        if h is not None:
+            parts.append(h[::-1])
+        e = start
+        while True:
+            li = e // 2
+            seen[li] = True
+            pts = lines[li] if e % 2 == 0 else lines[li][::-1]
+            parts.append(pts)
+            other = e ^ 1
+            c = code[other]
+            if c < 0:
+                h = tail_piece(other)
+                if h is not None:
+                    parts.append(h)
+                break
+            to, forward = c // 2, bool(c % 2)
+            parts.append(_stretch(rs, int(ring[other]), param[other], param[to], forward)[:-1])
+            e = to
+        chain = np.concatenate(parts)
+        chains.append((chain, start // 2))
+    if not chains:
+        return []
+    polys = [c for c, _ in sorted(chains, key=lambda x: x[1])]
+    heads = np.array([p[0] for p in polys])
+    tails = np.array([p[-1] for p in polys])
+    order, rev = chain_order(heads, tails, heads[0])
+    return [polys[k][::-1].copy() if r else polys[k] for k, r in zip(order, rev)]
