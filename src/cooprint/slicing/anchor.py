@@ -19,14 +19,13 @@ between them). The stretches between neighbours are taken shortest first: one sh
 ``anchor_max`` joins its two lines unless they already belong to one polyline (no loops); a
 longer one gets an anchor from each end into it. Ends still free then join a neighbour within
 ``anchor_max`` or get an anchor along the side with more free ring. An anchor stops half a line
-width short of the neighbouring end, and the neighbour's own anchor stops where it begins, so
-no stretch of ring is printed twice. Ends farther than ``END_TOL`` from every ring stay as they
+width short of the neighbouring end and of the neighbour's own anchor, so no stretch of ring is
+printed twice (PrusaSlicer lets the second anchor run up to the first). Ends farther than ``END_TOL`` from every ring stay as they
 are. (PrusaSlicer also masks the ring where an infill line runs along it; not done here.)
 """
 
 from __future__ import annotations
 
-import math
 
 import numba
 import numpy as np
@@ -110,15 +109,18 @@ def _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_pr
     """Anchor end ``e`` along its ring, forward (side 1) or backward (-1), into the stretch
     towards its neighbour; the neighbour's free stretch on that side shrinks accordingly."""
     eps = 1e-9
-    free = nt_next[e] if side > 0 else nt_prev[e]
-    if consumed[e] or free <= eps:
+    if consumed[e]:
         return
+    free = nt_next[e] if side > 0 else nt_prev[e]
     f = nxt[e] if side > 0 else prv[e]
     if f == e:
         stretch = ring_len[e]
     else:
         stretch = arc[e] if side > 0 else arc[prv[e]]
-    length = max(0.0, min(anchor, free, stretch - hw))
+    # stop half a width short of the neighbouring line's end, and of the neighbour's anchor
+    length = min(anchor, free - hw, stretch - hw)
+    if length <= eps:
+        return  # nothing to take on this side: the end stays free for the other side
     consumed[e] = True
     if side > 0:
         nt_next[e] = 0.0
@@ -139,8 +141,7 @@ def _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_pr
         if stretch - length < nt_next[f]:
             nt_next[f] = stretch - length
             trim_next[f] = True
-    if length > eps:
-        hook[e] = side * length
+    hook[e] = side * length
 
 
 @numba.njit(cache=True)
