@@ -222,75 +222,122 @@ def _connect(nxt, prv, arc, ring_len, anchor, anchor_max, hw):
     return code, hook
 
 
-def _stretch(rs: RingSet, r: int, p0: float, p1: float, forward: bool) -> np.ndarray:
-    """The ring vertices strictly between arc lengths ``p0`` and ``p1`` of ring ``r`` going
-    forward (increasing arc length) or backward, then the point at ``p1``: (j, 2)."""
-    s, e = rs.ring_start[r], rs.ring_start[r + 1]
-    verts = rs.a[s:e]
-    par = rs.param[s:e]
-    total = rs.ring_len[r]
-    k = e - s
-    p1m = p1 % total
-    j = int(np.searchsorted(par, p1m, side="right")) - 1
-    seg = rs.seg_len[s + j]
-    end = verts[j] + ((p1m - par[j]) / seg if seg > 0 else 0.0) * (rs.b[s + j] - verts[j])
+@numba.njit(cache=True)
+def _reserve(buf, m, extra):
+    """``buf`` with room for ``extra`` more points after the first ``m``."""
+    if m + extra <= buf.shape[0]:
+        return buf
+    grown = np.empty((max(2 * buf.shape[0], m + extra), 2))
+    grown[:m] = buf[:m]
+    return grown
+
+
+@numba.njit(cache=True)
+def _push(buf, m, x, y):
+    buf = _reserve(buf, m, 1)
+    buf[m, 0] = x
+    buf[m, 1] = y
+    return buf, m + 1
+
+
+@numba.njit(cache=True)
+def _walk(buf, m, a, b, rparam, seg_len, s, k, total, p0, p1, forward):
+    """Append the vertices of the ring (edges s .. s + k) strictly between arc lengths ``p0``
+    and ``p1``, going forward (increasing arc length) or backward, then the point at ``p1``."""
+    eps = 1e-12
+    p0m, p1m = p0 % total, p1 % total
+    span = (p1 - p0) % total if forward else (p0 - p1) % total
+    j = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
     if forward:
-        span = (p1 - p0) % total
-        rel = (par - p0) % total
-        lo = int(np.searchsorted(par, p0 % total, side="right"))
+        i = j + 1
+        d = (rparam[s + i] if i < k else total) - p0m
+        while d < span - eps:
+            if d > eps:
+                buf, m = _push(buf, m, a[s + i % k, 0], a[s + i % k, 1])
+            d += seg_len[s + i % k]
+            i += 1
     else:
-        span = (p0 - p1) % total
-        rel = (p0 - par) % total
-        lo = int(np.searchsorted(par, p0 % total, side="left")) - 1
-    # walk the indices from lo in the direction of travel; keep those strictly inside the span
-    count = int(np.count_nonzero((rel > 1e-12) & (rel < span - 1e-12)))
-    step = 1 if forward else -1
-    order = (lo + step * np.arange(count)) % k
-    return np.concatenate([verts[order], end[None]])
+        i = j
+        d = p0m - rparam[s + j]
+        while d < span - eps:
+            if d > eps:
+                buf, m = _push(buf, m, a[s + i, 0], a[s + i, 1])
+            i = (i - 1) % k
+            d += seg_len[s + i]
+    jj = np.searchsorted(rparam[s:s + k], p1m, side="right") - 1
+    sl = seg_len[s + jj]
+    t = (p1m - rparam[s + jj]) / sl if sl > 0 else 0.0
+    buf, m = _push(buf, m, a[s + jj, 0] + t * (b[s + jj, 0] - a[s + jj, 0]),
+                   a[s + jj, 1] + t * (b[s + jj, 1] - a[s + jj, 1]))
+    return buf, m
 
 
-def _assemble(lines, rs, ring, param, code, hook) -> list[np.ndarray]:
-    """Chains of lines joined by ring stretches, with their anchors, as polylines."""
-    n = len(lines)
-    seen = np.zeros(n, dtype=bool)
-    chains = []
-    free = np.flatnonzero(code < 0)
-
-    def tail_piece(e):  # the anchor leaving end e, excluding e itself
-        h = hook[e]
-        if h == 0:
-            return None
-        return _stretch(rs, int(ring[e]), param[e], param[e] + h, h > 0)
-
-    for start in free:
-        li = start // 2
-        if seen[li]:
+@numba.njit(cache=True)
+def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start, ring_len):
+    """The chains of lines joined by ring stretches, with their anchors: (points, offsets,
+    first line of every chain)."""
+    n = lo.shape[0] - 1
+    seen = np.zeros(n, np.bool_)
+    buf = np.empty((2 * pts.shape[0] + 16, 2))
+    m = 0
+    off = np.zeros(n + 1, np.int64)
+    first = np.zeros(n, np.int64)
+    nc = 0
+    for st in range(2 * n):
+        if code[st] >= 0 or seen[st // 2]:
             continue
-        parts = []
-        h = tail_piece(start)
-        if h is not None:
-            parts.append(h[::-1])
-        e = start
+        off[nc] = m
+        first[nc] = st // 2
+        if hook[st] != 0.0:
+            r = ring[st]
+            s = ring_start[r]
+            t0 = m
+            buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
+                           param[st], param[st] + hook[st], hook[st] > 0)
+            buf[t0:m] = buf[t0:m][::-1].copy()
+        e = st
         while True:
             li = e // 2
             seen[li] = True
-            pts = lines[li] if e % 2 == 0 else lines[li][::-1]
-            parts.append(pts)
+            size = lo[li + 1] - lo[li]
+            buf = _reserve(buf, m, size)
+            if e % 2 == 0:
+                buf[m:m + size] = pts[lo[li]:lo[li + 1]]
+            else:
+                buf[m:m + size] = pts[lo[li]:lo[li + 1]][::-1]
+            m += size
             other = e ^ 1
             c = code[other]
+            r = ring[other]
             if c < 0:
-                h = tail_piece(other)
-                if h is not None:
-                    parts.append(h)
+                if hook[other] != 0.0:
+                    s = ring_start[r]
+                    buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
+                                   param[other], param[other] + hook[other], hook[other] > 0)
                 break
-            to, forward = c // 2, bool(c % 2)
-            parts.append(_stretch(rs, int(ring[other]), param[other], param[to], forward)[:-1])
+            to = c // 2
+            s = ring_start[r]
+            buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
+                           param[other], param[to], c % 2 == 1)
+            m -= 1  # the stretch's last point is the next line's first
             e = to
-        chain = np.concatenate(parts)
-        chains.append((chain, start // 2))
-    if not chains:
+        nc += 1
+    off[nc] = m
+    return buf[:m], off[:nc + 1], first[:nc]
+
+
+def _assemble(lines, rs, ring, param, code, hook) -> list[np.ndarray]:
+    """Chains of lines joined by ring stretches, with their anchors, as polylines in
+    nearest-next order from the first line's chain."""
+    sizes = np.array([len(p) for p in lines], dtype=np.int64)
+    lo = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+    pts, off, first = _chains(np.concatenate(lines), lo, ring, param, code, hook, rs.a, rs.b, rs.param,
+                              rs.seg_len, rs.ring_start, rs.ring_len)
+    if len(off) < 2:
         return []
-    polys = [c for c, _ in sorted(chains, key=lambda x: x[1])]
+    polys = np.split(pts, off[1:-1])
+    by_first = np.argsort(first, kind="stable")
+    polys = [polys[k] for k in by_first]
     heads = np.array([p[0] for p in polys])
     tails = np.array([p[-1] for p in polys])
     order, rev = chain_order(heads, tails, heads[0])

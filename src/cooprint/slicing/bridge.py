@@ -18,8 +18,10 @@ half a spacing (so that a supported end lies inside an anchor, not on its edge).
 every 5 degrees, the bridge outline's edge directions and the chords of the supported stretches
 of the grown outline (which find the best direction for C-shaped supports), merged within
 1 degree. Directions within one spacing of the best anchored length prefer the shorter longest
-line. One difference: a line counts only if it also passes over unsupported area, so that lines
-lying wholly on a support do not make a cantilever look anchored.
+line. Differences: a line counts only if it also passes over unsupported area, so that lines
+lying wholly on a support do not make a cantilever look anchored; outline edges shorter than two
+spacings give no candidate (a curve's many short edges add nothing to the 5 degree step); a
+bridge wider than ``SCAN_LINES`` spacings is probed with sparser lines.
 
 All candidates are evaluated in one whole-array pass: the scanlines of every direction are cut
 by the grown bridge's and the anchors' edges together, and the anchor crossings on a scanline
@@ -39,6 +41,8 @@ from cooprint.slicing.patterns import clip_polylines
 STEP_DEG = 5.0
 #: Candidates closer than this are merged, degrees (PrusaSlicer: 1).
 MERGE_DEG = 1.0
+#: Most probe lines per direction across a bridge (a bigger bridge is probed more sparsely).
+SCAN_LINES = 300
 
 
 def _rings(cs: manifold3d.CrossSection) -> list[np.ndarray]:
@@ -58,8 +62,15 @@ def bridge_angle(area: manifold3d.CrossSection, anchors: manifold3d.CrossSection
     support_rings = _rings(support)
     if not clip or not support_rings:
         return None
-    angles = _candidates(_rings(area), _rings(grown), _rings(anchors))
-    cover, longest = _coverage(clip, support_rings, angles, spacing)
+    # the anchors near the bridge (beyond the grown outline, so that it never runs along their edge)
+    near = anchors ^ area.offset(2.0 * spacing, miter)
+    angles = _candidates(_rings(area), _rings(grown), _rings(near), 2.0 * spacing)
+    # a big bridge is probed with sparser lines (at most ~SCAN_LINES per direction), its
+    # anchored length scaled back to the line spacing
+    lo, hi = np.asarray(area.bounds()[:2]), np.asarray(area.bounds()[2:])
+    scan = max(spacing, float(np.hypot(*(hi - lo))) / SCAN_LINES)
+    cover, longest = _coverage(clip, support_rings, angles, scan)
+    cover *= scan / spacing
     if not (cover > 0).any():
         return None
     order = np.argsort(-cover, kind="stable")
@@ -72,11 +83,14 @@ def bridge_angle(area: manifold3d.CrossSection, anchors: manifold3d.CrossSection
     return float(np.degrees(angles[best]) % 180.0)
 
 
-def _candidates(area: list[np.ndarray], grown: list[np.ndarray], anchors: list[np.ndarray]) -> np.ndarray:
-    """Candidate directions, radians in [0, pi): the fixed step, the outline's edges and the
-    chords of the supported stretches of the grown outline, merged within ``MERGE_DEG``."""
+def _candidates(area: list[np.ndarray], grown: list[np.ndarray], anchors: list[np.ndarray], min_edge: float
+                ) -> np.ndarray:
+    """Candidate directions, radians in [0, pi): the fixed step, the outline's edges at least
+    ``min_edge`` long (the many short edges of a curve say nothing the fixed step does not) and
+    the chords of the supported stretches of the grown outline, merged within ``MERGE_DEG``."""
     fixed = np.radians(np.arange(0.0, 180.0, STEP_DEG))
     d = np.concatenate([np.roll(r, -1, axis=0) - r for r in area])
+    d = d[np.hypot(d[:, 0], d[:, 1]) >= min_edge]
     edges = np.arctan2(d[:, 1], d[:, 0])
     supported = clip_polylines([np.vstack([r, r[:1]]) for r in grown], anchors)
     chords = np.array([p[-1] - p[0] for p in supported if np.hypot(*(p[-1] - p[0])) > 1e-6]).reshape(-1, 2)
@@ -141,7 +155,7 @@ def _coverage(clip: list[np.ndarray], support: list[np.ndarray], angles: np.ndar
     anchored = (na % 2 == 1) & (nb % 2 == 1) & (nb > na)  # both ends on anchors, air between
     length = xb - xa
     ang = seg_key // nk
-    cover = np.bincount(ang[anchored], weights=length[anchored], minlength=len(angles))
+    cover = np.bincount(ang[anchored], weights=length[anchored], minlength=len(angles)).astype(np.float64)
     np.maximum.at(longest, ang[anchored], length[anchored])
     return cover, longest
 
