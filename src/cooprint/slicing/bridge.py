@@ -62,9 +62,7 @@ def bridge_angle(area: manifold3d.CrossSection, anchors: manifold3d.CrossSection
     support_rings = _rings(support)
     if not clip or not support_rings:
         return None
-    # the anchors near the bridge (beyond the grown outline, so that it never runs along their edge)
-    near = anchors ^ area.offset(2.0 * spacing, miter)
-    angles = _candidates(_rings(area), _rings(grown), _rings(near), 2.0 * spacing)
+    angles = _candidates(_rings(area), _rings(grown), _rings(anchors), 2.0 * spacing)
     # a big bridge is probed with sparser lines (at most ~SCAN_LINES per direction), its
     # anchored length scaled back to the line spacing
     lo, hi = np.asarray(area.bounds()[:2]), np.asarray(area.bounds()[2:])
