@@ -219,10 +219,13 @@ def _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_pr
 
 @numba.njit(cache=True)
 def _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, anchor, anchor_max, hw):
-    """Which ends join which (``join[e]``: the other end, -1: none; the stretch runs forward
-    along the ring from the end ``e`` with ``join_forward``) and the signed anchor of every
-    free end (``hook[e]``: + forward, - backward, 0 none). Returns (join * 2 + forward flag
-    encoded as join_code (-1 none; 2 * other + 1 forward; 2 * other backward), hook)."""
+    """Which line ends join which, and the anchors of the others (module docstring).
+
+    ``nxt``/``prv``: the neighbouring end along the ring (-1: the end is on no ring); ``arc``:
+    the ring's length from each end to ``nxt``; ``nt_next``/``nt_prev``: how far the ring is
+    free from each end (inf: up to the neighbour). Returns (code (2n,): -1 not joined,
+    2 * other + 1 joined to ``other`` going forward along the ring, 2 * other going backward;
+    hook (2n,): the anchor's length, + forward, - backward, 0 none)."""
     m = nxt.shape[0]
     consumed = nxt < 0
     nt_next = nt_next.copy()
