@@ -324,6 +324,15 @@ def test_bridge_across_a_gap_between_two_pads():
     assert bridge_angle(rect(0, 0, 20, 40).rotate(30), pads.rotate(30), 0.45) == pytest.approx(30.0, abs=1e-6)
 
 
+@settings(max_examples=15, deadline=None)
+@given(st.floats(-180, 180), st.floats(8, 40), st.floats(15, 60))
+def test_bridge_lines_cross_the_gap_at_any_orientation(theta, gap, long):
+    pads = rect(-10, 0, 0, long) + rect(gap, 0, gap + 10, long)
+    got = bridge_angle(rect(0, 0, gap, long).rotate(theta), pads.rotate(theta), 0.45)
+    # across the gap (perpendicular to its long edges), whatever the turn
+    assert abs((got - theta + 90.0) % 180.0 - 90.0) < 1e-6
+
+
 def test_bridge_with_an_l_shaped_anchor_runs_diagonally():
     # supported along its left and bottom sides: the lines anchored at both ends run between them
     support = rect(-10, -10, 0, 40) + rect(-10, -10, 40, 0)

@@ -92,9 +92,19 @@ def _candidates(area: list[np.ndarray], grown: list[np.ndarray], anchors: list[n
     edges = np.arctan2(d[:, 1], d[:, 0])
     supported = clip_polylines([np.vstack([r, r[:1]]) for r in grown], anchors)
     chords = np.array([p[-1] - p[0] for p in supported if np.hypot(*(p[-1] - p[0])) > 1e-6]).reshape(-1, 2)
-    a = np.concatenate([fixed, edges, np.arctan2(chords[:, 1], chords[:, 0])]) % math.pi
-    a = np.sort(a)
     tol = math.radians(MERGE_DEG)
+    exact = _merge(np.concatenate([edges, np.arctan2(chords[:, 1], chords[:, 0])]) % math.pi, tol)
+    # a fixed step within the merge tolerance of an edge's own direction gives way to it
+    gap = np.abs((fixed[:, None] - exact[None, :] + 0.5 * math.pi) % math.pi - 0.5 * math.pi)
+    fixed = fixed[(gap > tol).all(axis=1)] if len(exact) else fixed
+    return np.sort(np.concatenate([exact, fixed]))
+
+
+def _merge(a: np.ndarray, tol: float) -> np.ndarray:
+    """Directions (radians in [0, pi)) with those within ``tol`` of a kept one dropped."""
+    a = np.sort(a)
+    if not len(a):
+        return a
     keep = np.r_[True, np.diff(a) > tol]
     a = a[keep]
     if len(a) > 1 and a[-1] - a[0] >= math.pi - tol:
