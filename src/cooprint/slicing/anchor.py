@@ -129,7 +129,8 @@ def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
     mid = 0.5 * (pts[:-1] + pts[1:])
     check = keep & short
     near = np.zeros(len(seg), dtype=bool)
-    near[check] = rs.nearest(mid[check], COLLIDE * width + 1.0)[0] >= 0
+    if check.any():
+        near[check] = rs.nearest(mid[check], COLLIDE * width + 0.5 * seg[check].max())[0] >= 0
     keep &= near | ~short
     if not keep.any():
         return fwd, bwd

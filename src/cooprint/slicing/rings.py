@@ -99,12 +99,15 @@ class RingSet(EdgeSet):
     def __init__(self, rings: list[np.ndarray]):
         rings = [np.asarray(r, dtype=np.float64)[:, :2] for r in rings if len(r) >= 2]
         self.rings = rings
-        if rings:
-            super().__init__(np.concatenate(rings), np.concatenate([np.roll(r, -1, axis=0) for r in rings]))
-        else:
-            super().__init__(np.zeros((0, 2)), np.zeros((0, 2)))
         sizes = np.array([len(r) for r in rings], dtype=np.int64)
         self.ring_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+        if rings:
+            a = np.concatenate(rings)
+            after = np.arange(1, len(a) + 1)
+            after[self.ring_start[1:] - 1] = self.ring_start[:-1]  # each ring's last vertex: back to its first
+            super().__init__(a, a[after])
+        else:
+            super().__init__(np.zeros((0, 2)), np.zeros((0, 2)))
         self.ring_of = np.repeat(np.arange(len(rings), dtype=np.int64), sizes)
         seg = np.hypot(*(self.b - self.a).T) if len(self.a) else np.zeros(0)
         cum = np.cumsum(seg)
