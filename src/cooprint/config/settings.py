@@ -375,9 +375,8 @@ def _did_you_mean(word: str, options: Iterable[str]) -> str:
 #: Fields cooprint no longer reads, ``(section, field)``, and what replaced them: a file that still
 #: sets one is refused (a speed silently ignored would print at another speed than the file says).
 REPLACED_FIELDS = {
-    ("robot", "print_speed"): "the per-role speeds of [slicing] (perimeter_speed, external_perimeter_speed, "
-                              "infill_speed, solid_infill_speed, top_solid_infill_speed, bridge_speed, "
-                              "gap_fill_speed, first_layer_speed) and the cap robot.max_print_speed",
+    ("robot", "print_speed"): "the per-role speeds of [slicing] (perimeter_speed, infill_speed, ...; "
+                              "docs/slicer.md) and the cap robot.max_print_speed",
     ("robot", "travel_speed"): "slicing.travel_speed and the cap robot.max_travel_speed",
 }
 
