@@ -75,7 +75,9 @@ SETTINGS_CASES = [
     (["--set", "robot.frame_width=-1"], "robot.frame_width = -1: expected a number > 0"),
     (["--set", "robot.nozzle_depth=400"], "robot.nozzle_depth = 400 mm, robot.build_depth = 300 mm: the printhead "
                                           "reaches into the body"),
-    (["--set", "robot.print_speed=true"], "robot.print_speed = True"),
+    (["--set", "robot.max_print_speed=true"], "robot.max_print_speed = True"),
+    (["--set", "robot.print_speed=40"], "--set: robot.print_speed was replaced by the per-role speeds of [slicing]"),
+    (["--set", "slicing.perimeter_speed=0"], "slicing.perimeter_speed = 0: expected a number > 0"),
     (["--set", "mesh.units=km"], "mesh.units = 'km': expected one of"),
     (["--set", "mesh.place=yes"], "mesh.place = 'yes': expected true or false"),
     (["--set", "chunking.theta_deg=95"], "chunking.theta_deg = 95: expected a number > 0 and <= 90"),

@@ -383,6 +383,11 @@ class Finding:
         return COUNT_UNITS.get(self.kind, "places")
 
 
+#: Moves whose speeds :func:`move_durations` works out at a time (its work space: about 30 bytes
+#: a move of a block, not of the program).
+SPEED_BLOCK = 1 << 16
+
+
 def robot_feeds(feeds: "Feeds | Mapping[str, Feeds]", name: str) -> "Feeds":
     """Robot ``name``'s speeds: ``feeds`` itself (one for all), or its entry (per robot name)."""
     return feeds[name] if isinstance(feeds, Mapping) else feeds
@@ -409,9 +414,15 @@ def move_durations(r: SimRobot, feeds: "Feeds", limits: "MachineLimits | None" =
     p0, p1 = ends[:-1], ends[1:]
     mv, on, length = np.empty(k, np.int64), np.empty(k, bool), np.empty(k)
     move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
-    v = feeds.move_speeds(program.role[mv], program.layer[mv], on) if r.speed is None else r.speed[mv]
+    if r.speed is None:  # each move's speed of its role and layer, a block at a time (bounded work space)
+        v = np.empty(k)
+        for a in range(0, k, SPEED_BLOCK):
+            m = mv[a:a + SPEED_BLOCK]
+            v[a:a + SPEED_BLOCK] = feeds.move_speeds(program.role[m], program.layer[m], on[a:a + SPEED_BLOCK])
+    else:
+        v = r.speed[mv]
     if limits is None and r.de is None:  # length / speed, in place
-        dur = np.divide(length, v, out=v if r.speed is None else None)
+        dur = np.divide(length, v, out=v if v.dtype == np.float64 else None)
         return mv, p0, p1, on, length, dur
     de = np.zeros(len(mv)) if r.de is None else r.de[mv]
     if limits is None:
