@@ -23,7 +23,7 @@ from cooprint.simulation.perturb import (check_perturb_options, command_speeds, 
                                          run_factors, span_ids)
 from cooprint.simulation.timeline import SimRobot
 from cooprint.errors import UserError
-from speeds import UNIFORM, UNIFORM_SLICING
+from speeds import UNIFORM, UNIFORM_SLICING, UNIFORM_SPEEDS
 
 WORK = 6  # strokes of A's chunk: 6 x 200 mm at 120 mm/s = 10 s
 A_TEXT = (";@chunk A1\n" + "MOVE 0 100 5\nMOVE 0 0 5\n" * WORK
@@ -219,7 +219,7 @@ def write_bundle(folder, chunks, schedule=None, guard=False):
     (folder / "robots" / "A.coop").write_text(A_PRINT)
     (folder / "robots" / "B.coop").write_text(("WAIT A1\n" if guard else "") + "MOVE -1500 0 0.2\n;@chunk B1\n"
                                               "TOOL ON\nMOVE -1500 100 0.2\nTOOL OFF\n")
-    record = {"format": "cooprint-job/2", "settings": {},
+    record = {"format": "cooprint-job/2", "settings": {"slicing": UNIFORM_SPEEDS},  # 40 mm/s, travel 120
               "robots": [{"name": "A", "program": "robots/A.coop", "start": [0, 0, 0.2], "facing_deg": 90},
                          {"name": "B", "program": "robots/B.coop", "start": [-1500, 0, 0.2], "facing_deg": 90}],
               "chunks": chunks}
