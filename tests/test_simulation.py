@@ -17,7 +17,7 @@ from cooprint.simulation import KINDS, SimInput, load_inputs, simulate, summary
 from cooprint.io.schema import SchemaError
 from cooprint.simulation.inputs import SimInputError, read_gcode
 from cooprint.simulation.timeline import SimRobot
-from speeds import UNIFORM, UNIFORM_SLICING, UNIFORM_SPEEDS, expected_times
+from speeds import UNIFORM, UNIFORM_SLICING, UNIFORM_TOML, expected_times
 
 SEED_SAMPLE = "MOVE 0, 0, 0\nTOOL ON\nMOVE 1, 0, 0\nMOVE 1, 1, 0\nMOVE 0, 1, 0\nTOOL OFF\n"
 PROFILE = RobotProfile()  # bd 300, body 300 x 350 (speeds: UNIFORM_SLICING's, print 40 mm/s, travel 120 mm/s)
@@ -474,8 +474,7 @@ def test_frames_follow_the_seed_fig15_loop_and_the_material_adds_up(tmp_path):
     job = tmp_path / "job"
     (job / "robots").mkdir(parents=True)
     (job / "robots" / "A.coop").write_text(text)
-    (job / "fleet.toml").write_text("[slicing]\n" + "".join(f"{k} = {v}\n" for k, v in UNIFORM_SPEEDS.items())
-                                    + '[[robots]]\nname = "A"\nprogram = "robots/A.coop"\nstart = [0.0, 0.0, 0.0]\n')
+    (job / "fleet.toml").write_text(UNIFORM_TOML + '[[robots]]\nname = "A"\nprogram = "robots/A.coop"\nstart = [0.0, 0.0, 0.0]\n')
     assert main(["simulate", "--manifest", str(job / "fleet.toml"), "--out", str(job), "--frames", "0.07", "-q"]) == 0
     with np.load(job / "sim" / "frames.npz") as saved:
         assert np.array_equal(saved["position"], fr.position) and saved["robots"].tolist() == ["A"]
