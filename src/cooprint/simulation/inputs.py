@@ -818,7 +818,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
                 programs: bool = True) -> SimInput:
     """A bundle folder (alone), ``.coop`` files with or without a manifest, or G-code files.
     ``.coop`` and G-code files are not mixed: a G-code file's robot stands nowhere known and
-    moves at its file's feed rates, a ``.coop`` robot at the profile's speeds where it is placed;
+    moves at its file's feed rates, a ``.coop`` robot at its speeds per path role where it is placed;
     simulating both kinds together would compare two different time and body models. ``settings``
     (``--robot``/``--config``) give the profile of ``.coop`` and G-code robots. ``programs=False``:
     a bundle's programs are left to be read piece by piece (:func:`load_bundle`)."""
