@@ -518,13 +518,16 @@ def ends_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]]
 
 
 #: :func:`work_from_volume`'s factor: the time of the sliced layers (:func:`work_from_layers`)
-#: over the printed-volume model, measured on 17 chunks of 7 generated parts (car 420 mm, box
-#: 300 x 900 x 60, cylinder r 60 h 120, hollow box, lying tube, plate 900 x 400 x 10, slender
-#: post; seed2 layout, default robot and slicing): median 1.104, range 1.005 (lying tube) to
-#: 1.260 (the hollow box's 10 mm walls), coefficient of variation 5%. The rest is travel
-#: between paths and perimeter overlap. (Volume alone, without the shells, spread 0.256 to 0.397,
-#: 17%, and its factor holds only for one infill density.)
-VOLUME_FACTOR = 1.10
+#: over the printed-volume model, each kind at its roles' speeds (:func:`volume_speeds`),
+#: measured by ``benchmarks/calibrate_volume_factor.py`` on 18 chunks of 6 generated parts (car
+#: 420 mm, box 300 x 900 x 60, cylinder r 60 h 120, a box 300 x 600 x 60 hollow with 10 mm walls
+#: and floor, plate 900 x 400 x 10, post 20 x 20 x 150; seed2 layout, default robot and slicing,
+#: 2026-12-02): median 1.071, range 1.021 (the plate's centre chunk) to 1.359 (the hollow box's
+#: side chunks, thin walls), coefficient of variation 8.6%. The rest is travel between paths and
+#: perimeter overlap. (With one print speed for every role, before issue 17: median 1.104 on 17
+#: chunks; volume alone, without the shells, spread 0.256 to 0.397, and its factor holds only for
+#: one infill density.)
+VOLUME_FACTOR = 1.07
 
 
 def printed_volumes(chunk: Chunk, slicing: SlicingSettings) -> tuple[float, float, float, float]:
