@@ -94,6 +94,8 @@ CONFIG_CASES = [
     ("[slicing]\nlayer_height = 1e-6\n", "slicing.layer_height = 1e-06"),
     ("[slicing]\nextrusion_width = 0.1\n", "slicing.extrusion_width = 0.1 mm"),
     ("[slicing]\nlayer_hieght = 0.3\n", "did you mean 'layer_height'?"),
+    ("[robot]\nprint_speed = 40.0\ntravel_speed = 120.0\n", "robot.print_speed was replaced by the per-role speeds"),
+    ("[robot]\ntravel_speed = 120.0\n", "robot.travel_speed was replaced by slicing.travel_speed and the cap"),
     ("[slicer]\nlayer_height = 0.3\n", "unknown section [slicer]; did you mean 'slicing'?"),
     ("[chunking]\nshift = 1e-9\n", "chunking.shift = 1e-09"),
     ("[robot]\nname = 'x'\nmax_z = -1\n", "robot.max_z = -1"),
