@@ -16,7 +16,7 @@ import pytest
 
 from badinput import assert_rejected
 from cooprint.cli import main
-from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.config import RobotProfile
 from cooprint.program.commands import parse_coop
 from cooprint.simulation import KINDS, SimInput, load_inputs, simulate, summary
 from cooprint.simulation.perturb import (check_perturb_options, command_speeds, perturb_runs, perturbed_speeds,

@@ -18,7 +18,6 @@ from cooprint.config import RobotProfile, SlicingSettings, load_settings
 from cooprint.program.commands import parse_coop, read_coop
 from cooprint.program.gcode import Feeds, write_gcode
 from cooprint.simulation import SimInput, load_inputs, simulate, summary
-from cooprint.simulation.inputs import read_gcode
 from cooprint.simulation.timeline import SimRobot
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
                                     TOP_SKIN, TRAVEL)
