@@ -42,13 +42,15 @@ EXACT_MAX_CHUNKS = 40
 MC_ROBOTS, MC_FRACTION, MC_RUNS, MC_SEED = (4, 16), 0.2, 20, 14
 #: The robot and slicing settings of large parts: the default robot's outline (body, frame,
 #: printhead, build depth), a 1.0 mm nozzle in 1.1 x 0.6 mm lines, speeds of a large-format
-#: printer such as AMBOTS' (about 60 mm/s printing, 150 mm/s travel).
+#: printer such as AMBOTS' (about 60 mm/s printing, every role, 150 mm/s travel; the robot's caps
+#: the same, the first layer at 30 mm/s).
 LARGE_PART = {
-    "robot": {"name": "large-part", "print_speed": 60.0, "travel_speed": 150.0, "acceleration": 1000.0,
+    "robot": {"name": "large-part", "max_print_speed": 60.0, "max_travel_speed": 150.0, "acceleration": 1000.0,
               "jerk": 15.0},
     "slicing": {"nozzle_diameter": 1.0, "layer_height": 0.6, "first_layer_height": 0.6, "extrusion_width": 1.1,
-                "perimeter_speed": 60.0, "infill_speed": 60.0, "first_layer_speed": 30.0, "travel_speed": 150.0,
-                "min_area": 0.5},
+                **{f"{role}_speed": 60.0 for role in ("perimeter", "external_perimeter", "infill", "solid_infill",
+                                                      "top_solid_infill", "bridge", "gap_fill")},
+                "first_layer_speed": 30.0, "travel_speed": 150.0, "min_area": 0.5},
 }
 #: Targets of issue 14.
 GAP_LIST, GAP_EXACT = 0.10, 0.03
@@ -249,7 +251,7 @@ def render(result: dict) -> str:
         "Each job is planned through the Python API (`cooprint.jobs.coop_job(solid, settings, robots=N)`) with a "
         f"large-part robot profile (the default robot's outline; {slicing['nozzle_diameter']:g} mm nozzle, "
         f"{slicing['extrusion_width']:g} x {slicing['layer_height']:g} mm lines, printing "
-        f"{LARGE_PART['robot']['print_speed']:g} mm/s, travel {LARGE_PART['robot']['travel_speed']:g} mm/s, like the "
+        f"{LARGE_PART['robot']['max_print_speed']:g} mm/s, travel {LARGE_PART['robot']['max_travel_speed']:g} mm/s, like the "
         "AMBOTS printers), `[chunking] layout = \"grid\"` and `[scheduling] strategy = \"list\"`, then its programs "
         "are simulated in memory at constant speed and with acceleration (`--accel`). Jobs: a wall 4000 x 300 x 200 "
         "mm (long in X), a slab 3000 x 2000 x 40 mm, the generated car 2 m long, and nefertiti from "

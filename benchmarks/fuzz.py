@@ -88,9 +88,10 @@ M0 WAIT C
 M118 NOTIFY C
 """
 MANIFEST = b"""[robot]
-print_speed = 40.0
+max_print_speed = 40.0
 [slicing]
 layer_height = 0.2
+perimeter_speed = 45.0
 [[robots]]
 name = "A"
 program = "A.coop"
@@ -101,7 +102,7 @@ name = "B"
 program = "B.coop"
 facing_deg = 270
 [profiles.B]
-print_speed = 20.0
+max_print_speed = 20.0
 body_width = 400.0
 """
 

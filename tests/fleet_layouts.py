@@ -12,18 +12,24 @@ from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.jobs import chunk_job
 from cooprint.models import car
 from cooprint.program.build import MaterialIndex
+from cooprint.program.gcode import Feeds
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.scheduling.schedule import Schedule
 from cooprint.slicing import iter_layers
+from cooprint.slicing.paths import TRAVEL
 
 import solids
+from speeds import UNIFORM_SPEEDS
 
-#: A small robot (all lengths a quarter of the default's or so) so that the parts stay small.
+#: A small robot (all lengths a quarter of the default's or so) so that the parts stay small; it
+#: extrudes at 40 mm/s and travels at 120 (its caps: the slicer's speeds are higher), and
+#: :func:`scaled` makes it up to 3 times faster or slower.
 SMALL = RobotProfile(name="small", build_depth=80.0, nozzle_height=40.0, nozzle_depth=10.0, body_width=80.0,
-                     body_length=90.0, print_speed=40.0, travel_speed=120.0)
-#: Thick, few layers.
+                     body_length=90.0, max_print_speed=40.0, max_travel_speed=120.0)
+#: Thick, few layers; every role at 120 mm/s and travel at 360 (3 x SMALL's caps).
 SLICING = SlicingSettings(layer_height=1.5, first_layer_height=1.5, extrusion_width=2.0, nozzle_diameter=1.6,
-                          perimeters=1, top_layers=1, bottom_layers=1, infill_density=0.1)
+                          perimeters=1, top_layers=1, bottom_layers=1, infill_density=0.1,
+                          **{k: 3 * v for k, v in UNIFORM_SPEEDS.items()})
 
 
 def box_chunk(cid: str, lo, hi, facing, row: int = 0, col: int = 0) -> Chunk:
@@ -37,6 +43,7 @@ def layout(chunks: list[Chunk], deps: dict[str, tuple[str, ...]], sequences: dic
            slicing: SlicingSettings = SLICING, profile: RobotProfile = SMALL):
     """Slice the chunks, time them at the profile's speeds, and make the DAG and a schedule whose
     times follow the sequences (each chunk after its robot's previous one and its deps)."""
+    feeds = Feeds.of_robot(profile, slicing)
     layers = {}
     for c in chunks:
         first = int(round(c.bounds[0, 2] / slicing.layer_height))
@@ -44,14 +51,14 @@ def layout(chunks: list[Chunk], deps: dict[str, tuple[str, ...]], sequences: dic
     work, start, end, foot = [], [], [], []
     for c in chunks:
         pts = np.concatenate([la.points for _, la in layers[c.id] if len(la)])
-        length = sum(float(np.linalg.norm(np.diff(la.points, axis=0), axis=1).sum()) for _, la in layers[c.id])
-        work.append(length / profile.print_speed)
+        work.append(sum(float((la.lengths() / feeds.move_speeds(la.role, np.full(len(la), i), la.role != TRAVEL)).sum())
+                        for i, la in layers[c.id]))
         start.append(np.r_[pts[0], 0.0])
         end.append(np.r_[pts[-1], 0.0])
         foot.append(np.r_[pts.min(0), pts.max(0)])
     ids = tuple(c.id for c in chunks)
     dag = ChunkDAG(ids, np.array(work), np.array([c.facing for c in chunks], float), np.array(start), np.array(end),
-                   np.array(foot), {c: tuple(deps.get(c, ())) for c in ids}, travel_speed=profile.travel_speed)
+                   np.array(foot), {c: tuple(deps.get(c, ())) for c in ids}, travel_speed=feeds.travel)
     w = dict(zip(ids, work))
     t0, t1 = {}, {}
     free = {r: 0.0 for r in sequences}
@@ -69,8 +76,9 @@ def layout(chunks: list[Chunk], deps: dict[str, tuple[str, ...]], sequences: dic
 
 
 def scaled(profile: RobotProfile, speed: float) -> RobotProfile:
-    return dataclasses.replace(profile, print_speed=profile.print_speed * speed,
-                               travel_speed=profile.travel_speed * speed)
+    """``profile`` ``speed`` times as fast (its caps scaled: at most 3 x, :data:`SLICING`'s speeds)."""
+    return dataclasses.replace(profile, max_print_speed=profile.max_print_speed * speed,
+                               max_travel_speed=profile.max_travel_speed * speed)
 
 
 def seed2_bar(length: float = 900.0, robots_seq: dict[str, tuple[str, ...]] | None = None,

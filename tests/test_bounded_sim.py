@@ -12,6 +12,7 @@ import pytest
 
 import solids
 from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.program.gcode import Feeds
 from cooprint.program.commands import (MOVE, TOOL_OFF, TOOL_ON, Program, ProgramError, iter_coop, make_program,
                                        parse_coop, read_coop)
 from cooprint.render import sim as render_sim
@@ -135,7 +136,8 @@ def test_no_stage_of_simulate_holds_a_copy_per_move(monkeypatch):
         held[name] = peak - max(now, before)  # beyond what it started with and what it returns
         return out
 
-    timelines, findings = stage("schedule", lambda: schedule(robots, p.print_speed, p.travel_speed))
+    feeds = inp.feeds(robots)
+    timelines, findings = stage("schedule", lambda: schedule(robots, feeds))
     stage("chunk-order", lambda: checks.chunk_order(robots, timelines, {"CA": ("CB",)}))
     stage("below-floor", lambda: checks.below_floor(robots, timelines))
     material = stage("material", lambda: checks.Material.sample(robots, timelines, checks.STEP, 0.2))
@@ -200,7 +202,7 @@ def test_a_robot_stuck_at_a_later_wait_keeps_the_delays_of_its_earlier_waits():
     a = SimRobot("A", parse_coop("MOVE 0 0 0\nMOVE 400 0 0\nNOTIFY\n", "A"), np.zeros(3), up)
     b = SimRobot("B", parse_coop("MOVE 0 1000 0\nWAIT A:1\nMOVE 40 1000 0\nWAIT never\nMOVE 80 1000 0\n", "B"),
                  np.array([0.0, 1000.0, 0.0]), up)
-    timelines, findings = schedule([a, b], 40.0, 40.0)
+    timelines, findings = schedule([a, b], Feeds((40.0,) * 9, 40.0, 40.0))  # every move at 40 mm/s
     assert [f.kind for f in findings] == ["deadlock"] and findings[0].time == 11.0
     np.testing.assert_array_equal(timelines["B"].t0, [0.0, 10.0])
     np.testing.assert_array_equal(timelines["B"].t1, [0.0, 11.0])

@@ -29,7 +29,15 @@ def test_overrides_win_over_files_and_none_is_ignored(tmp_path):
     ("[robot]\nbuild_depth = -3\n", "robot.build_depth = -3: expected a number > 0 and <= 100000 (mm)"),
     ("[robot]\nnozzle_height = 'tall'\n", "robot.nozzle_height = 'tall': expected a number"),
     ("[robot]\nbuild_depth = nan\n", "robot.build_depth = nan"),
-    ("[robot]\nprint_speed = true\n", "robot.print_speed = True"),
+    ("[robot]\nmax_print_speed = true\n", "robot.max_print_speed = True"),
+    ("[robot]\nmax_travel_speed = 0\n", "robot.max_travel_speed = 0: expected a number > 0 and <= 10000 (mm/s)"),
+    ("[slicing]\nbridge_speed = -60\n", "slicing.bridge_speed = -60: expected a number > 0 and <= 10000 (mm/s)"),
+    # the fields cooprint no longer reads: what replaced them (issue 17)
+    ("[robot]\nprint_speed = 40\n", "robot.print_speed was replaced by the per-role speeds of [slicing] "
+                                     "(perimeter_speed, infill_speed, ...; docs/slicer.md) and the cap "
+                                     "robot.max_print_speed"),
+    ("[robot]\ntravel_speed = 120\n", "robot.travel_speed was replaced by slicing.travel_speed and the cap "
+                                       "robot.max_travel_speed"),
     ("[chunking]\ntheta_deg = 95\n", "chunking.theta_deg = 95: expected a number > 0 and <= 90 (deg)"),
     ("[robot]\nwheels = 4\n", "unknown field robot.wheels; expected one of:"),
     ("[printer]\nx = 1\n", "unknown section [printer]"),

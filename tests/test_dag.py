@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import graphlib
 import math
 
@@ -22,6 +23,7 @@ from cooprint.scheduling.graph import (MIN_WORK, TOUCH, _Polygons, build_dag, co
 from solids import box, car, to_trimesh
 
 ROBOT = RobotProfile()  # bd 300, bl 350, bw 300, fw 300, nd 25
+TRAVEL = SlicingSettings().travel_speed  # mm/s, between chunks
 CLEAR = 5.0
 UP, DOWN = (0.0, 1.0), (0.0, -1.0)
 
@@ -45,7 +47,7 @@ def chunk_set(chunks, deps=None, axis=(0.0, 1.0, 0.0)) -> ChunkSet:
 
 
 def dag_of(cs: ChunkSet, clearance: float = CLEAR, robot: RobotProfile = ROBOT) -> ChunkDAG:
-    return build_dag(cs, robot, clearance, {c.id: 10.0 for c in cs.chunks}, robot.travel_speed)
+    return build_dag(cs, robot, clearance, {c.id: 10.0 for c in cs.chunks}, TRAVEL)
 
 
 def rows(width=400.0, gap=0.0, depth=250.0, behind=True, n=4, gap_rows=10.0):
@@ -403,7 +405,7 @@ def test_seed2_chunks_body_rule_agrees_with_the_leaning_order():
     solid = solid_from_trimesh(to_trimesh(car(1500.0)))
     plan = plan_chunks(solid.vertices, ROBOT, ChunkingSettings(), 2)
     cs = cut_chunks(solid, plan)
-    dag = build_dag(cs, ROBOT, CLEAR, work_from_volume(cs, ROBOT, SlicingSettings()), ROBOT.travel_speed)
+    dag = build_dag(cs, ROBOT, CLEAR, work_from_volume(cs, ROBOT, SlicingSettings()), TRAVEL)
     assert dag.ids == tuple(cs.ids)
     assert {"L1", "L2", "R1", "R2"} <= set(dag.ids)
     assert "L1" in dag.body_deps["L2"] and "R1" in dag.body_deps["R2"]
@@ -418,7 +420,7 @@ def test_seed2_chunks_body_rule_agrees_with_the_leaning_order():
     # the default top width (2 x nozzle_depth) makes L1's and R1's printhead sweeps just touch at
     # the top: exclusive with any clearance, not when outlines may touch (clearance 0)
     assert ("L1", "R1") in dag.exclusive
-    touching = build_dag(cs, ROBOT, 0.0, {c: 1.0 for c in cs.ids}, ROBOT.travel_speed)
+    touching = build_dag(cs, ROBOT, 0.0, {c: 1.0 for c in cs.ids}, TRAVEL)
     assert touching.exclusive == ()
     assert touching.body_deps == dag.body_deps
 
@@ -441,8 +443,9 @@ def _sliced(man, settings: SlicingSettings):
     return cs, layers
 
 
-BIG = SlicingSettings(layer_height=0.6, first_layer_height=0.6, nozzle_diameter=1.0, extrusion_width=1.2)
-FAST = RobotProfile(print_speed=35.0, travel_speed=150.0)
+BIG = SlicingSettings(layer_height=0.6, first_layer_height=0.6, nozzle_diameter=1.0, extrusion_width=1.2,
+                      travel_speed=150.0)
+FAST = RobotProfile(max_print_speed=35.0)  # the slicer's speeds, none above 35 mm/s
 
 
 @pytest.fixture(scope="module")
@@ -453,6 +456,7 @@ def sliced_box():
 def test_work_from_layers_is_the_simulators_time_of_the_chunks_layer_moves(sliced_box):
     from cooprint.program.build import layer_program
     from cooprint.program.commands import Program, quantize
+    from cooprint.program.gcode import Feeds
     from cooprint.simulation.timeline import SimRobot, move_durations
 
     s, robot = BIG, FAST
@@ -468,12 +472,12 @@ def test_work_from_layers_is_the_simulators_time_of_the_chunks_layer_moves(slice
             pieces.append(piece)
         prog = Program.concat("A", pieces)
         assert np.array_equal(ends[cid][1], here)
-        _, _, _, on, _, dur = move_durations(SimRobot("A", prog, first, np.array([0.0, 1.0])), robot.print_speed,
-                                             robot.travel_speed)
+        _, _, _, on, _, dur = move_durations(SimRobot("A", prog, first, np.array([0.0, 1.0])), Feeds.of_robot(robot, s))
         assert on.any()
         assert work[cid] == pytest.approx(float(dur.sum()), rel=1e-6)
-        # as written to G-code the first layer runs at the slicer's first-layer speed (30 < 35): longer
-        assert work_from_layers({cid: chunk_layers}, robot, s, gcode=True)[cid] > work[cid]
+        # the first layer at most first_layer_speed: slower there, longer in all
+        slow_first = dataclasses.replace(s, first_layer_speed=5.0)
+        assert work_from_layers({cid: chunk_layers}, robot, slow_first)[cid] > work[cid]
         assert np.array_equal(first, quantize(np.r_[chunk_layers[0][1].points[0], chunk_layers[0][1].z]))
     # a chunk with nothing to print: no work, no ends
     empty = {"E": []}
@@ -481,16 +485,27 @@ def test_work_from_layers_is_the_simulators_time_of_the_chunks_layer_moves(slice
 
 
 def test_work_from_volume_is_the_printed_volume_over_the_deposition_rate_times_the_factor():
-    from cooprint.scheduling.graph import VOLUME_FACTOR, printed_volume
+    from cooprint.scheduling.graph import VOLUME_FACTOR, printed_volume, printed_volumes
 
     s = SlicingSettings()  # 2 perimeters of 0.45 mm, 4 + 4 layers of 0.2 mm, 20% infill
     cs = chunk_set(rows(behind=False))
     side = 2 * (400 + 250) * 50
-    shell = side * 2 * 0.45 + 2 * 400 * 250 * 4 * 0.2
-    expect = shell + 0.2 * (400 * 250 * 50 - shell)
+    walls, top, bottom = side * 2 * 0.45, 400 * 250 * 4 * 0.2, 400 * 250 * 4 * 0.2
+    sparse = 0.2 * (400 * 250 * 50 - walls - top - bottom)
+    assert printed_volumes(cs["F0"], s) == pytest.approx((walls, top, bottom, sparse))
+    expect = walls + top + bottom + sparse
     assert printed_volume(cs["F0"], s) == pytest.approx(expect)
+    # each kind at its roles' speeds (harmonic means): the walls one external perimeter (30 mm/s)
+    # and one inner (60), the top its surface (15) over 3 solid layers (20), the bottom solid (20),
+    # the sparse infill 80 mm/s
+    rate = 0.45 * 0.2
+    seconds = (walls / (2 / (1 / 30 + 1 / 60)) + top / (4 / (1 / 15 + 3 / 20)) + bottom / 20 + sparse / 80) / rate
     w = work_from_volume(cs, ROBOT, s)
-    assert w["F0"] == pytest.approx(VOLUME_FACTOR * expect / (0.45 * 0.2 * ROBOT.print_speed))
+    assert w["F0"] == pytest.approx(VOLUME_FACTOR * seconds)
+    # a robot capped at 25 mm/s lays the walls and the sparse infill slower, the rest as fast
+    capped = work_from_volume(cs, RobotProfile(max_print_speed=25.0), s)
+    seconds = (walls / (2 / (1 / 25 + 1 / 25)) + top / (4 / (1 / 15 + 3 / 20)) + bottom / 20 + sparse / 25) / rate
+    assert capped["F0"] == pytest.approx(VOLUME_FACTOR * seconds)
     solid = chunk_set([box_chunk("S", 0, 10, 0, 10, 1.0)])  # all shell: the volume, solid
     assert printed_volume(solid["S"], s) == pytest.approx(100.0)
 

@@ -22,6 +22,7 @@ from cooprint.simulation.inputs import SimInput
 from cooprint.simulation.timeline import schedule
 
 from solids import COARSE, bar_bundle
+from speeds import UNIFORM
 from test_simulation import _robot
 
 
@@ -73,30 +74,41 @@ def test_a_bundle_that_names_its_profile_still_loads(bundle, tmp_path):
     assert not simulate(inp).findings
 
 
-def test_a_bundle_robot_with_half_the_print_speed_prints_twice_as_long(bundle, tmp_path):
-    def slow_b(rec):
-        rec["robots"][1]["profile"] = {"print_speed": rec["settings"]["robot"]["print_speed"] / 2}
-    job = _copy(bundle, tmp_path, slow_b)
-    inp = load_inputs([str(job)])
+def _capped_b(bundle, tmp_path, cap):
+    """The bundle with robot B's extrusions capped at ``cap`` mm/s (its own profile)."""
+    def edit(rec):
+        rec["robots"][1]["profile"] = {"max_print_speed": cap}
+    inp = load_inputs([str(_copy(bundle, tmp_path / str(cap), edit))])
     a, b = inp.fleet()
-    assert b.profile == dataclasses.replace(a.profile, print_speed=a.profile.print_speed / 2)
-    before, after = _times(bundle), _times(inp)
+    assert b.profile == dataclasses.replace(a.profile, max_print_speed=cap)
+    return inp
+
+
+def test_a_bundle_robot_with_half_the_print_speed_cap_prints_twice_as_long(bundle, tmp_path):
+    # caps below every [slicing] speed (the slowest is top solid infill, 15 mm/s): B extrudes at the cap
+    before, at10, at5 = _times(bundle), _times(_capped_b(bundle, tmp_path, 10.0)), _times(_capped_b(bundle, tmp_path, 5.0))
     assert before["B"]["printing_s"] > 100
-    assert after["B"]["printing_s"] == pytest.approx(2 * before["B"]["printing_s"], rel=1e-9)
-    assert after["B"]["travelling_s"] == pytest.approx(before["B"]["travelling_s"], rel=1e-9)
-    assert _busy(after["A"]) == _busy(before["A"])  # A keeps the fleet's profile (only waits longer for B)
+    assert at10["B"]["printing_s"] > 1.5 * before["B"]["printing_s"]
+    assert at5["B"]["printing_s"] == pytest.approx(2 * at10["B"]["printing_s"], rel=1e-9)
+    assert at5["B"]["travelling_s"] == pytest.approx(before["B"]["travelling_s"], rel=1e-9)
+    assert _busy(at5["A"]) == _busy(before["A"])  # A keeps the fleet's profile (only waits longer for B)
+    # a cap above every speed changes nothing
+    assert _busy(_times(_capped_b(bundle, tmp_path, 1000.0))["B"]) == _busy(before["B"])
 
 
 def test_a_partial_bundle_profile_lies_over_the_bundles_settings(bundle, tmp_path):
     whole_b = json.loads((bundle / "job.json").read_text())["robots"][1]["profile"]
 
     def edit(rec):
-        rec["settings"]["robot"]["travel_speed"] = 90.0
+        rec["settings"]["robot"]["max_travel_speed"] = 90.0
         rec["robots"][0]["profile"] = {"body_width": 420.0, "name": "wide"}
         rec["robots"][1]["profile"] = whole_b  # as cooprint run wrote it: B's own, whatever the settings say
-    a, b = load_inputs([str(_copy(bundle, tmp_path, edit))]).fleet()
-    assert (a.profile.name, a.profile.body_width, a.profile.travel_speed) == ("wide", 420.0, 90.0)
-    assert (b.profile.body_width, b.profile.travel_speed) == (300.0, 120.0)
+    inp = load_inputs([str(_copy(bundle, tmp_path, edit))])
+    a, b = inp.fleet()
+    assert (a.profile.name, a.profile.body_width, a.profile.max_travel_speed) == ("wide", 420.0, 90.0)
+    assert (b.profile.body_width, b.profile.max_travel_speed) == (300.0, None)
+    feeds = inp.feeds()
+    assert (feeds["A"].travel, feeds["B"].travel) == (90.0, inp.slicing.travel_speed)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -159,9 +171,11 @@ def test_only_the_bigger_robots_body_reaches_the_material(kind, tmp_path):
 
 @pytest.mark.parametrize("kind", ["manifest", "bundle"])
 def test_a_robot_with_half_the_print_speed_prints_twice_as_long(kind, tmp_path):
+    # the programs' extrusions name no path role: they print at the infill speed (80 mm/s), which
+    # B's own max_print_speed = 40 halves
     before = _times(_load(kind, tmp_path / "same", {}))
-    after = _times(_load(kind, tmp_path / "slow", {"B": {"print_speed": 20.0}}))
-    assert before["B"]["printing_s"] == pytest.approx(10 / 40)
+    after = _times(_load(kind, tmp_path / "slow", {"B": {"max_print_speed": 40.0}}))
+    assert before["B"]["printing_s"] == pytest.approx(10 / 80)
     assert after["B"]["printing_s"] == pytest.approx(2 * before["B"]["printing_s"], rel=1e-12)
     assert after["B"]["travelling_s"] == pytest.approx(before["B"]["travelling_s"], rel=1e-12)
     assert _busy(after["A"]) == _busy(before["A"])
@@ -170,10 +184,10 @@ def test_a_robot_with_half_the_print_speed_prints_twice_as_long(kind, tmp_path):
 def test_a_manifest_profile_lies_over_its_robot_section(tmp_path):
     path = _manifest(tmp_path, {"B": {"nozzle_depth": 40.0}})
     with open(path, "a") as fh:
-        fh.write("[robot]\nprint_speed = 30.0\n")
+        fh.write("[robot]\nmax_print_speed = 30.0\n")
     a, b = load_inputs([], manifest=path).fleet()
-    assert (a.profile.print_speed, a.profile.nozzle_depth) == (30.0, 25.0)
-    assert (b.profile.print_speed, b.profile.nozzle_depth) == (30.0, 40.0)
+    assert (a.profile.max_print_speed, a.profile.nozzle_depth) == (30.0, 25.0)
+    assert (b.profile.max_print_speed, b.profile.nozzle_depth) == (30.0, 40.0)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -235,7 +249,7 @@ def test_chunk_order_is_looked_for_only_where_the_deps_are_known(tmp_path, bundl
 
 def _order(a_text, b_text, deps):
     robots = [_robot("A", a_text, start=[0, 0, 0.2]), _robot("B", b_text, start=[0, 900, 0.2], facing_deg=-90)]
-    timelines, _ = schedule(robots, 40.0, 120.0)
+    timelines, _ = schedule(robots, UNIFORM)
     return chunk_order(robots, timelines, deps)
 
 
@@ -269,8 +283,8 @@ def test_a_profile_table_takes_robot_fields_only():
     from cooprint.config import RobotProfile, robot_profile
     from cooprint.errors import ConfigError
 
-    base = RobotProfile(print_speed=10.0)
-    assert robot_profile({"jerk": 5}, "x: ", "profile", base) == RobotProfile(print_speed=10.0, jerk=5.0)
+    base = RobotProfile(max_print_speed=10.0)
+    assert robot_profile({"jerk": 5}, "x: ", "profile", base) == RobotProfile(max_print_speed=10.0, jerk=5.0)
     assert robot_profile({}, "x: ", "profile") == RobotProfile()
     with pytest.raises(ConfigError, match=r"^x: unknown field profile.layer_height \(a \[slicing\] field; it takes "
                                           r"\[robot\] fields only\)$"):

@@ -57,7 +57,7 @@ def row_plan():
     deps = {f"X{i}": tuple(f"X{j}" for j in (i - 1, i + 1) if 0 <= j < 6) for i in range(1, 6, 2)}
     seqs = {"A": ("X0", "X1"), "B": ("X2", "X3"), "C": ("X4", "X5")}
     dag, sched, layers, material = layout(chunks, deps, seqs)
-    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE)
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE, SLICING)
     return dag, programs, placements
 
 
@@ -124,7 +124,7 @@ def two_sided():
     deps = {f"N{i}": (f"S{i}",) for i in range(4)}
     seqs = {"A": ("S0", "N1", "S2", "N3"), "B": ("S1", "N0", "S3", "N2"), "C": (), "D": ()}
     dag, sched, layers, material = layout(chunks, deps, seqs)
-    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE)
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE, SLICING)
     return dag, programs, placements, material
 
 
@@ -178,7 +178,7 @@ def test_without_its_guard_waits_a_plan_collides_when_one_robot_is_faster():
     chunks[3] = box_chunk("X3", (330.0, 0.0, 0.0), (570.0, 50.0, 3.0), (0.0, 1.0), 0, 3)  # B is busy for longer
     seqs = {"A": ("X0", "X1"), "B": ("X3", "X2")}
     dag, sched, layers, material = layout(chunks, {}, seqs)
-    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE)
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE, SLICING)
     assert any(":" in e for i in np.flatnonzero(programs["B"].kind == WAIT)
                for e in programs["B"].events[programs["B"].event[i]])
     for speeds in ({}, {"B": 3.0}, {"A": 0.5, "B": 1.7}):
@@ -201,7 +201,7 @@ def test_64_robots_park_round_a_small_part_without_meeting():
     seqs.update({"A": ("X0",), "B": ("X2",), "C": ("X1",), "D": ("X3",)})
     deps = {"X1": ("X0", "X2"), "X3": ("X2",)}
     dag, sched, layers, material = layout(chunks, deps, seqs)
-    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE)
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE, SLICING)
     assert [r for r in names if len(programs[r]) == 0] == [r for r in names if r not in "ABCD"]
     rects = outline_rects(SMALL)
     spots = [quads(rects, np.asarray(placements[r].start)[None, :2], placements[r].facing) for r in names]
@@ -227,7 +227,7 @@ def test_a_chunk_under_the_body_of_a_chunk_printed_later_is_refused():
               box_chunk("OUT", (0.0, -120.0, 0.0), (100.0, -60.0, 3.0), (0.0, 1.0))]
     dag, sched, layers, material = layout(chunks, {}, {"A": ("OUT", "IN")})
     with pytest.raises(FleetError, match=r"\bA\b.* body over chunk OUT"):
-        fleet_programs(sched, dag, layers, material, {"A": SMALL}, CLEARANCE)
+        fleet_programs(sched, dag, layers, material, {"A": SMALL}, CLEARANCE, SLICING)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -251,7 +251,7 @@ def test_the_seed_cut_of_a_bar_is_clean_for_2_and_4_robots_whatever_the_speeds(n
     cs, (dag, sched, layers, material) = seed2_bar(900.0, _seed2_sequences(n), height=6.0 if n == 4 else 30.0)
     assert len(cs.chunks) >= 7
     programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in sched.sequences},
-                                          CLEARANCE)
+                                          CLEARANCE, SLICING)
     for speeds in ({}, {"A": 0.5, "B": 1.7, "C": 1.0, "D": 3.0}, {"A": 1.7, "B": 0.5, "C": 3.0, "D": 0.4}):
         res, errors = _simulate(programs, placements, dag, speeds)
         assert errors == [], speeds
@@ -269,7 +269,7 @@ def test_a_robot_with_only_an_empty_chunk_keeps_its_word_from_home():
     seqs = {"A": ("X0", "X2"), "B": ("X1",)}
     dag, sched, layers, material = layout(chunks, {"X2": ("X1",)}, seqs)
     layers["X1"] = []
-    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE)
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in seqs}, CLEARANCE, SLICING)
     b = programs["B"]
     assert not (b.kind == MOVE).any()
     assert [b.events[b.event[i]] for i in np.flatnonzero(b.event >= 0)] == [("X1",)]
@@ -286,7 +286,7 @@ def test_a_grid_dealt_round_robin_is_clean_at_random_speeds():
 
     names = robot_names(4)
     dag, sched, layers, material = grid_boxes(4, 6, names)
-    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in names}, CLEARANCE)
+    programs, placements = fleet_programs(sched, dag, layers, material, {r: SMALL for r in names}, CLEARANCE, SLICING)
     rng = np.random.default_rng(14)
     for speeds in ({}, *({r: float(x) for r, x in zip(names, rng.uniform(0.4, 2.5, 4))} for _ in range(2))):
         assert _simulate(programs, placements, dag, speeds)[1] == [], speeds
@@ -310,7 +310,7 @@ def test_a_parked_robot_in_the_way_is_a_bug_named_not_a_deadlock(monkeypatch):
     dag, sched, layers, material = layout(chunks, {}, {"A": ("X0", "X1"), "Z": ()})
     with pytest.raises(FleetError, match=r"^robot A cannot get to chunk X0: robot Z, parked for good at "
                                          r"\[75\.0, -20\.0\], is in its way"):
-        fleet_programs(sched, dag, layers, material, {"A": SMALL, "Z": SMALL}, CLEARANCE)
+        fleet_programs(sched, dag, layers, material, {"A": SMALL, "Z": SMALL}, CLEARANCE, SLICING)
 
 
 def test_the_plan_as_a_bundle_loads_and_simulates_clean(two_sided, tmp_path):
@@ -355,11 +355,10 @@ def test_a_mixed_fleet_keeps_each_robots_own_outline_apart():
     deps = {f"X{i}": tuple(f"X{j}" for j in (i - 1, i + 1) if 0 <= j < 6) for i in range(1, 6, 2)}
     seqs = {"A": ("X0", "X1"), "B": ("X2", "X3"), "C": ("X4", "X5")}
     dag, sched, layers, material = layout(chunks, deps, seqs)
-    programs, placements = fleet_programs(sched, dag, layers, material, profiles, CLEARANCE)
+    programs, placements = fleet_programs(sched, dag, layers, material, profiles, CLEARANCE, SLICING)
     for speeds in ({}, {"A": 0.5, "B": 1.7, "C": 3.0}, {"A": 3.0, "B": 0.5, "C": 1.0}):
         robots = [SimRobot(r, programs[r], np.asarray(placements[r].start), np.asarray(placements[r].facing),
-                           profile=dataclasses.replace(profiles[r], print_speed=40.0 * speeds.get(r, 1.0),
-                                                       travel_speed=120.0 * speeds.get(r, 1.0))) for r in seqs]
+                           profile=scaled(profiles[r], speeds.get(r, 1.0))) for r in seqs]
         res = simulate(SimInput(robots, SMALL, SLICING, "test", deps={c: dag.preds(c) for c in dag.ids}))
         assert [(f.kind, f.robot) for f in res.findings if f.kind in ERRORS] == [], speeds
 
@@ -370,8 +369,8 @@ def test_a_chunk_without_a_facing_or_a_robot_without_a_profile_is_refused():
     chunks = _row(2, 150.0)
     dag, sched, layers, material = layout(chunks, {}, {"A": ("X0", "X1")})
     with pytest.raises(ValueError, match=r"^fleet_programs: no profile for robot A$"):
-        fleet_programs(sched, dag, layers, material, {}, CLEARANCE)
+        fleet_programs(sched, dag, layers, material, {}, CLEARANCE, SLICING)
     facing = dag.facing.copy()
     facing[1] = np.nan
     with pytest.raises(ValueError, match=r"^fleet_programs: chunk X1 \(robot A\) has no facing"):
-        fleet_programs(sched, dataclasses.replace(dag, facing=facing), layers, material, {"A": SMALL}, CLEARANCE)
+        fleet_programs(sched, dataclasses.replace(dag, facing=facing), layers, material, {"A": SMALL}, CLEARANCE, SLICING)

@@ -19,6 +19,7 @@ from cooprint.program.commands import parse_coop
 from cooprint.simulation import KINDS, SimInput, load_inputs, simulate
 from cooprint.simulation.checks import DOUBLE_NEAR, DOUBLE_RUN, material_checks
 from cooprint.simulation.timeline import SimRobot, schedule
+from speeds import UNIFORM
 
 H, W = 0.2, 0.45  # the slicing settings' layer height and line width
 NEW = ("nozzle-in-material", "double-deposit")
@@ -31,7 +32,7 @@ def _robot(name: str, text: str, start=(0.0, -400.0, 5.0), facing_deg: float = 9
 
 def _found(*robots: SimRobot, **kw) -> list:
     """The two checks' findings on the robots' programs (the other checks left out)."""
-    tls, _ = schedule(list(robots), 40.0, 120.0)
+    tls, _ = schedule(list(robots), UNIFORM)
     return material_checks(list(robots), tls, SlicingSettings(), **kw)
 
 

@@ -23,6 +23,7 @@ from cooprint.simulation.inputs import _facing
 from cooprint.simulation.timeline import SimRobot
 
 from badinput import assert_rejected
+from speeds import UNIFORM_SLICING
 
 PROFILE = load_settings().robot  # bd 300, body 300 x 350, nd 25, nh 100, frame as wide as the body
 
@@ -33,7 +34,7 @@ def two_robots(a_text: str, a_start, a_deg: float, b_text: str, b_start, b_deg: 
     s = load_settings()
     a = SimRobot("A", parse_coop(a_text, "A"), np.asarray(a_start, float), _facing(a_deg), profile=a_profile)
     b = SimRobot("B", parse_coop(b_text, "B"), np.asarray(b_start, float), _facing(b_deg), profile=b_profile)
-    return simulate(SimInput([a, b], s.robot, s.slicing, "<test>"))
+    return simulate(SimInput([a, b], s.robot, UNIFORM_SLICING, "<test>"))  # 40 mm/s, travel 120
 
 
 def collisions(res):

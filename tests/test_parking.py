@@ -29,6 +29,7 @@ from cooprint.models import car as model_car
 from cooprint.models import cylinder as model_cylinder
 from cooprint.program import build
 from cooprint.program.commands import MOVE, TOOL_ON, WAIT, read_coop
+from cooprint.program.gcode import Feeds
 from cooprint.simulation import load_inputs, simulate
 from cooprint.simulation.timeline import SimRobot, schedule
 from cooprint.slicing.paths import PERIMETER_OUTER, LayerPaths
@@ -215,7 +216,7 @@ def test_parking_costs_seconds_of_travel(bars):
     on = int(np.flatnonzero(p.kind == TOOL_ON)[0])
     way = p.xyz[[i for i in range(on) if p.kind[i] == MOVE]]
     travel = float(np.linalg.norm(np.diff(way, axis=0), axis=1).sum())
-    assert 2 * load_settings().robot.nozzle_depth < travel < 2.0 * load_settings().robot.travel_speed
+    assert 2 * load_settings().robot.nozzle_depth < travel < 2.0 * load_settings().slicing.travel_speed
 
 
 def test_the_generated_car_and_cylinder_plan_clear_waits(tmp_path):
@@ -278,7 +279,7 @@ def test_a_wait_between_chunks_backs_off_and_lifts():
     # simulated: B's outline where it waits is clear of A's all along
     robots = [SimRobot(n, programs[n], np.asarray(placements[n].start), np.asarray(placements[n].facing), None,
                        profile=r) for n in seqs]
-    timelines, findings = schedule(robots, r.print_speed, r.travel_speed)
+    timelines, findings = schedule(robots, Feeds.of_robot(r, load_settings().slicing))
     assert findings == []
     t0, t1, _ = timelines["B"].waits[1]
     assert t1 > t0  # it did wait: A was still printing

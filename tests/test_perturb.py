@@ -16,13 +16,14 @@ import pytest
 
 from badinput import assert_rejected
 from cooprint.cli import main
-from cooprint.config import RobotProfile, SlicingSettings
+from cooprint.config import RobotProfile
 from cooprint.program.commands import parse_coop
 from cooprint.simulation import KINDS, SimInput, load_inputs, simulate, summary
 from cooprint.simulation.perturb import (check_perturb_options, command_speeds, perturb_runs, perturbed_speeds,
                                          run_factors, span_ids)
 from cooprint.simulation.timeline import SimRobot
 from cooprint.errors import UserError
+from speeds import UNIFORM, UNIFORM_SLICING, UNIFORM_SPEEDS
 
 WORK = 6  # strokes of A's chunk: 6 x 200 mm at 120 mm/s = 10 s
 A_TEXT = (";@chunk A1\n" + "MOVE 0 100 5\nMOVE 0 0 5\n" * WORK
@@ -38,7 +39,7 @@ def fleet(guard: bool) -> SimInput:
     up = np.array([0.0, 1.0])
     return SimInput([SimRobot("A", parse_coop(A_TEXT, "A"), np.array([0.0, 0.0, 5.0]), up),
                      SimRobot("B", parse_coop(b_text(guard), "B"), np.array([B_START, 0.0, 5.0]), up)],
-                    RobotProfile(), SlicingSettings(), "test")
+                    RobotProfile(), UNIFORM_SLICING, "test")
 
 
 def collided(result):
@@ -51,7 +52,7 @@ def test_each_chunk_and_each_travel_between_chunks_is_a_stretch_with_its_own_fac
     a = fleet(True).fleet()[0]
     spans = span_ids(a.program.chunk)
     assert spans.max() == 1  # chunk A1, then the travel away
-    base = command_speeds(a, 40.0, 120.0)
+    base = command_speeds(a, UNIFORM)
     moves = a.program.kind == 0
     assert np.all(base[moves] == 120.0) and np.all(base[~moves] == 0.0)  # tool off: the travel speed
     got = perturbed_speeds(base, spans, np.array([0.8, 1.25]))
@@ -218,7 +219,7 @@ def write_bundle(folder, chunks, schedule=None, guard=False):
     (folder / "robots" / "A.coop").write_text(A_PRINT)
     (folder / "robots" / "B.coop").write_text(("WAIT A1\n" if guard else "") + "MOVE -1500 0 0.2\n;@chunk B1\n"
                                               "TOOL ON\nMOVE -1500 100 0.2\nTOOL OFF\n")
-    record = {"format": "cooprint-job/2", "settings": {},
+    record = {"format": "cooprint-job/2", "settings": {"slicing": UNIFORM_SPEEDS},  # 40 mm/s, travel 120
               "robots": [{"name": "A", "program": "robots/A.coop", "start": [0, 0, 0.2], "facing_deg": 90},
                          {"name": "B", "program": "robots/B.coop", "start": [-1500, 0, 0.2], "facing_deg": 90}],
               "chunks": chunks}
@@ -313,7 +314,7 @@ def test_a_gcode_robot_is_perturbed_at_its_own_feed_rates(tmp_path):
     g = tmp_path / "P.gcode"
     g.write_text("G1 X10 F600\nG1 X20 F1200 E1\nG1 X30 F3000\n")
     r = read_gcode(g)
-    base = command_speeds(r, 40.0, 120.0)
+    base = command_speeds(r, UNIFORM)
     np.testing.assert_allclose(base[r.program.kind == 0], [10.0, 20.0, 50.0])  # F / 60, not the profile's
     assert span_ids(r.program.chunk).max() == 0  # no chunks: one stretch, one factor per run
     res = perturb_runs(load_inputs([str(g)]), 0.25, 4, seed=5)

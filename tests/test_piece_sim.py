@@ -175,15 +175,15 @@ def test_timing_programs_piece_by_piece_holds_no_program(tmp_path):
         files[r.name] = tmp_path / f"{r.name}.coop"
         with open(files[r.name], "w") as f:
             write_coop(f, r.program)
-    robots, p = inp.fleet(), inp.profile
+    robots, feeds = inp.fleet(), inp.feeds()
     commands = sum(len(r.program) for r in robots)
-    expected, _ = schedule(robots, p.print_speed, p.travel_speed)
+    expected, _ = schedule(robots, feeds)
     bare = [dataclasses.replace(r, program=None) for r in robots]
     pieces = {name: partial(iter_coop, f, name, piece_bytes=256 << 10) for name, f in files.items()}
-    schedule_pieces(bare[:1], pieces, p.print_speed, p.travel_speed)  # the compiled kernels loaded
+    schedule_pieces(bare[:1], pieces, feeds)  # the compiled kernels loaded
     tracemalloc.start()
     try:
-        slim, timelines, findings = schedule_pieces(bare, pieces, p.print_speed, p.travel_speed)
+        slim, timelines, findings = schedule_pieces(bare, pieces, feeds)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -235,9 +235,8 @@ def test_command_indices_past_int32_are_kept_in_int64(bundle, monkeypatch):
     monkeypatch.setattr(timeline, "INT32_COMMANDS", 1000)
     inp = load_inputs([str(bundle)], programs=False)
     pieces = {r.name: partial(iter_coop, inp.program_files[r.name], r.name, piece_bytes=3000) for r in inp.robots}
-    p = inp.profile
     # no room given: the columns grow as the pieces come, the indices turn int64 past 1000 commands
-    _, big, _ = timeline.schedule_pieces(inp.fleet(), pieces, p.print_speed, p.travel_speed)
+    _, big, _ = timeline.schedule_pieces(inp.fleet(), pieces, inp.feeds())
     for name, tl in whole.timelines.items():
         assert small.timelines[name].index.dtype == np.int32 and big[name].index.dtype == np.int64
         assert np.array_equal(small.timelines[name].index, tl.index)

@@ -14,6 +14,7 @@ import pytest
 from PIL import Image
 
 from badinput import assert_rejected
+from speeds import UNIFORM_TOML
 from cooprint.cli import main
 from cooprint.errors import UserError
 from cooprint.render.palette import robot_colour
@@ -52,7 +53,8 @@ def plan(tmp_path_factory):
     (d / "A.coop").write_text(_program(1500))
     zigzag = "".join(f"MOVE {5 * (k % 2)} {2000 + 0.5 * k} 0.2\n" for k in range(1, 400))
     (d / "B.coop").write_text("MOVE 0 2000 0.2\nWAIT half\nTOOL ON\n" + zigzag)
-    (d / "m.toml").write_text('[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0, 0.2]\nfacing_deg = 90\n'
+    (d / "m.toml").write_text(UNIFORM_TOML  # every extrusion at 40 mm/s, travel at 120
+                              + '[[robots]]\nname = "A"\nprogram = "A.coop"\nstart = [0, 0, 0.2]\nfacing_deg = 90\n'
                               '[[robots]]\nname = "B"\nprogram = "B.coop"\nstart = [0, 2000, 0.2]\nfacing_deg = 90\n')
     return d / "m.toml"
 

@@ -11,15 +11,16 @@ from PIL import Image
 
 from cooprint.cli import main
 from cooprint.config import RobotProfile, SlicingSettings
-from cooprint.program.commands import parse_coop
+from cooprint.program.commands import parse_coop, read_coop
 from cooprint.render.sim import render_gantt, render_snapshot
 from cooprint.simulation import KINDS, SimInput, load_inputs, simulate, summary
 from cooprint.io.schema import SchemaError
 from cooprint.simulation.inputs import SimInputError, read_gcode
 from cooprint.simulation.timeline import SimRobot
+from speeds import UNIFORM, UNIFORM_SLICING, UNIFORM_TOML, expected_times
 
 SEED_SAMPLE = "MOVE 0, 0, 0\nTOOL ON\nMOVE 1, 0, 0\nMOVE 1, 1, 0\nMOVE 0, 1, 0\nTOOL OFF\n"
-PROFILE = RobotProfile()  # print 40 mm/s, travel 120 mm/s, bd 300, body 300 x 350
+PROFILE = RobotProfile()  # bd 300, body 300 x 350 (speeds: UNIFORM_SLICING's, print 40 mm/s, travel 120 mm/s)
 
 #: Kinds registered in KINDS whose checks other branches add (not run here yet): the lower bound
 #: is checked when job.json states one (issue 14's schedulers write it).
@@ -33,7 +34,7 @@ def _robot(name, text, start=None, facing_deg=90.0):
 
 
 def _sim(*robots):
-    return simulate(SimInput(list(robots), PROFILE, SlicingSettings(), "test"))
+    return simulate(SimInput(list(robots), PROFILE, UNIFORM_SLICING, "test"))
 
 
 def test_the_seed_sample_draws_the_unit_square_with_the_tool_on_only():
@@ -204,9 +205,12 @@ def test_a_plan_from_cooprint_run_simulates_clean(car_bundle):
     a, b = s["robots"]
     assert b["waiting_s"] > 0 and a["waiting_s"] == 0
     record = json.loads((car_bundle / "job.json").read_text())
-    for rob, rec in zip(s["robots"], record["robots"]):
+    for rob, rec, r in zip(s["robots"], record["robots"], res.robots):
         assert rob["material_mm3"] == pytest.approx(rec["stats"]["volume_mm3"], rel=1e-9)
-        assert rob["printing_s"] == pytest.approx(rec["stats"]["print_mm"] / 40.0, rel=1e-6)
+        # every move at the [slicing] speed of its role (the first layer at most first_layer_speed)
+        printing, travelling = expected_times(read_coop(car_bundle / rec["program"], r.name), res.slicing, r.start)
+        assert rob["printing_s"] == pytest.approx(printing, rel=1e-9)
+        assert rob["travelling_s"] == pytest.approx(travelling, rel=1e-9)
 
 
 def test_cli_simulate_writes_the_summary_and_strict_fails_on_findings(car_bundle, tmp_path, capsys):
@@ -436,7 +440,7 @@ def _fig15(robot_text: str, dt: float, steps: int) -> list[tuple[float, float, f
         while i < len(moves) and budget > 0:
             a, b = np.array(moves[i - 1]), np.array(moves[i])
             length = float(np.linalg.norm(b - a))
-            speed = PROFILE.print_speed if on[i] and length > 0 else PROFILE.travel_speed
+            speed = UNIFORM.role[0] if on[i] and length > 0 else UNIFORM.travel
             left = (length - into) / speed
             if left <= budget:
                 budget -= left
@@ -470,7 +474,7 @@ def test_frames_follow_the_seed_fig15_loop_and_the_material_adds_up(tmp_path):
     job = tmp_path / "job"
     (job / "robots").mkdir(parents=True)
     (job / "robots" / "A.coop").write_text(text)
-    (job / "fleet.toml").write_text('[[robots]]\nname = "A"\nprogram = "robots/A.coop"\nstart = [0.0, 0.0, 0.0]\n')
+    (job / "fleet.toml").write_text(UNIFORM_TOML + '[[robots]]\nname = "A"\nprogram = "robots/A.coop"\nstart = [0.0, 0.0, 0.0]\n')
     assert main(["simulate", "--manifest", str(job / "fleet.toml"), "--out", str(job), "--frames", "0.07", "-q"]) == 0
     with np.load(job / "sim" / "frames.npz") as saved:
         assert np.array_equal(saved["position"], fr.position) and saved["robots"].tolist() == ["A"]

@@ -18,6 +18,7 @@ from cooprint.program.build import layer_program
 from cooprint.program.commands import MOVE, TOOL_OFF, Program, program_rows
 from cooprint.program.stream import ChunkStore, canonical_program, entered, hull_points
 from cooprint.simulation.timeline import PieceRobot, SimRobot, event_times, schedule
+from cooprint.program.gcode import Feeds
 from cooprint.slicing import iter_layers
 
 from solids import COARSE, box, plate
@@ -195,7 +196,8 @@ def test_event_times_are_schedule_times():
     s = job.chunked.settings
     robots = [SimRobot(r, p, np.asarray(job.placements[r].start, float), np.zeros(2), profile=s.robot)
               for r, p in job.programs.items()]
-    timelines, _ = schedule(robots, s.robot.print_speed, s.robot.travel_speed)
+    feeds = Feeds.of_robot(s.robot, s.slicing)
+    timelines, _ = schedule(robots, feeds)
     rng = np.random.default_rng(5)
 
     def cut(p):
@@ -204,8 +206,8 @@ def test_event_times_are_schedule_times():
         return [program_rows(p, int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
 
     pieces = {r: cut(p) for r, p in job.programs.items()}
-    got = event_times([PieceRobot(r, np.asarray(job.placements[r].start, float), (lambda r=r: pieces[r]),
-                                  s.robot.print_speed, s.robot.travel_speed) for r in job.programs])
+    got = event_times([PieceRobot(r, np.asarray(job.placements[r].start, float), (lambda r=r: pieces[r]), feeds.speeds)
+                       for r in job.programs])
     for r, tl in timelines.items():
         assert got.ends[r] == tl.end
         assert got.waits[r] == [w[1] - w[0] for w in tl.waits]

@@ -145,9 +145,11 @@ def chunk_dag(chunks: ChunkSet, settings: JobSettings, work: dict[str, float],
     the margin the programs keep between robots (:mod:`cooprint.program.fleet` makes a robot wait
     wherever its outline would come nearer another's), so that the schedule knows the waits the
     programs will have."""
+    from cooprint.program.gcode import Feeds
     from cooprint.scheduling.graph import build_dag
 
-    return build_dag(chunks, settings.robot, settings.program.clearance, work, settings.robot.travel_speed, ends)
+    travel = Feeds.of_robot(settings.robot, settings.slicing).travel  # the robots' travel between chunks
+    return build_dag(chunks, settings.robot, settings.program.clearance, work, travel, ends)
 
 
 def make_schedule_for(dag: "ChunkDAG", chunks: ChunkSet, settings: JobSettings, robots: int) -> Schedule:
@@ -559,7 +561,8 @@ def _fleet_plan(chunked: ChunkJob, store: Any, material: Any,
             sched = replace(sched, sequences={r: sched.sequences.get(r, ()) for r in names},
                             lower_bound=chunked.dag.lower_bound(robots))
         programs, placements = fleet_streams(sched, chunked.dag, store, material,
-                                             {r: settings.robot for r in names}, settings.program.clearance)
+                                             {r: settings.robot for r in names}, settings.program.clearance,
+                                             settings.slicing)
         span = _programs_makespan(programs, placements, settings, store)
         if best is None or span < best[0] * (1 - 1e-6):
             best = (span, replace(chunked, assignment=sched), programs, placements)
@@ -580,7 +583,8 @@ def sim_robots(programs: dict[str, Any], placements: dict[str, Any], settings: J
 def _programs_makespan(programs: Mapping[str, Any], placements: dict[str, Any], settings: JobSettings,
                        store: Any = None) -> float:
     """When the last of ``programs`` ends, s, timed as ``cooprint simulate`` times a bundle at
-    constant speed (every robot at its profile's speeds, WAITs on NOTIFYs). ``programs``:
+    constant speed (every move at its robot's speed for its path role, :func:`piece_robots`; WAITs
+    on NOTIFYs). ``programs``:
     ``{robot: Program}``, or ``{robot: RobotStream}`` with the ``store`` of their chunks (read
     one piece at a time)."""
     from cooprint.simulation.timeline import event_times
@@ -589,19 +593,19 @@ def _programs_makespan(programs: Mapping[str, Any], placements: dict[str, Any], 
 
 
 def piece_robots(programs: Mapping[str, Any], placements: dict[str, Any], settings: JobSettings,
-                 store: Any = None, speed: Callable[[Any, bool], np.ndarray] | None = None) -> list[Any]:
+                 store: Any = None) -> list[Any]:
     """The robots of a plan for :func:`cooprint.simulation.timeline.event_times`: each program
-    (or stream, read from ``store``) from its placement's start, at the job's robot speeds or
-    at ``speed(piece, tool)``."""
+    (or stream, read from ``store``) from its placement's start, at the job's speeds per command
+    (:meth:`Feeds.of_robot`: the G-code's feed rates, the simulator's time model)."""
+    from cooprint.program.gcode import Feeds
     from cooprint.program.stream import PIECE_COMMANDS
     from cooprint.simulation.timeline import PieceRobot
 
     def pieces(p: Any) -> Callable[[], Iterable[Any]]:
         return (lambda: [p]) if store is None else (lambda: p.programs(store, PIECE_COMMANDS))
 
-    robot = settings.robot
-    return [PieceRobot(r, np.asarray(placements[r].start, float), pieces(p), robot.print_speed, robot.travel_speed,
-                       speed) for r, p in programs.items()]
+    speed = Feeds.of_robot(settings.robot, settings.slicing).speeds
+    return [PieceRobot(r, np.asarray(placements[r].start, float), pieces(p), speed) for r, p in programs.items()]
 
 
 def _rescheduled(chunked: ChunkJob, work: dict[str, float], ends: dict[str, tuple[np.ndarray, np.ndarray]],
@@ -626,7 +630,7 @@ def program_stats(program: Any, s: SlicingSettings) -> dict[str, Any]:
 
 def coop_record(job: CoopJob, stats: dict[str, dict[str, Any]] | None = None, compress: bool = False) -> dict[str, Any]:
     """``job.json`` of a cooperative run: the chunk record, robots with their placement, their
-    whole profile (so that the bundle says each robot's speeds and geometry itself; a mixed fleet
+    whole profile (so that the bundle says each robot's speed caps and geometry itself; a mixed fleet
     gives each its own) and program statistics (``stats``, as they were written; else counted
     here), and the synchronisation events. ``compress``: the programs are ``.coop.gz`` and
     ``.gcode.gz`` files."""
@@ -685,7 +689,7 @@ def write_coop_files(job: CoopJob, tmp: Path, picture: bool = True, progress: Pr
     # how long each WAIT is expected to last, every move at the G-code's feed rate: the G-code
     # keeps a nozzle hot only across short ones
     feeds = Feeds.of_robot(settings.robot, s)
-    waits = event_times(piece_robots(job.streams, job.placements, settings, job.store, feeds.speeds)).waits
+    waits = event_times(piece_robots(job.streams, job.placements, settings, job.store)).waits
     (tmp / "chunks").mkdir()
     (tmp / "robots").mkdir()
     # the write bar counts bytes (MB/s): the STLs' exact size, the programs' expected

@@ -88,8 +88,14 @@ class RobotProfile:
     frame_width: float | None = field(default=None, metadata=_num(0, 1e5, unit="mm", lo_open=True, optional=True,
                                       doc="width of the frame that carries the printhead over the print, "
                                           "across the facing axis; absent: body_width"))
-    print_speed: float = field(default=40.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
-    travel_speed: float = field(default=120.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
+    # the robot's limits on the slicer's speeds ([slicing] *_speed, the one source of every feed
+    # rate, per path role: cooprint.program.gcode.Feeds); absent: no limit
+    max_print_speed: float | None = field(default=None, metadata=_num(
+        0, 1e4, unit="mm/s", lo_open=True, optional=True,
+        doc="fastest this robot extrudes: caps every [slicing] extrusion speed; absent: no cap"))
+    max_travel_speed: float | None = field(default=None, metadata=_num(
+        0, 1e4, unit="mm/s", lo_open=True, optional=True,
+        doc="fastest this robot travels: caps slicing.travel_speed; absent: no cap"))
     acceleration: float = field(default=500.0, metadata=_num(0, 1e6, unit="mm/s2", lo_open=True,
                                 doc="for the simulator's acceleration model (simulate --accel)"))
     jerk: float = field(default=10.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True,
@@ -366,11 +372,32 @@ def _did_you_mean(word: str, options: Iterable[str]) -> str:
     return "; expected one of: " + ", ".join(options)
 
 
+#: Fields cooprint no longer reads, ``(section, field)``, and what replaced them: a file that still
+#: sets one is refused (a speed silently ignored would print at another speed than the file says).
+REPLACED_FIELDS = {
+    ("robot", "print_speed"): "the per-role speeds of [slicing] (perimeter_speed, infill_speed, ...; "
+                              "docs/slicer.md) and the cap robot.max_print_speed",
+    ("robot", "travel_speed"): "slicing.travel_speed and the cap robot.max_travel_speed",
+}
+
+
+def check_replaced(section: str, keys: Iterable[Any], where: str, label: str | None = None) -> None:
+    """Refuse a field of :data:`REPLACED_FIELDS` among ``keys`` of table ``section`` with one line
+    naming it and what replaced it (``label``: what the message calls the table, as
+    :func:`_field_for`)."""
+    for key in keys:
+        instead = REPLACED_FIELDS.get((section, str(key)))
+        if instead is not None:
+            raise ConfigError(f"{where}{label or section}.{key} was replaced by {instead}")
+
+
 def _field_for(section: str, key: str, where: str, label: str | None = None) -> Any:
-    """The dataclass field ``section.key``; unknown names get a did-you-mean. ``label`` is what
-    the messages call the table (``profile`` for a robot's own profile; the section's name)."""
+    """The dataclass field ``section.key``; unknown names get a did-you-mean, replaced ones
+    (:data:`REPLACED_FIELDS`) what replaced them. ``label`` is what the messages call the table
+    (``profile`` for a robot's own profile; the section's name)."""
     if section not in _SECTIONS:
         raise ConfigError(f"{where}unknown section [{section}]" + _did_you_mean(section, _SECTIONS))
+    check_replaced(section, (key,), where, label)
     known = {f.name: f for f in fields(_SECTIONS[section])}
     shown = label or section
     if key not in known:

@@ -60,11 +60,12 @@ from typing import Mapping
 
 import numpy as np
 
-from cooprint.config import RobotProfile
+from cooprint.config import RobotProfile, SlicingSettings
 from cooprint.errors import InfeasibleError
 from cooprint.geometry import unit_xy
 from cooprint.program.build import MaterialIndex, RobotPlacement, facing_deg
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, WAIT, Program, make_program, quantize
+from cooprint.program.gcode import Feeds
 from cooprint.program.stream import ChunkPiece, ChunkStore, RobotStream
 from cooprint.scheduling.dag import ChunkDAG
 from cooprint.scheduling.schedule import Schedule
@@ -114,19 +115,19 @@ def apart(a: np.ndarray, b: np.ndarray, gap: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Body:
-    """One robot's outline: the three rectangles, their radius around the nozzle, its speeds."""
+    """One robot's outline: the three rectangles, their radius around the nozzle, its speeds (the
+    slicer's per path role under its profile's caps: :meth:`Feeds.of_robot`, its G-code's)."""
 
     rects: np.ndarray  # (3, 4)
     radius: float
     nozzle_depth: float
     build_depth: float
-    print_speed: float
-    travel_speed: float
+    feeds: Feeds
 
     @staticmethod
-    def of(p: RobotProfile) -> "Body":
+    def of(p: RobotProfile, slicing: SlicingSettings) -> "Body":
         return Body(np.array(list(p.outline().values())), p.outline_radius(), p.nozzle_depth, p.build_depth,
-                    p.print_speed, p.travel_speed)
+                    Feeds.of_robot(p, slicing))
 
     def parts(self, nozzle: np.ndarray, facing: np.ndarray) -> np.ndarray:
         """(3, NDIR) the parts' supports over the nozzle positions ``nozzle`` (k, 2) (their hull)."""
@@ -413,11 +414,11 @@ class _Fleet:
     (:meth:`run` places the jobs, :meth:`programs` writes them out)."""
 
     def __init__(self, schedule: Schedule, dag: ChunkDAG, store: ChunkStore, material: MaterialIndex,
-                 profiles: Mapping[str, RobotProfile], clearance: float):
+                 profiles: Mapping[str, RobotProfile], clearance: float, slicing: SlicingSettings):
         self.sched, self.dag, self.store, self.material = schedule, dag, store, material
         self.clearance = float(clearance)
         self.robots = list(schedule.sequences)
-        self.bodies = {r: Body.of(profiles[r]) for r in self.robots}
+        self.bodies = {r: Body.of(profiles[r], slicing) for r in self.robots}
         self.idx = dag.index
         self.owner = {c: r for r, seq in schedule.sequences.items() for c in seq}
         self.pts, self.first = {}, {}
@@ -563,7 +564,7 @@ class _Fleet:
         body = self.bodies[r]
         it = Item(r, "leg", point_support(np.array([a[:2], b[:2]]))[None] + body.rect_parts(f))
         it.to = np.asarray(b, float)
-        it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.travel_speed  # duration, for now
+        it.end = float(np.linalg.norm(np.asarray(b) - np.asarray(a))) / body.feeds.travel  # duration, for now
         return it
 
     def _pieces(self, r: str, cid: str) -> list[tuple[ChunkPiece, np.ndarray, float, np.ndarray | None]]:
@@ -574,14 +575,13 @@ class _Fleet:
         where its last move ends. Kept in the store for every robot
         of the same speeds (the chunk's commands are read once)."""
         b = self.bodies[r]
-        key = ("fleet-pieces", cid, b.print_speed, b.travel_speed)
+        key = ("fleet-pieces", cid, b.feeds)
         if key not in self.store.memo:
             prog = self.store.program(cid)
             mv = np.flatnonzero(prog.kind == MOVE)
             xyz = prog.xyz[mv]
             length = np.r_[0.0, np.linalg.norm(np.diff(xyz, axis=0), axis=1)]
-            on = prog.tool_on()[mv]
-            dur = np.where(on, length / b.print_speed, length / b.travel_speed)
+            dur = length / b.feeds.speeds(prog)[mv]
             ends = np.flatnonzero(prog.kind == TOOL_OFF) + 1  # where a piece may end
             step = max(1.0, len(mv) / PIECES)
             cuts, moves_before = [0], np.searchsorted(mv, ends)
@@ -608,7 +608,7 @@ class _Fleet:
         items = []
         for k, (piece, support, dur, end_at) in enumerate(pieces):
             it = Item(r, "print", support[None] + rects, chunk=cid, program=piece, end_at=end_at)
-            it.end = dur + (float(np.linalg.norm(np.asarray(here, float) - first)) / b.travel_speed if k == 0 else 0.0)
+            it.end = dur + (float(np.linalg.norm(np.asarray(here, float) - first)) / b.feeds.travel if k == 0 else 0.0)
             items.append(it)
         items[-1].last = True
         end_at = pieces[-1][3]
@@ -939,19 +939,19 @@ def _sync(robot: str, kind: int, events: list[str]) -> Program:
 
 
 def fleet_programs(schedule: Schedule, dag: ChunkDAG, layers: dict[str, list[tuple[int, LayerPaths]]],
-                   material: MaterialIndex, profiles: Mapping[str, RobotProfile], clearance: float
-                   ) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
+                   material: MaterialIndex, profiles: Mapping[str, RobotProfile], clearance: float,
+                   slicing: SlicingSettings) -> tuple[dict[str, Program], dict[str, RobotPlacement]]:
     """:func:`fleet_streams` of chunks sliced into ``layers`` (``{chunk id: [(layer index,
     LayerPaths), ...]}`` in the object's layer grid), each robot's program made whole."""
     store = ChunkStore()
     for cid, chunk_layers in layers.items():
         store.put(cid, chunk_layers)
-    streams, placements = fleet_streams(schedule, dag, store, material, profiles, clearance)
+    streams, placements = fleet_streams(schedule, dag, store, material, profiles, clearance, slicing)
     return {r: s.program(store) for r, s in streams.items()}, placements
 
 
 def fleet_streams(schedule: Schedule, dag: ChunkDAG, store: ChunkStore, material: MaterialIndex,
-                  profiles: Mapping[str, RobotProfile], clearance: float
+                  profiles: Mapping[str, RobotProfile], clearance: float, slicing: SlicingSettings
                   ) -> tuple[dict[str, RobotStream], dict[str, RobotPlacement]]:
     """Every robot's program (as a stream of pieces: a chunk's commands stay in ``store``) and
     placement for ``schedule`` (see the module doc).
@@ -967,9 +967,12 @@ def fleet_streams(schedule: Schedule, dag: ChunkDAG, store: ChunkStore, material
     material
         The chunks' triangle boxes (travel heights).
     profiles
-        ``{robot: RobotProfile}``: each robot's outline and speeds.
+        ``{robot: RobotProfile}``: each robot's outline and speed caps.
     clearance
         How far apart two robots' outlines stay, and the lift above material of a travel, mm.
+    slicing
+        The slicer's settings: its speeds per path role, which the replay times the robots'
+        moves at (under each profile's caps, :meth:`Feeds.of_robot`).
 
     Raises :class:`FleetError` when the robots cannot go on (a body would have to stand on printed
     material, a robot is walled in) or a parked robot is in the way (a bug of the ring rule).
@@ -984,7 +987,7 @@ def fleet_streams(schedule: Schedule, dag: ChunkDAG, store: ChunkStore, material
             if not (np.isfinite(f).all() and np.hypot(*f[:2]) > 1e-9):
                 raise ValueError(f"fleet_programs: chunk {c} (robot {r}) has no facing ({list(f)}): the DAG must "
                                  "say which way its robot faces")
-    fleet = _Fleet(schedule, dag, store, material, profiles, clearance)
+    fleet = _Fleet(schedule, dag, store, material, profiles, clearance, slicing)
     fleet.run()
     return fleet.programs()
 

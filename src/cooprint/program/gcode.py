@@ -50,40 +50,64 @@ ROLE_TYPES = {PERIMETER_OUTER: "External perimeter", PERIMETER_INNER: "Perimeter
               GAP_FILL: "Gap fill", OVERHANG: "Overhang perimeter"}
 
 
+#: The [slicing] field that gives each path role its feed rate (PrusaSlicer's: an overhang
+#: perimeter at the bridge speed). An extrusion of role ``TRAVEL`` (no slicer makes one; a
+#: hand-written ``.coop`` may) runs at the infill speed.
+ROLE_SPEEDS = {PERIMETER_OUTER: "external_perimeter_speed", PERIMETER_INNER: "perimeter_speed",
+               SKIN: "solid_infill_speed", INFILL: "infill_speed", TRAVEL: "infill_speed",
+               TOP_SKIN: "top_solid_infill_speed", BRIDGE: "bridge_speed", GAP_FILL: "gap_fill_speed",
+               OVERHANG: "bridge_speed"}
+
+
 @dataclass(frozen=True)
 class Feeds:
-    """Feed rates, mm/s: by path role, on the first layer, and for travel."""
+    """Feed rates, mm/s: the one time model of every command, for the G-code's ``F`` and for
+    every estimate and simulation of a plan (issue 17).
 
-    perimeter: float
-    infill: float
+    ``role[r]`` is the speed of an extrusion of path role ``r`` (:data:`ROLE_SPEEDS`), at most
+    ``first_layer`` on the first layer (layer 0), and ``travel`` is the speed of every move with
+    the tool off.
+    """
+
+    role: tuple[float, ...]
     first_layer: float
     travel: float
 
     @staticmethod
     def of_slicer(s: SlicingSettings) -> "Feeds":
-        """A printer's speeds (``cooprint slice``)."""
-        return Feeds(s.perimeter_speed, s.infill_speed, s.first_layer_speed, s.travel_speed)
+        """The slicer's speeds: a printer's (``cooprint slice``), each role at its ``*_speed``."""
+        return Feeds(tuple(float(getattr(s, ROLE_SPEEDS[r])) for r in range(len(ROLE_SPEEDS))),
+                     float(s.first_layer_speed), float(s.travel_speed))
 
     @staticmethod
     def of_robot(robot: RobotProfile, s: SlicingSettings) -> "Feeds":
-        """A mobile robot prints at its ``print_speed`` (no faster than the slicer's first-layer
-        speed on the first layer) and travels at its ``travel_speed``."""
-        return Feeds(robot.print_speed, robot.print_speed, min(s.first_layer_speed, robot.print_speed),
-                     robot.travel_speed)
+        """A mobile robot's speeds: the slicer's, every extrusion at most the robot's
+        ``max_print_speed`` and travel at most its ``max_travel_speed`` (absent: no cap)."""
+        f = Feeds.of_slicer(s)
+        cap = math.inf if robot.max_print_speed is None else robot.max_print_speed
+        travel_cap = math.inf if robot.max_travel_speed is None else robot.max_travel_speed
+        return Feeds(tuple(min(v, cap) for v in f.role), min(f.first_layer, cap), min(f.travel, travel_cap))
 
     def extrude(self, role: int, layer: int) -> float:
-        if layer == 0:
-            return self.first_layer
-        return self.perimeter if role in (PERIMETER_OUTER, PERIMETER_INNER) else self.infill
+        """The speed of an extrusion of ``role`` on ``layer`` (0: the first layer, capped)."""
+        v = self.role[role]
+        return min(v, self.first_layer) if layer == 0 else v
+
+    def move_speeds(self, role: np.ndarray, layer: np.ndarray, on: np.ndarray) -> np.ndarray:
+        """(k,) mm/s of moves of path ``role`` on ``layer``, the tool ``on`` or off: :meth:`extrude`
+        where it is on, ``travel`` where it is off (vectorised)."""
+        table = np.array(self.role, dtype=np.float64)
+        lut = np.stack([table, np.minimum(table, self.first_layer)])  # [first layer?, role]
+        v = lut[(np.asarray(layer) == 0).astype(np.intp), np.asarray(role, dtype=np.intp)]
+        v[~np.asarray(on, dtype=bool)] = self.travel
+        return v
 
     def speeds(self, p: Program, tool: bool = False) -> np.ndarray:
-        """(n,) mm/s: the feed rate at which the G-code runs each command of ``p`` (MOVEs with the
-        tool on as :meth:`extrude`, the others at travel speed): the time model of the written
-        G-code at constant speed. ``tool``: whether the tool is on before ``p`` (a piece of a
-        program)."""
-        perimeter = (p.role == PERIMETER_OUTER) | (p.role == PERIMETER_INNER)
-        extrude = np.where(p.layer == 0, self.first_layer, np.where(perimeter, self.perimeter, self.infill))
-        return np.where(p.tool_on(tool), extrude, self.travel).astype(np.float64)
+        """(n,) mm/s: the feed rate at which the G-code runs each command of ``p`` (the tool on:
+        :meth:`extrude` of its role and layer; off: travel): the time model of a program at
+        constant speed, the G-code's and the simulator's. ``tool``: whether the tool is on
+        before ``p`` (a piece of a program)."""
+        return self.move_speeds(p.role, p.layer, p.tool_on(tool))
 
 
 @dataclass(frozen=True)
@@ -504,4 +528,4 @@ def gcode_text(pieces: Iterable[Program], s: SlicingSettings, feeds: Feeds | Non
     return buf.getvalue()
 
 
-__all__ = ["Feeds", "GcodeFile", "GcodeWriter", "Heating", "end_code", "gcode_text", "start_code", "write_gcode"]
+__all__ = ["Feeds", "ROLE_SPEEDS", "GcodeFile", "GcodeWriter", "Heating", "end_code", "gcode_text", "start_code", "write_gcode"]

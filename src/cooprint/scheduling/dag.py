@@ -45,7 +45,9 @@ class ChunkDAG:
     exclusive : tuple of (str, str)
         (c) Pairs never printed at the same time, each pair once, in ``ids`` order.
     travel_speed : float
-        mm/s, for :meth:`travel`.
+        mm/s, for :meth:`travel`: the robot's travel speed (``slicing.travel_speed`` under its
+        ``max_travel_speed``, :meth:`~cooprint.program.gcode.Feeds.of_robot`); by default the
+        slicer's default.
     detour : float
         How far outside the part's footprint a robot that changes sides drives round it (its
         whole outline clear of the part and of the robots over it), mm: for :meth:`travel`.
@@ -60,7 +62,7 @@ class ChunkDAG:
     deps: dict[str, tuple[str, ...]]
     body_deps: dict[str, tuple[str, ...]] = field(default_factory=dict)
     exclusive: tuple[tuple[str, str], ...] = ()
-    travel_speed: float = 120.0
+    travel_speed: float = 130.0
     detour: float = 0.0
 
     def __post_init__(self) -> None:

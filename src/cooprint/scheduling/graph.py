@@ -21,9 +21,10 @@ separating-axis gap when they overlap, the exact distance when apart): a thousan
 fraction of a second (:func:`signed_distance`).
 
 Work estimates: :func:`work_from_layers` times a chunk's sliced layers exactly as the simulator
-times them (:func:`cooprint.simulation.timeline.move_durations` on a ``.coop`` plan: the
-profile's ``print_speed`` on every depositing move, ``travel_speed`` on the others), and
-:func:`work_from_volume` estimates it before slicing (``cooprint chunk``).
+and the G-code time them (:func:`cooprint.simulation.timeline.move_durations` on a ``.coop``
+plan: every move at the robot's :class:`~cooprint.program.gcode.Feeds`, the slicer's speed of its
+path role under the robot's caps), and :func:`work_from_volume` estimates it before slicing
+(``cooprint chunk``).
 """
 
 from __future__ import annotations
@@ -362,7 +363,7 @@ def build_dag(chunks: ChunkSet, robot: RobotProfile, clearance: float, work: Map
         ``{chunk id: s}`` (:func:`work_from_layers` or :func:`work_from_volume`); a chunk with
         nothing to print (0) gets :data:`MIN_WORK`.
     travel_speed
-        mm/s, for :meth:`ChunkDAG.travel`.
+        mm/s, for :meth:`ChunkDAG.travel`: the robots' travel speed (:meth:`Feeds.of_robot`'s).
     ends
         ``{chunk id: (first xyz, last xyz)}`` printed (:func:`ends_from_layers`); a chunk not in
         it starts and ends at the middle of its footprint's edge on the body's side, at its base.
@@ -461,28 +462,26 @@ def _unprintable(ids: tuple[str, ...], preds: list[list[int]], both: list[list[i
 
 
 def work_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]], robot: RobotProfile,
-                     slicing: SlicingSettings, *, gcode: bool = False) -> dict[str, float]:
+                     slicing: SlicingSettings) -> dict[str, float]:
     """``{chunk id: s}``: :func:`work_from_program` of each chunk's commands (its layers through
     :func:`cooprint.program.build.layer_program`)."""
     from cooprint.program.stream import canonical_program
 
-    return {cid: work_from_program(canonical_program(cid, chunk_layers), robot, slicing, gcode=gcode)
+    return {cid: work_from_program(canonical_program(cid, chunk_layers), robot, slicing)
             for cid, chunk_layers in layers.items()}
 
 
-def work_from_program(canon: "Program", robot: RobotProfile, slicing: SlicingSettings, *,
-                      gcode: bool = False) -> float:
+def work_from_program(canon: "Program", robot: RobotProfile, slicing: SlicingSettings) -> float:
     """The constant-speed time of a chunk's layer moves, s, from its first printed point to its
     last, as the robot programs make them: ``canon`` is the chunk's canonical program
     (:func:`cooprint.program.stream.canonical_program`), timed layer by layer from its first
     point on (the way to that point is travel between chunks, :meth:`ChunkDAG.travel`, not work).
 
     The times are the simulator's for a ``cooprint run`` plan
-    (:func:`cooprint.simulation.timeline.move_durations` on a ``.coop`` robot): length over the
-    profile's ``print_speed`` for a move that deposits (tool on, length > 0), over its
-    ``travel_speed`` for any other. With ``gcode`` they are the written G-code's instead
-    (:meth:`Feeds.of_robot`: the first layer at ``min(slicing.first_layer_speed,
-    print_speed)``).
+    (:func:`cooprint.simulation.timeline.move_durations` on a ``.coop`` robot) and the written
+    G-code's: length over the speed of :meth:`Feeds.of_robot` (the slicer's speed of the move's
+    path role with the tool on, at most ``first_layer_speed`` on the first layer, its travel
+    speed with the tool off, each under the robot's caps).
     """
     from cooprint.program.commands import COLUMNS, MOVE, Program
     from cooprint.program.gcode import Feeds
@@ -501,11 +500,7 @@ def work_from_program(canon: "Program", robot: RobotProfile, slicing: SlicingSet
         xyz = piece.xyz[mv]
         p0 = np.vstack([here[None], xyz[:-1]])
         length = np.linalg.norm(xyz - p0, axis=1)
-        if gcode:
-            speed = feeds.speeds(piece)[mv]
-        else:
-            speed = np.where(piece.tool_on()[mv] & (length > 0), robot.print_speed, robot.travel_speed)
-        total += float((length / speed).sum())
+        total += float((length / feeds.speeds(piece)[mv]).sum())
         if len(xyz):
             here = xyz[-1]
     return total
@@ -523,39 +518,68 @@ def ends_from_layers(layers: Mapping[str, Sequence[tuple[int, LayerPaths]]]
 
 
 #: :func:`work_from_volume`'s factor: the time of the sliced layers (:func:`work_from_layers`)
-#: over the printed-volume model, measured on 17 chunks of 7 generated parts (car 420 mm, box
-#: 300 x 900 x 60, cylinder r 60 h 120, hollow box, lying tube, plate 900 x 400 x 10, slender
-#: post; seed2 layout, default robot and slicing): median 1.104, range 1.005 (lying tube) to
-#: 1.260 (the hollow box's 10 mm walls), coefficient of variation 5%. The rest is travel
-#: between paths and perimeter overlap. (Volume alone, without the shells, spread 0.256 to 0.397,
-#: 17%, and its factor holds only for one infill density.)
-VOLUME_FACTOR = 1.10
+#: over the printed-volume model, each kind at its roles' speeds (:func:`volume_speeds`),
+#: measured by ``benchmarks/calibrate_volume_factor.py`` on 18 chunks of 6 generated parts (car
+#: 420 mm, box 300 x 900 x 60, cylinder r 60 h 120, a box 300 x 600 x 60 hollow with 10 mm walls
+#: and floor, plate 900 x 400 x 10, post 20 x 20 x 150; seed2 layout, default robot and slicing,
+#: 2026-12-02): median 1.071, range 1.021 (the plate's centre chunk) to 1.359 (the hollow box's
+#: side chunks, thin walls), coefficient of variation 8.6%. The rest is travel between paths and
+#: perimeter overlap. (With one print speed for every role, before issue 17: median 1.104 on 17
+#: chunks; volume alone, without the shells, spread 0.256 to 0.397, and its factor holds only for
+#: one infill density.)
+VOLUME_FACTOR = 1.07
 
 
-def printed_volume(chunk: Chunk, slicing: SlicingSettings) -> float:
-    """mm^3 the slicer will deposit in ``chunk``, estimated from its mesh: a shell of
-    ``perimeters`` extrusion widths horizontally behind every face (its area times the XY part
-    of its unit normal), of ``top_layers`` / ``bottom_layers`` layers vertically under faces
-    looking up / over faces looking down (area times the Z part), at most the volume; the rest
-    filled at ``infill_density``. Cut faces are faces: each chunk is sliced on its own, so they
-    get perimeters too."""
+def printed_volumes(chunk: Chunk, slicing: SlicingSettings) -> tuple[float, float, float, float]:
+    """mm^3 the slicer will deposit in ``chunk``, estimated from its mesh, by kind: ``(walls,
+    top, bottom, sparse)``. The walls are a shell of ``perimeters`` extrusion widths horizontally
+    behind every face (its area times the XY part of its unit normal); the top and bottom shells
+    ``top_layers`` / ``bottom_layers`` layers vertically under faces looking up / over faces
+    looking down (area times the Z part); the shells together at most the volume (scaled down
+    alike when they would be more); the rest filled at ``infill_density``. Cut faces are faces:
+    each chunk is sliced on its own, so they get perimeters too."""
     tri = chunk.vertices[chunk.faces]
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) / 2  # area times unit normal
     side = float(np.linalg.norm(n[:, :2], axis=1).sum())
     up, down = float(n[:, 2].clip(min=0).sum()), float((-n[:, 2]).clip(min=0).sum())
-    shell = (side * slicing.perimeters * slicing.extrusion_width
-             + (up * slicing.top_layers + down * slicing.bottom_layers) * slicing.layer_height)
-    shell = min(shell, chunk.volume)
-    return shell + slicing.infill_density * (chunk.volume - shell)
+    walls = side * slicing.perimeters * slicing.extrusion_width
+    top, bottom = up * slicing.top_layers * slicing.layer_height, down * slicing.bottom_layers * slicing.layer_height
+    shell = walls + top + bottom
+    scale = min(1.0, chunk.volume / shell) if shell > 0 else 1.0
+    return walls * scale, top * scale, bottom * scale, slicing.infill_density * (chunk.volume - shell * scale)
+
+
+def printed_volume(chunk: Chunk, slicing: SlicingSettings) -> float:
+    """mm^3 the slicer will deposit in ``chunk``: the sum of :func:`printed_volumes`."""
+    return sum(printed_volumes(chunk, slicing))
+
+
+def volume_speeds(robot: RobotProfile, slicing: SlicingSettings) -> tuple[float, float, float, float]:
+    """The mean speed, mm/s, at which a robot lays each kind of :func:`printed_volumes` (the
+    time of a volume is volume / (width x height x speed)): the walls one external perimeter and
+    ``perimeters - 1`` inner ones, the top shell its top surface at the top solid infill speed
+    and the layers under it as solid infill, the bottom shell solid infill, the rest sparse
+    infill; every speed the robot's (:meth:`~cooprint.program.gcode.Feeds.of_robot`). Each mean
+    is harmonic: the time per volume averaged, not the speeds."""
+    from cooprint.program.gcode import Feeds
+    from cooprint.slicing.paths import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TOP_SKIN
+
+    v = Feeds.of_robot(robot, slicing).role
+    p, t = max(slicing.perimeters, 1), max(slicing.top_layers, 1)
+    walls = p / (1 / v[PERIMETER_OUTER] + (p - 1) / v[PERIMETER_INNER])
+    top = t / (1 / v[TOP_SKIN] + (t - 1) / v[SKIN])
+    return walls, top, v[SKIN], v[INFILL]
 
 
 def work_from_volume(chunks: ChunkSet, robot: RobotProfile, slicing: SlicingSettings) -> dict[str, float]:
-    """``{chunk id: s}`` before slicing (``cooprint chunk``): the :func:`printed_volume` over the
-    deposition rate ``extrusion_width * layer_height * print_speed``, times
-    :data:`VOLUME_FACTOR` (the travel between paths and the overlaps the model leaves out)."""
-    rate = slicing.extrusion_width * slicing.layer_height * robot.print_speed
-    return {c.id: VOLUME_FACTOR * printed_volume(c, slicing) / rate for c in chunks.chunks}
+    """``{chunk id: s}`` before slicing (``cooprint chunk``): each kind of
+    :func:`printed_volumes` over its deposition rate ``extrusion_width * layer_height * speed``
+    (:func:`volume_speeds`), times :data:`VOLUME_FACTOR` (the travel between paths and the
+    overlaps the model leaves out)."""
+    rates = [slicing.extrusion_width * slicing.layer_height * v for v in volume_speeds(robot, slicing)]
+    return {c.id: VOLUME_FACTOR * sum(vol / rate for vol, rate in zip(printed_volumes(c, slicing), rates))
+            for c in chunks.chunks}
 
 
 __all__ = ["MIN_WORK", "TOUCH", "VOLUME_FACTOR", "build_dag", "convex_hull", "ends_from_layers", "printed_volume",
-           "swept", "work_from_layers", "work_from_volume"]
+           "printed_volumes", "swept", "volume_speeds", "work_from_layers", "work_from_volume"]

@@ -93,6 +93,7 @@ def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: boo
     check). ``invariant=False`` leaves out the checks of :data:`TIME_INVARIANT`, whose findings
     are the same at any speed (a perturbed run repeats only what timing can change)."""
     p = inp.profile
+    feeds = inp.feeds(robots)  # each robot's speeds per role (a G-code robot moves at its own F)
     limits = ({r.name: inp.limits or MachineLimits.planar(r.profile.acceleration, r.profile.jerk) for r in robots}
               if accel else None)
     if progress:
@@ -102,10 +103,10 @@ def play(inp: SimInput, robots: list[SimRobot], accel: bool = False, checks: boo
             raise ValueError("the acceleration model times whole programs: read them first (SimInput.with_programs)")
         pieces = {r.name: partial(inp.program_pieces, r.name) for r in robots}  # checked against job.json
         room = {r.name: inp.program_files[r.name].stat().st_size // 7 + 1 for r in robots}  # read_coop's bound
-        robots, timelines, findings = schedule_pieces(robots, pieces, p.print_speed, p.travel_speed, room)
+        robots, timelines, findings = schedule_pieces(robots, pieces, feeds, room)
         inp = replace(inp, robot_chunks=own_chunks(inp.robot_chunks, robots))
     else:
-        timelines, findings = schedule(robots, p.print_speed, p.travel_speed, limits)
+        timelines, findings = schedule(robots, feeds, limits)
     if progress:
         progress("timelines", len(robots), len(robots))
     checked = ["deadlock"]
@@ -359,7 +360,9 @@ def summary(result: SimResult, perturbed: "PerturbResult | None" = None) -> dict
     counts = {k: sum(f.count for f in result.findings if f.kind == k) for k in KINDS}
     return {"format": "cooprint-sim/1", "source": result.source, "makespan_s": span,
             "time_model": ("trapezoidal acceleration, jerk-limited corners" if result.accel else
-                           "length / speed (print_speed with the tool on, travel_speed off, or the G-code's F)"),
+                           "length / speed (the tool on: the [slicing] speed of the path's role, at most "
+                           "first_layer_speed on the first layer; off: travel_speed; each under the robot's "
+                           "max_print_speed / max_travel_speed; or the G-code's F)"),
             "checked": list(result.checked), "robots": robots, "events": events, "finding_counts": counts,
             "findings": [f.to_dict() for f in result.findings], "notes": list(result.notes),
             **({"schedule": schedule_record(result)} if result.estimate is not None else {}),

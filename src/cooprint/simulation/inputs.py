@@ -12,11 +12,12 @@ import re
 import tomllib
 from dataclasses import dataclass, fields, replace
 from pathlib import Path, PurePosixPath, PureWindowsPath
-from typing import Any, Iterable, Iterator
+from typing import TYPE_CHECKING, Any, Iterable, Iterator
 
 import numpy as np
 
 from cooprint.config import JobSettings, RobotProfile, SlicingSettings, load_settings, robot_profile
+from cooprint.config.settings import check_replaced
 from cooprint.geometry import unit_deg
 from cooprint.io.schema import (SchemaError, check_list, check_number, check_object, check_string, check_vector, fail,
                                 key_path, shown_key)
@@ -26,6 +27,9 @@ from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Pro
 from cooprint.simulation.kinematics import MachineLimits
 from cooprint.simulation.timeline import SimRobot
 from cooprint.slicing.paths import INFILL, ROUND_ROLES, TRAVEL, extrusion_width, round_width
+
+if TYPE_CHECKING:
+    from cooprint.program.gcode import Feeds
 
 
 class SimInputError(SchemaError):
@@ -104,6 +108,15 @@ class SimInput:
     def fleet(self) -> list[SimRobot]:
         """The robots, each with its own profile (the input's ``profile`` for those without)."""
         return [r if r.profile is not None else replace(r, profile=self.profile) for r in self.robots]
+
+    def feeds(self, robots: Iterable[SimRobot] | None = None) -> "dict[str, Feeds]":
+        """Each robot's speeds by name (``robots``: :meth:`fleet` by default): the slicer's per
+        path role under its own profile's caps (:meth:`Feeds.of_robot`), what a robot without
+        per-command speeds (a ``.coop`` program) moves at."""
+        from cooprint.program.gcode import Feeds
+
+        return {r.name: Feeds.of_robot(r.profile or self.profile, self.slicing)
+                for r in (self.fleet() if robots is None else robots)}
 
 
 @dataclass(frozen=True)
@@ -230,9 +243,11 @@ def check_settings(data: Any, where: str, path: str, sections: Iterable[str] | N
     known = _settings_fields()
     allowed = list(known if sections is None else sections)
     check_object(data, where, path, optional=allowed)
-    for sec, values in data.items():
-        check_object(values, where, key_path(path, sec), optional=known[sec])
     prefix = f"{where}: {path}." if path else f"{where}: "
+    for sec, values in data.items():
+        if isinstance(values, dict):  # a field cooprint replaced: what replaced it, not a did-you-mean
+            check_replaced(sec, values, prefix)
+        check_object(values, where, key_path(path, sec), optional=known[sec])
     return load_settings(tables=[(prefix, data)])
 
 
@@ -380,6 +395,7 @@ def _bundle_profile(value: Any, fleet: RobotProfile, where: str, at: str) -> Rob
         return None
     if not isinstance(value, dict):
         raise fail(where, at + ".profile", "expected a profile name or an object of [robot] fields", value)
+    check_replaced("robot", value, f"{where}: {at}.", "profile")
     check_object(value, where, at + ".profile", optional=ROBOT_FIELDS)  # a misspelt field: did you mean
     return robot_profile(value, f"{where}: {at}.", "profile", fleet)
 
@@ -531,7 +547,7 @@ def load_manifest(path: str | Path) -> SimInput:
     that names the key meant)::
 
         [robot]                 # the fleet's profile (any field of cooprint's [robot] section)
-        print_speed = 40.0
+        max_print_speed = 40.0  # (speeds per role: [slicing]; the robot caps them)
         [[robots]]
         name = "A"
         program = "A.coop"      # relative to the manifest
@@ -539,7 +555,7 @@ def load_manifest(path: str | Path) -> SimInput:
         facing_deg = 90.0       # direction from the body to the nozzle at the start (absent: +Y;
                                 # the program's ;@facing lines turn the robot on the way)
         [profiles.B]            # robot B's own profile: any [robot] field, over [robot]
-        print_speed = 20.0      # (a mixed fleet: B is slower, and below, bigger)
+        max_print_speed = 20.0  # (a mixed fleet: B is slower, and below, bigger)
         body_width = 400.0
 
     A robot without a ``[profiles.NAME]`` table has the ``[robot]`` profile. A profile table for
@@ -594,6 +610,8 @@ def _manifest_profiles(data: Any, names: list[str], fleet: RobotProfile, where: 
                 difflib.get_close_matches(str(name), names, n=1, cutoff=0.6)
             raise SimInputError(f"{where}: {shown_key(at, 60)}: no robot {shown_key(str(name), 60)} in [[robots]]"
                                 + (f" (did you mean [profiles.{close[0]}]?)" if close else ""))
+        if isinstance(values, dict):
+            check_replaced("robot", values, f"{where}: profiles.", str(name))
         check_object(values, where, at, optional=ROBOT_FIELDS)  # a misspelt field: did you mean
         out[name] = robot_profile(values, f"{where}: profiles.", str(name), fleet)
     return out
@@ -802,7 +820,7 @@ def load_inputs(paths: list[str], manifest: str | None = None, settings: JobSett
                 programs: bool = True) -> SimInput:
     """A bundle folder (alone), ``.coop`` files with or without a manifest, or G-code files.
     ``.coop`` and G-code files are not mixed: a G-code file's robot stands nowhere known and
-    moves at its file's feed rates, a ``.coop`` robot at the profile's speeds where it is placed;
+    moves at its file's feed rates, a ``.coop`` robot at its speeds per path role where it is placed;
     simulating both kinds together would compare two different time and body models. ``settings``
     (``--robot``/``--config``) give the profile of ``.coop`` and G-code robots. ``programs=False``:
     a bundle's programs are left to be read piece by piece (:func:`load_bundle`)."""

@@ -16,6 +16,7 @@ replayed alone from its seed (:func:`run_factors`).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,6 +24,9 @@ from cooprint.errors import UserError
 from cooprint.program.commands import MOVE
 from cooprint.simulation.inputs import SimInput
 from cooprint.simulation.timeline import Finding, SimRobot, move_durations
+
+if TYPE_CHECKING:
+    from cooprint.program.gcode import Feeds
 
 #: Most runs of one call (``--runs``): a run of a large plan takes a second or more.
 MAX_RUNS = 10_000
@@ -66,20 +70,17 @@ def span_ids(chunk: np.ndarray) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(c[1:] != c[:-1])]).astype(np.int64)
 
 
-def command_speeds(r: SimRobot, print_speed: float, travel_speed: float) -> np.ndarray:
+def command_speeds(r: SimRobot, feeds: "Feeds") -> np.ndarray:
     """(n,) the speed of each command of robot ``r`` at constant speed, mm/s, as
     :func:`~cooprint.simulation.timeline.move_durations` takes it: its own per-command speeds (a
-    G-code file's feed rates), or its profile's print speed for a move that deposits and travel
-    speed for one that does not (``print_speed`` and ``travel_speed`` for a robot without a
-    profile); 0 for commands that are not moves."""
+    G-code file's feed rates), or ``feeds``' (the robot's speeds per path role); 0 for commands
+    that are not moves."""
     n = len(r.program.kind)
     if r.speed is not None:
         return np.where(r.program.kind == MOVE, np.asarray(r.speed, dtype=np.float64), 0.0)
-    mv, _, _, on, _, _ = move_durations(r, print_speed, travel_speed)
-    if r.profile is not None:
-        print_speed, travel_speed = r.profile.print_speed, r.profile.travel_speed
+    mv, _, _, on, _, _ = move_durations(r, feeds)
     out = np.zeros(n)
-    out[mv] = np.where(on, print_speed, travel_speed)
+    out[mv] = feeds.move_speeds(r.program.role[mv], r.program.layer[mv], on)
     return out
 
 
@@ -176,8 +177,8 @@ def perturb_runs(inp: SimInput, fraction: float, runs: int, seed: int = DEFAULT_
     if not 1 <= runs <= MAX_RUNS:
         raise ValueError(f"runs {runs!r}: expected 1 to {MAX_RUNS}")
     robots = inp.fleet()
-    p = inp.profile
-    base = [command_speeds(r, p.print_speed, p.travel_speed) for r in robots]
+    feeds = inp.feeds(robots)
+    base = [command_speeds(r, feeds[r.name]) for r in robots]
     spans = [span_ids(r.program.chunk) for r in robots]
     stretches = [int(s[-1]) + 1 if len(s) else 0 for s in spans]
     seeds = np.random.default_rng(seed).integers(0, SEED_LIMIT, size=runs, dtype=np.int64).tolist()

@@ -2,8 +2,10 @@
 it deposits; when each NOTIFY is announced and how long each WAIT blocks.
 
 Times come from the command stream, not from stepping a clock: a move's duration is its length
-over its speed (the robot's ``print_speed`` with the tool on, ``travel_speed`` with it off, or a
-G-code file's own feed rate), so the state at any instant is exact and does not drift. WAITs are
+over its speed (the robot's :class:`~cooprint.program.gcode.Feeds`: the slicer's speed of the
+move's path role with the tool on, at most the first-layer speed on layer 0, the travel speed
+with it off, each under the robot's caps; or a G-code file's own feed rate), so the state at any
+instant is exact and does not drift. WAITs are
 resolved by walking all robots forward together: a robot runs until a WAIT whose events are not
 all announced yet; a WAIT ends at the latest announcement of its events (or at once). Robots that
 can never go on are a deadlock, found from the commands alone, before any geometry is looked at.
@@ -17,13 +19,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from typing import TYPE_CHECKING, Callable, Iterable
+from typing import TYPE_CHECKING, Callable, Iterable, Mapping
 
 from cooprint.geometry import unit_deg, unit_xy
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, Program
 
 if TYPE_CHECKING:
     from cooprint.config import RobotProfile
+    from cooprint.program.gcode import Feeds
     from cooprint.simulation.kinematics import MachineLimits
 
 
@@ -42,14 +45,15 @@ class SimRobot:
         the start; the program's ``;@facing`` turns (:attr:`Program.turns`) change it on the way
         (:meth:`facing_spans`).
     speed : (n,) float or None
-        Per-command speed of MOVEs, mm/s (a G-code file's feed rates); ``None``: the profile's.
+        Per-command speed of MOVEs, mm/s (a G-code file's feed rates); ``None``: the robot's
+        :class:`~cooprint.program.gcode.Feeds` (given to :func:`schedule` and the others).
     de : (n,) float or None
         Filament pushed by each command, mm (a G-code file's E): a move of filament alone takes
         ``|E| / speed``, and the acceleration model limits the E axis too.
     notes : tuple of str
         What the reader found and did not act on (a G-code file's operator pauses), for the summary.
     profile : RobotProfile or None
-        This robot's own profile (speeds, body, printhead: a mixed fleet); ``None``: the input's
+        This robot's own profile (speed caps, body, printhead: a mixed fleet); ``None``: the input's
         (:meth:`SimInput.fleet` fills it in, so that every check sees each robot's own geometry).
     """
 
@@ -379,11 +383,22 @@ class Finding:
         return COUNT_UNITS.get(self.kind, "places")
 
 
-def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits: "MachineLimits | None" = None
+#: Moves whose speeds :func:`move_durations` works out at a time (its work space: about 30 bytes
+#: a move of a block, not of the program).
+SPEED_BLOCK = 1 << 16
+
+
+def robot_feeds(feeds: "Feeds | Mapping[str, Feeds]", name: str) -> "Feeds":
+    """Robot ``name``'s speeds: ``feeds`` itself (one for all), or its entry (per robot name)."""
+    return feeds[name] if isinstance(feeds, Mapping) else feeds
+
+
+def move_durations(r: SimRobot, feeds: "Feeds", limits: "MachineLimits | None" = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per MOVE of robot ``r``: start and end positions, whether it deposits, and its duration:
     length / speed, or with ``limits`` the trapezoidal profile of :mod:`.kinematics`. The speeds
-    are the robot's own profile's when it has one, else ``print_speed`` and ``travel_speed``.
+    are ``r.speed`` (a G-code file's), else ``feeds``' of each move's role and layer
+    (:meth:`Feeds.move_speeds`: the robot's own speeds, its profile's caps applied).
 
     Returns ``(index (k,), p0 (k, 3), p1 (k, 3), on (k,), length (k,), duration (k,))``: the
     moves' command indices, ends, whether they deposit, lengths and durations.
@@ -399,13 +414,16 @@ def move_durations(r: SimRobot, print_speed: float, travel_speed: float, limits:
     p0, p1 = ends[:-1], ends[1:]
     mv, on, length = np.empty(k, np.int64), np.empty(k, bool), np.empty(k)
     move_table(program.kind, program.xyz, start, r.start is not None, mv, p0, p1, on, length)
-    if r.profile is not None:
-        print_speed, travel_speed = r.profile.print_speed, r.profile.travel_speed
-    if limits is None and r.speed is None and r.de is None:  # length / speed, no array but the result
-        dur = np.divide(length, travel_speed)
-        np.divide(length, print_speed, out=dur, where=on)
+    if r.speed is None:  # each move's speed of its role and layer, a block at a time (bounded work space)
+        v = np.empty(k)
+        for a in range(0, k, SPEED_BLOCK):
+            m = mv[a:a + SPEED_BLOCK]
+            v[a:a + SPEED_BLOCK] = feeds.move_speeds(program.role[m], program.layer[m], on[a:a + SPEED_BLOCK])
+    else:
+        v = r.speed[mv]
+    if limits is None and r.de is None:  # length / speed, in place
+        dur = np.divide(length, v, out=v if v.dtype == np.float64 else None)
         return mv, p0, p1, on, length, dur
-    v = np.where(on, print_speed, travel_speed) if r.speed is None else r.speed[mv]
     de = np.zeros(len(mv)) if r.de is None else r.de[mv]
     if limits is None:
         dur = np.abs(de)  # a move of filament alone takes |E| / speed
@@ -453,18 +471,18 @@ def _resolve(syncs: dict[str, list[tuple[int, float, bool, tuple[str, ...]]]]):
     return announced, pos, waited, delay, waits, notifies
 
 
-def schedule(robots: list[SimRobot], print_speed: float, travel_speed: float,
+def schedule(robots: list[SimRobot], feeds: "Feeds | Mapping[str, Feeds]",
              limits: "MachineLimits | dict[str, MachineLimits] | None" = None
              ) -> tuple[dict[str, Timeline], list[Finding]]:
     """Every robot's :class:`Timeline`, WAITs resolved against the NOTIFYs of all robots
-    (``limits``: one for all, or per robot name).
+    (``feeds``, the speeds per role, and ``limits``: one for all, or per robot name).
 
     A robot stuck at a WAIT that can never end (its events are never announced, or only by
     robots stuck themselves) is a ``deadlock`` finding; its timeline stops there.
     """
     prep = {}
     for r in robots:
-        mv, p0, p1, on, length, dur = move_durations(r, print_speed, travel_speed,
+        mv, p0, p1, on, length, dur = move_durations(r, robot_feeds(feeds, r.name),
                                                      limits.get(r.name) if isinstance(limits, dict) else limits)
         kind = r.program.kind
         # each move's start without waits: the durations of the moves before it added in order
@@ -524,9 +542,10 @@ KEPT_COLUMNS = ("kind", "role", "width", "height", "chunk", "event")
 
 
 def schedule_pieces(robots: list[SimRobot], pieces: dict[str, Callable[[], Iterable[Program]]],
-                    print_speed: float, travel_speed: float, room: dict[str, int] | None = None
+                    feeds: "Feeds | Mapping[str, Feeds]", room: dict[str, int] | None = None
                     ) -> tuple[list[SimRobot], dict[str, Timeline], list[Finding]]:
-    """:func:`schedule` at constant speed for robots whose programs come piece by piece
+    """:func:`schedule` at constant speed (``feeds``: one for all, or per robot name) for robots
+    whose programs come piece by piece
     (``pieces[name]()``: the program's pieces in order, e.g. :func:`~cooprint.program.commands.iter_coop`;
     ``room``: at least as many commands as a robot's program holds, by name, where known, so that
     its columns grow in place): the same timelines and findings to the last bit, without the
@@ -537,9 +556,8 @@ def schedule_pieces(robots: list[SimRobot], pieces: dict[str, Callable[[], Itera
     run reads the programs whole)."""
     prep, slim = {}, []
     for r in robots:
-        speeds = (r.profile.print_speed, r.profile.travel_speed) if r.profile is not None else (print_speed,
-                                                                                                 travel_speed)
-        r2, prep[r.name] = _piece_prep(r, pieces[r.name](), *speeds, (room or {}).get(r.name, 0))
+        r2, prep[r.name] = _piece_prep(r, pieces[r.name](), robot_feeds(feeds, r.name).speeds,
+                                       (room or {}).get(r.name, 0))
         slim.append(r2)
     timelines, findings = _timelines(prep)
     return slim, timelines, findings
@@ -563,14 +581,13 @@ def _constant(dtype, value, shape: tuple[int, ...]) -> np.ndarray:
     return np.broadcast_to(np.array(value, dtype), shape)
 
 
-def _timed_pieces(pieces: Iterable[Program], start: np.ndarray, print_speed: float, travel_speed: float,
-                  speed: Callable[[Program, bool], np.ndarray] | None = None):
+def _timed_pieces(pieces: Iterable[Program], start: np.ndarray, speed: Callable[[Program, bool], np.ndarray]):
     """A program's pieces in order, each with its moves timed as :func:`move_durations` times the
     whole program: the moves' table continued from piece to piece (the first move from
-    ``start``, the tool as the pieces before leave it), each duration ``length / speed`` (the
-    profile's ``print_speed`` for a move that deposits, else ``travel_speed``; or
-    ``speed(piece, tool on before it)[move]``), the starts one running sum, the same additions in
-    the same order as the whole program's. Yields ``(at, k, piece, mv, ends, on, dur, starts)``:
+    ``start``, the tool as the pieces before leave it), each duration ``length / speed``
+    (``speed(piece, tool on before it)[move]``: :meth:`Feeds.speeds`, the same speeds as
+    :meth:`Feeds.move_speeds` of the whole program), the starts one running sum, the same
+    additions in the same order as the whole program's. Yields ``(at, k, piece, mv, ends, on, dur, starts)``:
     the commands and moves before the piece, the piece, its moves' command indices in it,
     their ends ``(m + 1, 3)`` (move j from row j to row j + 1), whether they deposit, their
     durations and the time each starts without waits ``(m + 1,)`` (the last: the piece's end)."""
@@ -586,11 +603,7 @@ def _timed_pieces(pieces: Iterable[Program], start: np.ndarray, print_speed: flo
         move_table(piece.kind, piece.xyz, pos, True, mv, ends[:-1], ends[1:], on, length)
         tool_on = piece.tool_on(tool)
         np.logical_and(tool_on[mv], length > 0, out=on)
-        if speed is None:
-            dur = np.divide(length, travel_speed)
-            np.divide(length, print_speed, out=dur, where=on)
-        else:
-            dur = length / speed(piece, tool)[mv]
+        dur = length / speed(piece, tool)[mv]
         starts = np.cumsum(np.r_[t, dur])
         yield at, k, piece, mv, ends, on, dur, starts
         t, pos = float(starts[-1]), ends[-1].copy()
@@ -599,7 +612,7 @@ def _timed_pieces(pieces: Iterable[Program], start: np.ndarray, print_speed: flo
         at, k = at + len(piece), k + m
 
 
-def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, travel_speed: float, room: int):
+def _piece_prep(r: SimRobot, pieces: Iterable[Program], speed: Callable[[Program, bool], np.ndarray], room: int):
     """One robot of :func:`schedule_pieces`: its slim program and ``_timelines``' tuple, built a
     piece at a time with :func:`move_durations`' operations (the moves' table continued from
     piece to piece, each duration ``length / speed``, the starts one running sum): the same
@@ -621,7 +634,7 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     turns: list[tuple[int, float]] = []
     sync: list[int] = []
     before: dict[int, float] = {}
-    for at, k, piece, pm, p_ends, p_on, p_dur, p_starts in _timed_pieces(pieces, r.start, print_speed, travel_speed):
+    for at, k, piece, pm, p_ends, p_on, p_dur, p_starts in _timed_pieces(pieces, r.start, speed):
         n, m = len(piece), len(pm)
         commands, moves = at + n, k + m
         chunks += [c for c in piece.chunks if c not in chunks]  # in the order they first appear (read_coop's)
@@ -660,13 +673,13 @@ def _piece_prep(r: SimRobot, pieces: Iterable[Program], print_speed: float, trav
     return r2, (r2, ends[:-1], ends[1:], on, None, dur, mv, starts, before, sync)  # lengths: computed when asked
 
 
-def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: float) -> dict[str, list[float]]:
+def wait_estimates(robots: list[SimRobot], feeds: "Feeds | Mapping[str, Feeds]") -> dict[str, list[float]]:
     """How long each WAIT of each robot is expected to block, s, in program order: the
-    constant-speed schedule of the plan (every move at its robot's ``speed``, the G-code's feed
-    rates, or the profile's print or travel speed; ``cooprint simulate`` without ``--accel``). A
+    constant-speed schedule of the plan (every move at its robot's ``speed``, a G-code's feed
+    rates, or at ``feeds``' speed of its role; ``cooprint simulate`` without ``--accel``). A
     WAIT that never ends is ``inf``. The G-code writer turns a robot's nozzle off across the waits
     longer than its idle limit."""
-    timelines, _ = schedule(robots, print_speed, travel_speed)
+    timelines, _ = schedule(robots, feeds)
     out = {}
     for r in robots:
         n = int(np.count_nonzero(r.program.kind == WAIT))
@@ -679,15 +692,13 @@ def wait_estimates(robots: list[SimRobot], print_speed: float, travel_speed: flo
 class PieceRobot:
     """A robot whose program comes piece by piece (a big plan's stream, issue 15): ``pieces()``
     gives its :class:`Program` pieces in order, each time it is called; it starts at ``start``;
-    it moves at ``print_speed`` / ``travel_speed``, or at ``speed(piece, tool on before it)``
-    (mm/s per command: the G-code's feed rates, :meth:`Feeds.speeds`) when given."""
+    it moves at ``speed(piece, tool on before it)`` (mm/s per command: the G-code's feed rates,
+    :meth:`Feeds.speeds`)."""
 
     name: str
     start: np.ndarray
     pieces: Callable[[], Iterable[Program]]
-    print_speed: float
-    travel_speed: float
-    speed: Callable[[Program, bool], np.ndarray] | None = None
+    speed: Callable[[Program, bool], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -715,8 +726,7 @@ def event_times(robots: list[PieceRobot]) -> EventTimes:
         sync: list = []
         last_before: list = []
         last = None  # (command index, time at its start without waits, duration)
-        for at, _, piece, mv, _, _, dur, starts in _timed_pieces(r.pieces(), r.start, r.print_speed,
-                                                                  r.travel_speed, r.speed):
+        for at, _, piece, mv, _, _, dur, starts in _timed_pieces(r.pieces(), r.start, r.speed):
             kind = piece.kind
             for j in np.flatnonzero((kind == NOTIFY) | (kind == WAIT)).tolist():
                 m = int(np.searchsorted(mv, j))  # moves before it
@@ -752,5 +762,5 @@ def _chunk_at(program: Program, i: int) -> str | None:
 
 
 __all__ = ["COUNT_UNITS", "EventTimes", "FacingSpan", "Finding", "Lengths", "PieceRobot", "Runs", "SimRobot", "Timeline",
-           "WARNING_KINDS", "changes", "event_times", "move_durations", "schedule", "schedule_pieces", "segment_max",
+           "WARNING_KINDS", "changes", "event_times", "move_durations", "robot_feeds", "schedule", "schedule_pieces", "segment_max",
            "severity"]
