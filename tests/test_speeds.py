@@ -30,15 +30,15 @@ PRUSA = {PERIMETER_OUTER: 30.0, PERIMETER_INNER: 60.0, SKIN: 20.0, INFILL: 80.0,
          GAP_FILL: 20.0, OVERHANG: 60.0}
 
 
-def test_each_role_prints_at_its_slicing_speed_and_the_first_layer_at_most_its_own():
+def test_each_role_prints_at_its_slicing_speed_and_the_first_layer_at_its_own():
     f = Feeds.of_slicer(SlicingSettings())
     assert {r: f.extrude(r, 3) for r in PRUSA} == PRUSA
-    assert {r: f.extrude(r, 0) for r in PRUSA} == {r: min(v, 30.0) for r, v in PRUSA.items()}  # a cap, not a value
+    assert {r: f.extrude(r, 0) for r in PRUSA} == dict.fromkeys(PRUSA, 30.0)  # PrusaSlicer: every first-layer move
     assert f.travel == 130.0 and f.extrude(TRAVEL, 3) == 80.0  # an extrusion with no role: the infill speed
     s = SlicingSettings(perimeter_speed=45.0, bridge_speed=25.0, first_layer_speed=50.0, travel_speed=200.0)
     f = Feeds.of_slicer(s)
     assert (f.extrude(PERIMETER_INNER, 1), f.extrude(BRIDGE, 1), f.extrude(OVERHANG, 1)) == (45.0, 25.0, 25.0)
-    assert (f.extrude(INFILL, 0), f.extrude(SKIN, 0), f.travel) == (50.0, 20.0, 200.0)
+    assert (f.extrude(INFILL, 0), f.extrude(SKIN, 0), f.travel) == (50.0, 50.0, 200.0)
 
 
 def test_a_robots_caps_slow_only_what_is_faster_than_them():
@@ -46,7 +46,7 @@ def test_a_robots_caps_slow_only_what_is_faster_than_them():
     assert Feeds.of_robot(RobotProfile(), s) == Feeds.of_slicer(s)  # no caps: the slicer's speeds
     f = Feeds.of_robot(RobotProfile(max_print_speed=25.0, max_travel_speed=100.0), s)
     assert {r: f.extrude(r, 3) for r in PRUSA} == {r: min(v, 25.0) for r, v in PRUSA.items()}
-    assert {r: f.extrude(r, 0) for r in PRUSA} == {r: min(v, 25.0) for r, v in PRUSA.items()}
+    assert {r: f.extrude(r, 0) for r in PRUSA} == dict.fromkeys(PRUSA, 25.0)  # the first layer's 30, capped
     assert f.travel == 100.0
     assert Feeds.of_robot(RobotProfile(max_travel_speed=500.0), s).travel == 130.0
 
@@ -65,7 +65,7 @@ def test_per_move_speeds_are_extrude_and_travel(roles, layers, on, cap):
     assert got.tolist() == want
 
 
-# A small plan by hand: the first layer (an outer perimeter and infill, both capped at 30 mm/s),
+# A small plan by hand: the first layer (an outer perimeter and infill, both at the first layer's 30 mm/s),
 # then a layer of every role, travel between them.
 PLAN = """\
 ;@layer 0 0.2
@@ -178,7 +178,7 @@ def _bar(tmp_path, perimeter_speed: float):
 
 def test_perimeter_speed_changes_a_plans_print_time_its_estimate_and_its_gcode(tmp_path):
     """``[slicing] perimeter_speed`` 45 against 90: the robot's inner perimeters (not on the first
-    layer, capped at 30 mm/s) take exactly their length x (1/45 - 1/90) longer, in the simulator
+    layer, at 30 mm/s) take exactly their length x (1/45 - 1/90) longer, in the simulator
     and in the plan's estimate (job.json's chunk work) alike, and its G-code says F2700 against
     F5400 for them; every other role keeps its speed."""
     slow, fast = _bar(tmp_path, 45.0), _bar(tmp_path, 90.0)

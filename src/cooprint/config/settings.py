@@ -245,7 +245,7 @@ class SlicingSettings:
                                 doc="bridges and overhang perimeters"))
     gap_fill_speed: float = field(default=20.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     first_layer_speed: float = field(default=30.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True,
-                                     doc="every role on the first layer, at most"))
+                                     doc="every extrusion of the first layer, whatever its role"))
     travel_speed: float = field(default=130.0, metadata=_num(0, 1e4, unit="mm/s", lo_open=True))
     retract_length: float = field(default=0.8, metadata=_num(0, 50, unit="mm"))
     retract_speed: float = field(default=35.0, metadata=_num(0, 1e3, unit="mm/s", lo_open=True))

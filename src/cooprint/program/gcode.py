@@ -64,9 +64,10 @@ class Feeds:
     """Feed rates, mm/s: the one time model of every command, for the G-code's ``F`` and for
     every estimate and simulation of a plan (issue 17).
 
-    ``role[r]`` is the speed of an extrusion of path role ``r`` (:data:`ROLE_SPEEDS`), at most
-    ``first_layer`` on the first layer (layer 0), and ``travel`` is the speed of every move with
-    the tool off.
+    ``role[r]`` is the speed of an extrusion of path role ``r`` (:data:`ROLE_SPEEDS`); on the
+    first layer (layer 0) every extrusion runs at ``first_layer`` (PrusaSlicer's
+    ``first_layer_speed`` in mm/s: it is applied to all the print moves of the first layer), and
+    ``travel`` is the speed of every move with the tool off.
     """
 
     role: tuple[float, ...]
@@ -89,15 +90,14 @@ class Feeds:
         return Feeds(tuple(min(v, cap) for v in f.role), min(f.first_layer, cap), min(f.travel, travel_cap))
 
     def extrude(self, role: int, layer: int) -> float:
-        """The speed of an extrusion of ``role`` on ``layer`` (0: the first layer, capped)."""
-        v = self.role[role]
-        return min(v, self.first_layer) if layer == 0 else v
+        """The speed of an extrusion of ``role`` on ``layer`` (0: the first layer's speed)."""
+        return self.first_layer if layer == 0 else self.role[role]
 
     def move_speeds(self, role: np.ndarray, layer: np.ndarray, on: np.ndarray) -> np.ndarray:
         """(k,) mm/s of moves of path ``role`` on ``layer``, the tool ``on`` or off: :meth:`extrude`
         where it is on, ``travel`` where it is off (vectorised)."""
         table = np.array(self.role, dtype=np.float64)
-        lut = np.stack([table, np.minimum(table, self.first_layer)])  # [first layer?, role]
+        lut = np.stack([table, np.full_like(table, self.first_layer)])  # [first layer?, role]
         v = lut[(np.asarray(layer) == 0).astype(np.intp), np.asarray(role, dtype=np.intp)]
         v[~np.asarray(on, dtype=bool)] = self.travel
         return v
