@@ -19,8 +19,8 @@ UNIFORM_TOML = "[slicing]\n" + "".join(f"{k} = {v}\n" for k, v in UNIFORM_SPEEDS
 def expected_times(program, slicing: SlicingSettings, start=None) -> tuple[float, float]:
     """(printing s, travelling s) of a robot's program at constant speed (from ``start``; None:
     from its first move), worked out here without :class:`Feeds`: each move's length over the
-    [slicing] speed of its path role (PrusaSlicer's meaning of each field), at most
-    ``first_layer_speed`` on layer 0."""
+    [slicing] speed of its path role (PrusaSlicer's meaning of each field), every extrusion of
+    layer 0 at ``first_layer_speed``."""
     import numpy as np
 
     from cooprint.program.commands import MOVE, ROLE_WORDS
@@ -37,5 +37,5 @@ def expected_times(program, slicing: SlicingSettings, start=None) -> tuple[float
     length = np.linalg.norm(np.diff(np.vstack([here, xyz]), axis=0), axis=1)
     on = program.tool_on()[mv] & (length > 0)
     v = speed[program.role[mv]]
-    v = np.where(program.layer[mv] == 0, np.minimum(v, s.first_layer_speed), v)
+    v = np.where(program.layer[mv] == 0, s.first_layer_speed, v)
     return float((length[on] / v[on]).sum()), float(length[~on].sum()) / s.travel_speed

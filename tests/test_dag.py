@@ -475,7 +475,7 @@ def test_work_from_layers_is_the_simulators_time_of_the_chunks_layer_moves(slice
         _, _, _, on, _, dur = move_durations(SimRobot("A", prog, first, np.array([0.0, 1.0])), Feeds.of_robot(robot, s))
         assert on.any()
         assert work[cid] == pytest.approx(float(dur.sum()), rel=1e-6)
-        # the first layer at most first_layer_speed: slower there, longer in all
+        # the first layer at first_layer_speed: slower there, longer in all
         slow_first = dataclasses.replace(s, first_layer_speed=5.0)
         assert work_from_layers({cid: chunk_layers}, robot, slow_first)[cid] > work[cid]
         assert np.array_equal(first, quantize(np.r_[chunk_layers[0][1].points[0], chunk_layers[0][1].z]))

@@ -207,7 +207,7 @@ def test_a_plan_from_cooprint_run_simulates_clean(car_bundle):
     record = json.loads((car_bundle / "job.json").read_text())
     for rob, rec, r in zip(s["robots"], record["robots"], res.robots):
         assert rob["material_mm3"] == pytest.approx(rec["stats"]["volume_mm3"], rel=1e-9)
-        # every move at the [slicing] speed of its role (the first layer at most first_layer_speed)
+        # every move at the [slicing] speed of its role (the first layer's at first_layer_speed)
         printing, travelling = expected_times(read_coop(car_bundle / rec["program"], r.name), res.slicing, r.start)
         assert rob["printing_s"] == pytest.approx(printing, rel=1e-9)
         assert rob["travelling_s"] == pytest.approx(travelling, rel=1e-9)
