@@ -37,6 +37,8 @@ from cooprint.slicing.infill import hatch
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
                                     TOP_SKIN, TRAVEL, LayerPaths, extrusion_spacing)
 from cooprint.slicing.patterns import gyroid
+from cooprint.slicing import polysplit
+from cooprint.slicing.polysplit import split_by_region
 from cooprint.slicing.sections import LayerSlicer
 
 CrossSection = manifold3d.CrossSection
@@ -159,6 +161,8 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
         if workers is None:  # a pool costs ~0.3 s to start: worth it from a few hundred layers on
             workers = default_workers() if len(blocks) >= PARALLEL_BLOCKS else 1
         executor = ProcessExecutor(workers, min_tasks=2) if workers > 1 else InlineExecutor()
+    if settings.overhangs:
+        polysplit.warm()  # before the workers fork: they inherit the compiled kernels
     results = executor.map(_job_block, blocks, shared=job)
     del job  # the executor holds it while the blocks run
     done = 0
@@ -200,6 +204,8 @@ def slice_chunks(solids: Mapping[str, Solid], settings: SlicingSettings, base: f
     tasks = [(cid, lo, hi) for cid, bs in blocks.items() for lo, hi in bs]
     own = executor is None
     ex = ProcessExecutor() if own else executor
+    if settings.overhangs:
+        polysplit.warm()  # before the workers fork: they inherit the compiled kernels
     results = ex.map(_chunk_block, tasks, shared=shared)
     done = 0
     try:
@@ -461,31 +467,30 @@ class _Job:
         gaps = []
         last = isl
         for k in range(s.perimeters + 1):
+            # a loop's region: ``last`` offset in by d, opened by a (one offset in by d + a, one
+            # back out by a); the gap: what half a spacing inside ``last`` the loop's band leaves
             if k == 0:
-                if s.thin_walls:
-                    region = _opening(last.offset(-(f.ext / 2), _MITER), ext_min / 2)
-                    if printed:
-                        bare = last - region.offset(f.ext / 2, _MITER)
-                        r = s.nozzle_diameter / 6
-                        if bare.area() > 4 * r * r:
-                            out.thin = _opening(bare, r)
-                else:
-                    region = last.offset(-f.ext / 2, _MITER)
+                d, a = f.ext / 2, (ext_min / 2 if s.thin_walls else 0.0)
             else:
-                d = ext_sp2 if k == 1 else per_sp
-                inner = last.offset(-d, _MITER)
-                region = _opening(inner, min_sp / 2) if s.thin_walls else inner
-                if printed and with_gaps and not inner.is_empty():
-                    gap = last.offset(-d / 2, _MITER) - region.offset(d / 2 + 1e-4, _MITER)
-                    if gap.area() > 1e-4:
-                        gaps.append(gap)
-                elif printed and with_gaps:
-                    gaps.append(last.offset(-d / 2, _MITER))
-            if region.is_empty():
+                d, a = (ext_sp2 if k == 1 else per_sp), (min_sp / 2 if s.thin_walls else 0.0)
+            shrunk = last.offset(-(d + a), _MITER)
+            if printed and k > 0 and with_gaps:
+                half = last.offset(-d / 2, _MITER)
+                reach = shrunk.offset(a + d / 2, _MITER) if not shrunk.is_empty() else CrossSection()
+                if half.area() - reach.area() > 1e-3:
+                    gaps.append(half - reach)
+            if shrunk.is_empty():
                 last = CrossSection()
                 break
             if k == s.perimeters:  # the extra round only looks for gaps
                 break
+            region = shrunk.offset(a, _MITER) if a else shrunk
+            if printed and k == 0 and s.thin_walls:
+                covered = shrunk.offset(a + d, _MITER)
+                r = s.nozzle_diameter / 6
+                if last.area() - covered.area() > 4 * r * r:
+                    bare = _opening(last - covered, r)
+                    out.thin = bare if not bare.is_empty() else None
             out.loops.append((k, _rings(region)))
             last = region
             if k == s.perimeters - 1 and not with_gaps:
@@ -552,14 +557,15 @@ class _Job:
         m = NARROW_WIDTHS * self.flows(j).solid
         sources = [(k, True) for k in range(j + 1, min(len(self.tops), j + s.top_layers))]
         sources += [(k, False) for k in range(max(0, j - s.bottom_layers + 1), j)]
-        for k, top in sources:
-            src = self._source(surf, k, top)
-            if src.is_empty():
-                continue
+        found = [(k, top, src) for k, top in sources for src in [self._source(surf, k, top)] if not src.is_empty()]
+        if found and (_union([src for _, _, src in found]) ^ internal).is_empty():
+            found = []  # nothing lands on this layer's internal area (the common case): one test
+        for k, top, src in found:
             x = src ^ internal
             if x.is_empty():
                 continue
-            narrow = x - _opening(x, m)
+            core = x.offset(-m, _MITER)
+            narrow = x if core.is_empty() else x - core.offset(m, _MITER)  # x - opening(x, m)
             if narrow.area() > 1e-6:
                 x = _union([x, narrow.offset(m, _MITER) ^ internal])
             solid.append(x)
@@ -593,6 +599,9 @@ class _Job:
         out = []
         for i in range(lo, hi):
             fills = self.fill_regions(i, surf, final)
+            over = None  # PrusaSlicer's overhang perimeters: more than half a nozzle off the layer below
+            if s.overhangs and i > 0 and not surf[i].bottom.is_empty():
+                over = kept[i] - kept[i - 1].offset(s.nozzle_diameter / 2, _MITER)
             paths: list[tuple[np.ndarray, int, float]] = []
             remaining = list(surf[i].islands)
             while remaining:  # islands nearest-first from where the nozzle is
@@ -600,7 +609,7 @@ class _Job:
                 centres = (b[:, :2] + b[:, 2:]) / 2
                 k = int(np.argmin(((centres - here) ** 2).sum(axis=1)))
                 isl = remaining.pop(k)
-                here = self.island_paths(isl, i, kept.get(i - 1), fills, len(surf[i].islands) == 1, paths, here)
+                here = self.island_paths(isl, i, over, fills, len(surf[i].islands) == 1, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
         del self._sources
         return out
@@ -646,24 +655,23 @@ class _Job:
             out.append((sparse, INFILL, None))
         return [(r, role, a) for r, role, a in out if not r.is_empty() and r.area() >= s.min_area]
 
-    def island_paths(self, isl: _Island, layer: int, lower: CrossSection | None,
+    def island_paths(self, isl: _Island, layer: int, over: CrossSection | None,
                      fills: list[tuple[CrossSection, int, float | None]], alone: bool,
                      paths: list, here: np.ndarray) -> np.ndarray:
         """Append one island's perimeters (overhanging parts as overhang perimeters), thin walls,
         gap fill, solid fills and sparse infill to ``paths``; return the nozzle position."""
         s, f = self.s, self.flows(layer)
-        over = None
-        if s.overhangs and layer > 0 and lower is not None:
-            over = isl.cs - lower.offset(s.nozzle_diameter / 2, _MITER)
-            over = over if not over.is_empty() else None
+        if over is not None and not alone:
+            over = over ^ isl.cs
+        over_rings = _rings(over) if over is not None and not over.is_empty() else None
         order = isl.loops if s.outer_perimeter_first else isl.loops[::-1]
         for depth, rings in order:
             role, w = (PERIMETER_OUTER, f.ext) if depth == 0 else (PERIMETER_INNER, f.per)
             for ring in rings:
                 start = _seam_start(ring, s, here, self.rear)
                 closed = _closed(ring, start)
-                if over is not None:
-                    for piece, air in _split_by_region(closed, _rings(over)):
+                if over_rings is not None:
+                    for piece, air in split_by_region(closed, over_rings):
                         paths.append((piece, OVERHANG, self.bridge_w) if air else (piece, role, w))
                 else:
                     paths.append((closed, role, w))
@@ -672,14 +680,14 @@ class _Job:
             for pts, width in medial_lines(isl.thin, s.nozzle_diameter / 3,
                                            f.ext + (f.spacing(f.ext) + f.spacing(f.per)) / 2):
                 paths.append((pts, PERIMETER_OUTER, width))
-        if isl.gaps is not None:
-            lo_w, hi_w = 0.2 * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
+        lo_w, hi_w = 0.2 * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
+        if isl.gaps is not None and isl.gaps.area() > lo_w * hi_w:
             gaps = _opening(isl.gaps, lo_w / 2) - _opening(isl.gaps, hi_w / 2)
             if not gaps.is_empty():
                 for pts, width in medial_lines(gaps, lo_w, hi_w):
                     paths.append((pts, GAP_FILL, width))
         if isl.fill.is_empty():
-            return paths[-1][0][-1] if paths else here
+            return _last_point(paths, here)
         angle = s.infill_angle_deg + 90.0 * (layer % 2)
         for region, role, bridge in fills:
             if not alone:
@@ -692,7 +700,7 @@ class _Job:
                 self.solid_paths(region, role, bridge if bridge is not None else angle, self.bridge_w, f.height, paths)
             else:
                 self.solid_paths(region, role, angle, f.top if role == TOP_SKIN else f.solid, f.height, paths)
-        return paths[-1][0][-1] if paths else here
+        return _last_point(paths, here)
 
     def solid_paths(self, region: CrossSection, role: int, angle: float, width: float, height: float,
                     paths: list) -> None:
@@ -701,25 +709,36 @@ class _Job:
         volume per area stays one layer height; PrusaSlicer's adjusted solid spacing). A bridge
         (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads."""
         bridge = role == BRIDGE
+        rings = [r for piece in region.decompose() for r in [_rings(piece)] if r]
+        if not rings:
+            return
         a = math.radians(angle)
-        normal = np.array([-math.sin(a), math.cos(a)])  # hatch lines run along the angle
-        for piece in region.decompose():
-            rings = _rings(piece)
-            if not rings:
-                continue
-            proj = np.concatenate(rings) @ normal
-            lo_, hi_ = float(proj.min()), float(proj.max())
-            spacing = width + BRIDGE_GAP if bridge else extrusion_spacing(width, height)
-            span = hi_ - lo_
-            count = int((span - 1e-9) // spacing)
-            new = span / count if count > 0 else spacing
-            new = min(new, spacing * SOLID_SPACING_MAX)
-            line_w = new - BRIDGE_GAP if bridge else width + (new - spacing)
-            shift = (lo_ + new / 2) * normal  # a line on the first half spacing in
-            moved = [r - shift for r in rings]
-            seg = hatch(moved, new, angle)
-            for line in seg + shift:
-                paths.append((line, role, line_w))
+        rot = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])  # world -> (along, across)
+        flat = [r for rs in rings for r in rs]
+        sizes = np.array([len(r) for r in flat])
+        piece = np.repeat(np.arange(len(rings)), [len(rs) for rs in rings])
+        uv = np.concatenate(flat) @ rot.T
+        owner = np.repeat(piece, sizes)
+        firsts = np.r_[0, np.flatnonzero(np.diff(owner)) + 1]
+        lo_, hi_ = np.minimum.reduceat(uv[:, 1], firsts), np.maximum.reduceat(uv[:, 1], firsts)
+        spacing = width + BRIDGE_GAP if bridge else extrusion_spacing(width, height)
+        span = hi_ - lo_
+        count = np.floor((span - 1e-9) / spacing)
+        new = np.where(count > 0, span / np.maximum(count, 1), spacing)
+        new = np.minimum(new, spacing * SOLID_SPACING_MAX)
+        line_w = new - BRIDGE_GAP if bridge else width + (new - spacing)
+        # every piece in a band of its own, scaled across the lines so that its lines (the first
+        # half a spacing in) fall on whole numbers: one hatch for all pieces
+        band = np.concatenate([[0], np.cumsum(np.ceil(span / new) + 2)])[:-1]
+        uv[:, 1] = (uv[:, 1] - lo_[owner]) / new[owner] - 0.5 + band[owner]
+        cuts = np.cumsum(sizes)[:-1]
+        seg = hatch(np.split(uv, cuts), 1.0, 0.0)
+        if not len(seg):
+            return
+        k = seg[:, 0, 1]
+        p = np.searchsorted(band, k + 0.25, side="right") - 1
+        seg[:, :, 1] = ((k - band[p] + 0.5) * new[p] + lo_[p])[:, None]
+        paths.append((seg @ rot, role, line_w[p]))
 
     def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
         """Sparse infill of ``region`` in ``infill_pattern`` at ``infill_density`` (line
@@ -742,66 +761,60 @@ class _Job:
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
             lines = [seg for ang, spacing in dirs for seg in hatch(rings, spacing, ang)]
-        for line in anchor_infill(lines, rings, s.infill_anchor, s.infill_anchor_max):
-            paths.append((line, INFILL, w))
+        lines = anchor_infill(lines, rings, s.infill_anchor, s.infill_anchor_max)
+        if lines and all(len(line) == 2 for line in lines):
+            paths.append((np.stack(lines), INFILL, w))  # a batch of segments
+        else:
+            paths.extend((line, INFILL, w) for line in lines)
 
 
-def _split_by_region(line: np.ndarray, rings: list[np.ndarray]) -> list[tuple[np.ndarray, bool]]:
-    """``line`` (k, 2) cut where it crosses the boundary of the region of ``rings`` (even-odd):
-    ``[(piece, inside)]`` in order, consecutive pieces sharing their end points."""
-    if not rings:
-        return [(line, False)]
-    a0 = np.concatenate(rings)
-    a1 = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
-    p, q = line[:-1], line[1:]
-    d, e = q - p, a1 - a0
-    den = d[:, None, 0] * e[None, :, 1] - d[:, None, 1] * e[None, :, 0]
-    w = a0[None, :, :] - p[:, None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (w[..., 0] * e[None, :, 1] - w[..., 1] * e[None, :, 0]) / den
-        u = (w[..., 0] * d[:, None, 1] - w[..., 1] * d[:, None, 0]) / den
-    hit = (np.abs(den) > 1e-15) & (t > 1e-9) & (t < 1 - 1e-9) & (u >= 0) & (u < 1)
-    seg, edge = np.nonzero(hit)
-    tt = t[seg, edge]
-    # every point: the line's vertices (param = index) and the crossings (index + t), in order
-    params = np.concatenate([np.arange(len(line), dtype=np.float64), seg + tt])
-    order = np.argsort(params, kind="stable")
-    params = params[order]
-    k = np.minimum(np.floor(params).astype(np.int64), len(line) - 2)
-    frac = params - k
-    pts = line[k] + frac[:, None] * (line[k + 1] - line[k])
-    mids = (pts[1:] + pts[:-1]) / 2
-    inside = _inside(mids, a0, a1)
-    cuts = np.flatnonzero(inside[1:] != inside[:-1]) + 1
-    bounds = np.concatenate([[0], cuts, [len(mids)]])
-    out = []
-    for b0, b1 in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        piece = pts[b0:b1 + 1]
-        if len(piece) >= 2 and np.linalg.norm(piece[-1] - piece[0]) + np.abs(np.diff(piece, axis=0)).sum() > 1e-9:
-            out.append((piece, bool(inside[b0])))
-    return out
-
-
-def _inside(pts: np.ndarray, a0: np.ndarray, a1: np.ndarray) -> np.ndarray:
-    """Whether each point is inside the region whose boundary edges are ``a0 -> a1`` (even-odd)."""
-    y0, y1 = a0[None, :, 1], a1[None, :, 1]
-    py = pts[:, None, 1]
-    straddle = (y0 > py) != (y1 > py)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = a0[None, :, 0] + (py - y0) * (a1[None, :, 0] - a0[None, :, 0]) / (y1 - y0)
-    return ((straddle & (pts[:, None, 0] < x)).sum(axis=1) % 2) == 1
+def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
+    """Where the nozzle ends after ``paths`` (``here`` if there are none)."""
+    if not paths:
+        return here
+    last = paths[-1][0]
+    return last[-1, -1] if last.ndim == 3 else last[-1]
 
 
 def _with_travel(z: float, height: float, paths: list[tuple[np.ndarray, int, float]]) -> LayerPaths:
-    """Insert a travel path wherever one path does not start where the previous one ended."""
+    """The layer's :class:`LayerPaths`: ``paths`` in order (an entry is one path (k, 2), or a
+    batch of paths of equal length (m, k, 2) with one role and one width), with a travel path
+    inserted wherever one path does not start where the previous one ended."""
     if not paths:
         return LayerPaths.build(z, height, [])
-    starts = np.array([p[0] for p, _, _ in paths])
-    ends = np.array([p[-1] for p, _, _ in paths])
-    jump = np.r_[False, np.linalg.norm(starts[1:] - ends[:-1], axis=1) > 1e-9]
-    out: list[tuple[np.ndarray, int, float]] = []
-    for k in range(len(paths)):
-        if jump[k]:
-            out.append((np.stack([ends[k - 1], starts[k]]), TRAVEL, 0.0))
-        out.append(paths[k])
-    return LayerPaths.build(z, height, out)
+    blocks, roles, widths, lens = [], [], [], []
+    for pts, role, width in paths:
+        if pts.ndim == 3:
+            m, k = pts.shape[:2]
+            blocks.append(pts.reshape(-1, 2))
+            lens.append(np.full(m, k, dtype=np.int64))
+            roles.append(np.full(m, role, dtype=np.uint8))
+            widths.append(np.broadcast_to(np.asarray(width, dtype=np.float64), (m,)))
+        else:
+            blocks.append(pts)
+            lens.append(np.array([len(pts)], dtype=np.int64))
+            roles.append(np.array([role], dtype=np.uint8))
+            widths.append(np.array([width], dtype=np.float64))
+    pts = np.concatenate(blocks)
+    lens, role, width = np.concatenate(lens), np.concatenate(roles), np.concatenate(widths)
+    ends = np.cumsum(lens)
+    first, last = pts[ends - lens], pts[ends - 1]
+    jump = np.r_[False, np.linalg.norm(first[1:] - last[:-1], axis=1) > 1e-9]
+    # output: each path preceded by a 2-point travel where it jumps
+    size = lens + 2 * jump
+    start = np.cumsum(size) - size
+    out = np.empty((int(size.sum()), 2))
+    shift = start + 2 * jump - (ends - lens)
+    out[np.arange(len(pts)) + np.repeat(shift, lens)] = pts
+    j = np.flatnonzero(jump)
+    out[start[j]] = last[j - 1]
+    out[start[j] + 1] = first[j]
+    n_out = len(lens) + len(j)
+    seq = np.arange(len(lens)) + np.cumsum(jump)  # where each path lands among all paths
+    lengths = np.empty(n_out, dtype=np.int64)
+    roles_out = np.full(n_out, TRAVEL, dtype=np.uint8)
+    widths_out = np.zeros(n_out)
+    lengths[seq], roles_out[seq], widths_out[seq] = lens, role, width
+    lengths[seq[j] - 1] = 2
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    return LayerPaths(z, height, out, offsets, roles_out, widths_out)
