@@ -12,14 +12,333 @@ CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
   (PrusaSlicer's connect_infill); a line end left unjoined gets an anchor: the ring followed from
   it for at most ``anchor`` mm (not into another line's end). ``anchor = 0`` and
   ``anchor_max = 0`` return ``lines`` unchanged. No added stretch leaves the region.
+
+How (written from PrusaSlicer 2.5's Fill::connect_infill, not copied): every line end is placed
+on its ring by arc length; "consecutive" ends are neighbours along a ring (no other line end
+between them). The stretches between neighbours are taken shortest first: one shorter than
+``anchor_max`` joins its two lines unless they already belong to one polyline (no loops); a
+longer one gets an anchor from each end into it. Ends still free then join a neighbour within
+``anchor_max`` or get an anchor along the side with more free ring. An anchor stops half a line
+width short of the neighbouring end and of the neighbour's own anchor, so no stretch of ring is
+printed twice (PrusaSlicer lets the second anchor run up to the first). Ends farther than ``END_TOL`` from every ring stay as they
+are. (PrusaSlicer also masks the ring where an infill line runs along it; not done here.)
 """
 
 from __future__ import annotations
 
+
+import numba
 import numpy as np
 
+from cooprint.slicing.patterns import chain_order
+from cooprint.slicing.rings import RingSet
 
-def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float
-                  ) -> list[np.ndarray]:
-    """``lines`` joined and anchored along ``rings`` (module docstring)."""
-    return list(lines)
+#: A line end within this distance of a ring is on it, mm.
+END_TOL = 1e-3
+#: Default line width (``anchor_infill``'s ``width``): anchors stop half of it short of the next
+#: line's end, mm (PrusaSlicer's sparse infill width for a 0.4 mm nozzle).
+LINE_WIDTH = 0.45
+
+
+def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float,
+                  width: float = LINE_WIDTH) -> list[np.ndarray]:
+    """``lines`` joined and anchored along ``rings`` (module docstring).
+
+    Parameters
+    ----------
+    lines : list of (k, 2) float
+        Infill polylines (k >= 2) in print order, ends on the rings.
+    rings : list of (m, 2) float
+        The region's closed rings (outlines and holes).
+    anchor : float
+        Longest anchor, mm (PrusaSlicer's infill_anchor); 0: no anchors.
+    anchor_max : float
+        Longest stretch of ring that joins two lines, mm (infill_anchor_max); 0: no joins.
+    width : float
+        Line width, mm: an anchor stops half of it short of a neighbouring line's end.
+
+    Returns
+    -------
+    list of (j, 2) float64
+        The joined and anchored polylines, in nearest-next order from the first line's start.
+    """
+    lines = [np.asarray(p, dtype=np.float64)[:, :2] for p in lines if len(p) >= 2]
+    if (anchor <= 0 and anchor_max <= 0) or not lines:
+        return list(lines)
+    rs = RingSet(rings)
+    if not len(rs):
+        return list(lines)
+    n = len(lines)
+    ends = np.empty((2 * n, 2))
+    ends[0::2] = [p[0] for p in lines]
+    ends[1::2] = [p[-1] for p in lines]
+    edge, t, _ = rs.nearest(ends, END_TOL)
+    on = edge >= 0
+    ring = np.where(on, rs.ring_of[np.maximum(edge, 0)], -1)
+    param = np.where(on, rs.param[np.maximum(edge, 0)] + t * rs.seg_len[np.maximum(edge, 0)], 0.0)
+    # neighbours along each ring: sort the ends on rings by (ring, arc length)
+    idx = np.flatnonzero(on)
+    idx = idx[np.lexsort((param[idx], ring[idx]))]
+    nxt = np.full(2 * n, -1, np.int64)
+    prv = np.full(2 * n, -1, np.int64)
+    if len(idx):
+        r = ring[idx]
+        first = np.r_[True, r[1:] != r[:-1]]
+        last = np.r_[r[1:] != r[:-1], True]
+        heads = np.maximum.accumulate(np.where(first, np.arange(len(idx)), 0))
+        after = np.where(last, heads, np.arange(len(idx)) + 1)
+        nxt[idx] = idx[after]
+        prv[idx[after]] = idx
+    ring_len = np.where(on, rs.ring_len[np.maximum(ring, 0)], 0.0)
+    arc = np.where(on, np.mod(param[np.maximum(nxt, 0)] - param, np.where(on, ring_len, 1.0)), 0.0)
+    arc = np.where(on & (nxt == np.arange(2 * n)), ring_len, arc)
+    join, hook = _connect(nxt, prv, arc, ring_len, float(anchor), float(anchor_max), 0.5 * float(width))
+    return _assemble(lines, rs, ring, param, join, hook)
+
+
+@numba.njit(cache=True)
+def _find(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@numba.njit(cache=True)
+def _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook):
+    """Anchor end ``e`` along its ring, forward (side 1) or backward (-1), into the stretch
+    towards its neighbour; the neighbour's free stretch on that side shrinks accordingly."""
+    eps = 1e-9
+    if consumed[e]:
+        return
+    free = nt_next[e] if side > 0 else nt_prev[e]
+    f = nxt[e] if side > 0 else prv[e]
+    if f == e:
+        stretch = ring_len[e]
+    else:
+        stretch = arc[e] if side > 0 else arc[prv[e]]
+    # stop half a width short of the neighbouring line's end, and of the neighbour's anchor
+    length = min(anchor, free - hw, stretch - hw)
+    if length <= eps:
+        return  # nothing to take on this side: the end stays free for the other side
+    consumed[e] = True
+    if side > 0:
+        nt_next[e] = 0.0
+        trim_next[e] = True
+    else:
+        nt_prev[e] = 0.0
+        trim_prev[e] = True
+    if f == e:
+        nt_next[e] = 0.0
+        nt_prev[e] = 0.0
+        trim_next[e] = True
+        trim_prev[e] = True
+    elif side > 0:
+        if stretch - length < nt_prev[f]:
+            nt_prev[f] = stretch - length
+            trim_prev[f] = True
+    else:
+        if stretch - length < nt_next[f]:
+            nt_next[f] = stretch - length
+            trim_next[f] = True
+    hook[e] = side * length
+
+
+@numba.njit(cache=True)
+def _connect(nxt, prv, arc, ring_len, anchor, anchor_max, hw):
+    """Which ends join which (``join[e]``: the other end, -1: none; the stretch runs forward
+    along the ring from the end ``e`` with ``join_forward``) and the signed anchor of every
+    free end (``hook[e]``: + forward, - backward, 0 none). Returns (join * 2 + forward flag
+    encoded as join_code (-1 none; 2 * other + 1 forward; 2 * other backward), hook)."""
+    m = nxt.shape[0]
+    consumed = nxt < 0
+    nt_next = np.full(m, np.inf)
+    nt_prev = np.full(m, np.inf)
+    trim_next = np.zeros(m, np.bool_)
+    trim_prev = np.zeros(m, np.bool_)
+    parent = np.arange(m // 2)
+    code = np.full(m, -1, np.int64)
+    hook = np.zeros(m)
+    # stretches between neighbours, shortest first
+    cand = np.empty(m, np.int64)
+    nc = 0
+    for e in range(m):
+        if nxt[e] >= 0 and nxt[e] != e:
+            cand[nc] = e
+            nc += 1
+    cand = cand[:nc]
+    cand = cand[np.argsort(arc[cand], kind="mergesort")]
+    for e in cand:
+        f = nxt[e]
+        if consumed[e] or consumed[f] or trim_next[e] or trim_prev[f]:
+            continue
+        g1, g2 = _find(parent, e // 2), _find(parent, f // 2)
+        if g1 == g2:
+            continue
+        if arc[e] < anchor_max:
+            code[e] = 2 * f + 1
+            code[f] = 2 * e
+            consumed[e] = consumed[f] = True
+            nt_next[e] = nt_prev[f] = 0.0
+            trim_next[e] = trim_prev[f] = True
+            parent[max(g1, g2)] = min(g1, g2)
+        elif anchor > 0:
+            _hook(e, 1, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook)
+            _hook(f, -1, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook)
+    # the ends still free: join a neighbour within anchor_max, else anchor on the freer side
+    for e in range(m):
+        if consumed[e]:
+            continue
+        p, f = prv[e], nxt[e]
+        lp = arc[p] if (p != e and not consumed[p] and not trim_prev[e] and not trim_next[p]) else np.inf
+        ln = arc[e] if (f != e and not consumed[f] and not trim_next[e] and not trim_prev[f]) else np.inf
+        joined = False
+        for k in range(2):
+            back = (lp <= ln) if k == 0 else (lp > ln)
+            length = lp if back else ln
+            if length == np.inf or length > anchor_max:
+                break
+            o = p if back else f
+            g1, g2 = _find(parent, e // 2), _find(parent, o // 2)
+            if g1 == g2:
+                continue
+            if back:
+                code[e] = 2 * o
+                code[o] = 2 * e + 1
+                nt_prev[e] = nt_next[o] = 0.0
+                trim_prev[e] = trim_next[o] = True
+            else:
+                code[e] = 2 * o + 1
+                code[o] = 2 * e
+                nt_next[e] = nt_prev[o] = 0.0
+                trim_next[e] = trim_prev[o] = True
+            consumed[e] = consumed[o] = True
+            parent[max(g1, g2)] = min(g1, g2)
+            joined = True
+            break
+        if not joined and anchor > 0:
+            side = -1 if nt_prev[e] > nt_next[e] else 1
+            _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook)
+    return code, hook
+
+
+@numba.njit(cache=True)
+def _reserve(buf, m, extra):
+    """``buf`` with room for ``extra`` more points after the first ``m``."""
+    if m + extra <= buf.shape[0]:
+        return buf
+    grown = np.empty((max(2 * buf.shape[0], m + extra), 2))
+    grown[:m] = buf[:m]
+    return grown
+
+
+@numba.njit(cache=True)
+def _push(buf, m, x, y):
+    buf = _reserve(buf, m, 1)
+    buf[m, 0] = x
+    buf[m, 1] = y
+    return buf, m + 1
+
+
+@numba.njit(cache=True)
+def _walk(buf, m, a, b, rparam, seg_len, s, k, total, p0, p1, forward):
+    """Append the vertices of the ring (edges s .. s + k) strictly between arc lengths ``p0``
+    and ``p1``, going forward (increasing arc length) or backward, then the point at ``p1``."""
+    eps = 1e-12
+    p0m, p1m = p0 % total, p1 % total
+    span = (p1 - p0) % total if forward else (p0 - p1) % total
+    j = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
+    if forward:
+        i = j + 1
+        d = (rparam[s + i] if i < k else total) - p0m
+        while d < span - eps:
+            if d > eps:
+                buf, m = _push(buf, m, a[s + i % k, 0], a[s + i % k, 1])
+            d += seg_len[s + i % k]
+            i += 1
+    else:
+        i = j
+        d = p0m - rparam[s + j]
+        while d < span - eps:
+            if d > eps:
+                buf, m = _push(buf, m, a[s + i, 0], a[s + i, 1])
+            i = (i - 1) % k
+            d += seg_len[s + i]
+    jj = np.searchsorted(rparam[s:s + k], p1m, side="right") - 1
+    sl = seg_len[s + jj]
+    t = (p1m - rparam[s + jj]) / sl if sl > 0 else 0.0
+    buf, m = _push(buf, m, a[s + jj, 0] + t * (b[s + jj, 0] - a[s + jj, 0]),
+                   a[s + jj, 1] + t * (b[s + jj, 1] - a[s + jj, 1]))
+    return buf, m
+
+
+@numba.njit(cache=True)
+def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start, ring_len):
+    """The chains of lines joined by ring stretches, with their anchors: (points, offsets,
+    first line of every chain)."""
+    n = lo.shape[0] - 1
+    seen = np.zeros(n, np.bool_)
+    buf = np.empty((2 * pts.shape[0] + 16, 2))
+    m = 0
+    off = np.zeros(n + 1, np.int64)
+    first = np.zeros(n, np.int64)
+    nc = 0
+    for st in range(2 * n):
+        if code[st] >= 0 or seen[st // 2]:
+            continue
+        off[nc] = m
+        first[nc] = st // 2
+        if hook[st] != 0.0:
+            r = ring[st]
+            s = ring_start[r]
+            t0 = m
+            buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
+                           param[st], param[st] + hook[st], hook[st] > 0)
+            buf[t0:m] = buf[t0:m][::-1].copy()
+        e = st
+        while True:
+            li = e // 2
+            seen[li] = True
+            size = lo[li + 1] - lo[li]
+            buf = _reserve(buf, m, size)
+            if e % 2 == 0:
+                buf[m:m + size] = pts[lo[li]:lo[li + 1]]
+            else:
+                buf[m:m + size] = pts[lo[li]:lo[li + 1]][::-1]
+            m += size
+            other = e ^ 1
+            c = code[other]
+            r = ring[other]
+            if c < 0:
+                if hook[other] != 0.0:
+                    s = ring_start[r]
+                    buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
+                                   param[other], param[other] + hook[other], hook[other] > 0)
+                break
+            to = c // 2
+            s = ring_start[r]
+            buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
+                           param[other], param[to], c % 2 == 1)
+            m -= 1  # the stretch's last point is the next line's first
+            e = to
+        nc += 1
+    off[nc] = m
+    return buf[:m], off[:nc + 1], first[:nc]
+
+
+def _assemble(lines, rs, ring, param, code, hook) -> list[np.ndarray]:
+    """Chains of lines joined by ring stretches, with their anchors, as polylines in
+    nearest-next order from the first line's chain."""
+    sizes = np.array([len(p) for p in lines], dtype=np.int64)
+    lo = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+    pts, off, first = _chains(np.concatenate(lines), lo, ring, param, code, hook, rs.a, rs.b, rs.param,
+                              rs.seg_len, rs.ring_start, rs.ring_len)
+    if len(off) < 2:
+        return []
+    polys = np.split(pts, off[1:-1])
+    by_first = np.argsort(first, kind="stable")
+    polys = [polys[k] for k in by_first]
+    heads = np.array([p[0] for p in polys])
+    tails = np.array([p[-1] for p in polys])
+    order, rev = chain_order(heads, tails, heads[0])
+    return [polys[k][::-1].copy() if r else polys[k] for k, r in zip(order, rev)]
