@@ -479,18 +479,18 @@ class _Job:
                 reach = shrunk.offset(a + d / 2, _MITER) if not shrunk.is_empty() else CrossSection()
                 if half.area() - reach.area() > 1e-3:
                     gaps.append(half - reach)
+            if printed and k == 0 and s.thin_walls:  # what the outer loop cannot cover
+                covered = shrunk.offset(a + d, _MITER) if not shrunk.is_empty() else CrossSection()
+                r = s.nozzle_diameter / 6
+                if last.area() - covered.area() > 4 * r * r:
+                    bare = _opening(last - covered, r)
+                    out.thin = bare if not bare.is_empty() else None
             if shrunk.is_empty():
                 last = CrossSection()
                 break
             if k == s.perimeters:  # the extra round only looks for gaps
                 break
             region = shrunk.offset(a, _MITER) if a else shrunk
-            if printed and k == 0 and s.thin_walls:
-                covered = shrunk.offset(a + d, _MITER)
-                r = s.nozzle_diameter / 6
-                if last.area() - covered.area() > 4 * r * r:
-                    bare = _opening(last - covered, r)
-                    out.thin = bare if not bare.is_empty() else None
             out.loops.append((k, _rings(region)))
             last = region
             if k == s.perimeters - 1 and not with_gaps:
