@@ -557,18 +557,24 @@ class _Job:
         m = NARROW_WIDTHS * self.flows(j).solid
         sources = [(k, True) for k in range(j + 1, min(len(self.tops), j + s.top_layers))]
         sources += [(k, False) for k in range(max(0, j - s.bottom_layers + 1), j)]
-        found = [(k, top, src) for k, top in sources for src in [self._source(surf, k, top)] if not src.is_empty()]
-        if found and (_union([src for _, _, src in found]) ^ internal).is_empty():
-            found = []  # nothing lands on this layer's internal area (the common case): one test
-        for k, top, src in found:
+        narrow = []
+        for k, top in sources:
+            src = self._source(surf, k, top)
+            if src.is_empty():
+                continue
             x = src ^ internal
             if x.is_empty():
                 continue
-            core = x.offset(-m, _MITER)
-            narrow = x if core.is_empty() else x - core.offset(m, _MITER)  # x - opening(x, m)
-            if narrow.area() > 1e-6:
-                x = _union([x, narrow.offset(m, _MITER) ^ internal])
             solid.append(x)
+            core = x.offset(-m, _MITER)
+            if core.is_empty():  # all of it narrow (a step of a slope): grown with the others
+                narrow.append(x)
+            else:
+                part = x - core.offset(m, _MITER)  # x - opening(x, m)
+                if part.area() > 1e-6:
+                    narrow.append(part)
+        if narrow:  # growing each narrow part and uniting is growing their union
+            solid.append(_union(narrow).offset(m, _MITER) ^ internal)
         if not solid:
             return CrossSection(), internal
         solid_cs = _union(solid)
@@ -599,9 +605,14 @@ class _Job:
         out = []
         for i in range(lo, hi):
             fills = self.fill_regions(i, surf, final)
-            over = None  # PrusaSlicer's overhang perimeters: more than half a nozzle off the layer below
+            # PrusaSlicer's overhang perimeters: loop points more than half a nozzle from the layer
+            # below. A loop point lies more than that inside the section, so its half-nozzle disc
+            # is in the section: it is over air iff the disc is in the bottom surface, i.e. iff
+            # it is in the bottom surface shrunk by half a nozzle (empty on a steep wall)
+            over = None
             if s.overhangs and i > 0 and not surf[i].bottom.is_empty():
-                over = kept[i] - kept[i - 1].offset(s.nozzle_diameter / 2, _MITER)
+                over = surf[i].bottom.offset(-s.nozzle_diameter / 2, _MITER)
+                over = None if over.is_empty() else over
             paths: list[tuple[np.ndarray, int, float]] = []
             remaining = list(surf[i].islands)
             while remaining:  # islands nearest-first from where the nozzle is
