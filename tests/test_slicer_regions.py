@@ -191,3 +191,25 @@ def test_the_gcode_has_the_per_role_volumes_of_the_paths():
     assert set(got) == set(expected)
     for name in expected:
         assert got[name] == pytest.approx(expected[name], rel=2e-3), name
+
+
+def test_ensure_vertical_shell_thickness_makes_solid_where_the_wall_below_is_thinner():
+    """A cylinder with a conical hole narrowing upwards (its wall thicker on every layer): each
+    layer's fill area reaches over the hole of the layers under it, where their walls are only
+    perimeters. With the option on, that ring is solid (PrusaSlicer's discover_vertical_shells);
+    off (the default, as PrusaSlicer's CLI), it is sparse: the overhang rings are too narrow to
+    be bottom surfaces that reach the fill area."""
+    body = m3d.Manifold.cylinder(12, 12, 12, 96) - m3d.Manifold.cylinder(12, 10, 0.5, 96)
+    vols = {}
+    for on in (False, True):
+        layers = slice_solid(solid(body), SlicingSettings(ensure_vertical_shell_thickness=on)).layers
+        v = {r: 0.0 for r in (SKIN, BRIDGE, INFILL)}
+        for L in layers[10:-10]:
+            for r in v:
+                k = L.role == r
+                v[r] += float((flow_area(L.width[k], L.height, r) * L.lengths()[k]).sum())
+        vols[on] = v
+    assert vols[False][SKIN] + vols[False][BRIDGE] < 0.05 * vols[False][INFILL]
+    assert vols[True][SKIN] > 0.3 * vols[False][INFILL]
+    # the solid ring took sparse area: about a fifth of its volume (20% infill) less sparse
+    assert vols[True][INFILL] < vols[False][INFILL] - 0.12 * vols[True][SKIN]

@@ -557,6 +557,8 @@ class _Job:
         m = NARROW_WIDTHS * self.flows(j).solid
         sources = [(k, True) for k in range(j + 1, min(len(self.tops), j + s.top_layers))]
         sources += [(k, False) for k in range(max(0, j - s.bottom_layers + 1), j)]
+        if s.ensure_vertical_shell_thickness:
+            return self.vertical_shells(j, surf, sources)
         narrow = []
         for k, top in sources:
             src = self._source(surf, k, top)
@@ -579,6 +581,27 @@ class _Job:
             return CrossSection(), internal
         solid_cs = _union(solid)
         return solid_cs, internal - solid_cs
+
+    def vertical_shells(self, j: int, surf: dict[int, _Surfaces], sources: list[tuple[int, bool]]
+                        ) -> tuple[CrossSection, CrossSection]:
+        """Internal solid and sparse areas of layer ``j`` with ``ensure_vertical_shell_thickness``
+        (PrusaSlicer's discover_vertical_shells, which then replaces the horizontal shells): the
+        top and bottom surfaces of the same neighbours grown by 1.05 solid spacings, and every
+        part of this layer's internal area that is not fill area on all of them (there the wall
+        above or below is thinner than this layer's perimeters), opened (in by half, out by
+        0.8 of that distance) and clipped to the internal area, are solid."""
+        me = surf[j]
+        internal = me.internal
+        g = 1.05 * self.flows(j).spacing(self.flows(j).solid)
+        shell = [self._source(surf, k, top) for k, top in sources]
+        shell = [x.offset(g, _SQUARE) for x in shell if not x.is_empty()]
+        keep = me.fill
+        for k, _ in sources:
+            keep = keep ^ surf[k].fill
+        parts = [_union(shell) ^ internal] if shell else []
+        parts += [internal - keep] + ([me.small] if not me.small.is_empty() else [])
+        solid = _union(parts).offset(-0.5 * g, _SQUARE).offset(0.8 * g, _SQUARE) ^ internal
+        return solid, internal - solid
 
     def _source(self, surf: dict[int, _Surfaces], k: int, top: bool) -> CrossSection:
         key = (k, top)
