@@ -389,6 +389,9 @@ class _Surfaces:
 #: a line spacing (parts narrower than that get no loop but gap fill), and the fill area by as
 #: much of the solid infill spacing.
 INSET_OVERLAP = 0.4
+#: Gap fill is laid in gaps from this many perimeter widths (x (1 - INSET_OVERLAP)) to two
+#: perimeter spacings wide (PrusaSlicer's classic gap fill); the gaps are not fill area.
+GAP_MIN = 0.2
 #: Overlap of the fill area with the innermost loop, as a fraction of half their spacings
 #: (PrusaSlicer's infill_overlap, 25%).
 INFILL_OVERLAP = 0.25
@@ -474,7 +477,7 @@ class _Job:
             else:
                 d, a = (ext_sp2 if k == 1 else per_sp), (min_sp / 2 if s.thin_walls else 0.0)
             shrunk = last.offset(-(d + a), _MITER)
-            if printed and k > 0 and with_gaps:
+            if k > 0 and with_gaps:
                 half = last.offset(-d / 2, _MITER)
                 reach = shrunk.offset(a + d / 2, _MITER) if not shrunk.is_empty() else CrossSection()
                 if half.area() - reach.area() > 1e-3:
@@ -495,8 +498,15 @@ class _Job:
             last = region
             if k == s.perimeters - 1 and not with_gaps:
                 break
-        if gaps:
-            out.gaps = _union(gaps)
+        lo_w, hi_w = GAP_MIN * f.per * (1 - INSET_OVERLAP), 2 * per_sp
+        if gaps:  # the gaps from lo_w to hi_w wide are gap fill, and not fill area
+            g = _union(gaps)
+            if g.area() > lo_w * hi_w:
+                g = _opening(g, lo_w / 2) - _opening(g, hi_w / 2)
+                if not g.is_empty():
+                    out.gaps = g
+                    if not last.is_empty():
+                        last = last - g
         if not last.is_empty():
             inset = (ext_sp if len(out.loops) == 1 else per_sp) / 2
             inset -= INFILL_OVERLAP * (inset + sol_sp / 2)
@@ -714,12 +724,10 @@ class _Job:
             for pts, width in medial_lines(isl.thin, s.nozzle_diameter / 3,
                                            f.ext + (f.spacing(f.ext) + f.spacing(f.per)) / 2):
                 paths.append((pts, PERIMETER_OUTER, width))
-        lo_w, hi_w = 0.2 * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
-        if isl.gaps is not None and isl.gaps.area() > lo_w * hi_w:
-            gaps = _opening(isl.gaps, lo_w / 2) - _opening(isl.gaps, hi_w / 2)
-            if not gaps.is_empty():
-                for pts, width in medial_lines(gaps, lo_w, hi_w):
-                    paths.append((pts, GAP_FILL, width))
+        if isl.gaps is not None:
+            lo_w, hi_w = GAP_MIN * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
+            for pts, width in medial_lines(isl.gaps, lo_w, hi_w):
+                paths.append((pts, GAP_FILL, width))
         if isl.fill.is_empty():
             return _last_point(paths, here)
         angle = s.infill_angle_deg + 90.0 * (layer % 2)
