@@ -1,18 +1,33 @@
-"""Slice a watertight solid into layers of ordered tool paths (seed §4.2.1, Fig. 7).
+"""Slice a watertight solid into layers of ordered tool paths (seed §4.2.1, Fig. 7), with
+PrusaSlicer 2.5's regions (issue 17).
 
-Stages, each on whole layers:
+Stages, each on whole layers (manifold3d CrossSection booleans and offsets, no Python per point):
 
 1. layer planes: a first layer of its own height, then equal layers; each sliced at mid-height
    (:mod:`.sections`: closed polygons with holes and islands nested, a block of layers at once);
-2. regions: islands smaller than ``min_area`` dropped; N perimeters, the outer one's centre half a
-   width inside the outline and the next ones a line spacing (``extrusion_spacing``: lines touch
-   with their rounded sides) further in; the rest is the fill area;
-3. skins: top and bottom surfaces (what the next or previous section does not cover), grown 3 mm
-   into the fill area, are solid on ``top_layers`` / ``bottom_layers`` layers, as PrusaSlicer's
-   top/bottom solid layers; small sparse regions are solid too;
-4. infill: solid skin hatched at the line spacing, sparse infill by pattern and density;
-5. order: islands nearest-first, perimeters with a seam, then skin and infill in scan order, with
+2. perimeters (PrusaSlicer's classic generator, per-role widths): islands smaller than
+   ``min_area`` dropped; the outer loop half an external width inside the outline, the next
+   ones a spacing further in, every loop's region opened by 0.6 x half a spacing; what that
+   leaves between the loops is gap fill, a wall too thin for the outer loop a thin wall (both
+   along :func:`~cooprint.slicing.gapfill.medial_lines`); loop parts over air are overhang
+   perimeters; the fill area half a spacing inside the innermost loop, without the gaps;
+3. surfaces (detect_surfaces_type, process_external_surfaces): a layer's top is what the next
+   section does not cover (top solid infill), its bottom what the previous one does not (a
+   bridge over air, in the direction :func:`~cooprint.slicing.bridge.bridge_angle` finds; solid
+   on the first layer), both grown 3 mm into the fill area; sparse regions below
+   ``solid_infill_below_area`` are solid;
+4. shells (discover_horizontal_shells, or discover_vertical_shells with
+   ``ensure_vertical_shell_thickness``): the top and bottom surfaces make the internal area of
+   ``top_layers - 1`` layers under / ``bottom_layers - 1`` over them solid, narrow parts grown;
+   solid over sparse infill is a bridge (bridge_over_infill);
+5. fill: solid lines at a spacing adjusted to fill each region evenly, bridges as round
+   threads, sparse infill by pattern (hatch, or :func:`~cooprint.slicing.patterns.gyroid`)
+   anchored along the perimeters (:func:`~cooprint.slicing.anchor.anchor_infill`);
+6. order: islands nearest-first, perimeters with a seam, gap fill, then the fills, with
    explicit travel paths between.
+
+A block of ``BLOCK`` layers is sliced with the neighbours its surfaces need, so that every block
+is independent of the others and of who slices it.
 """
 
 from __future__ import annotations
