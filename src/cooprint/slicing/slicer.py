@@ -430,7 +430,8 @@ _SQUARE = manifold3d.JoinType.Square
 
 def _opening(cs: CrossSection, r: float) -> CrossSection:
     """``cs`` without its parts narrower than ``2 r``."""
-    return cs.offset(-r, _MITER).offset(r, _MITER)
+    core = cs.offset(-r, _MITER)
+    return core if core.is_empty() else core.offset(r, _MITER)
 
 
 def _nonempty(cs: CrossSection | None) -> bool:
@@ -509,7 +510,7 @@ class _Job:
             if k == s.perimeters:  # the extra round only looks for gaps
                 break
             region = shrunk.offset(a, _MITER) if a else shrunk
-            out.loops.append((k, _rings(region)))
+            out.loops.append((k, _rings(region) if printed else []))
             last = region
             if k == s.perimeters - 1 and not with_gaps:
                 break
