@@ -213,3 +213,24 @@ def test_ensure_vertical_shell_thickness_makes_solid_where_the_wall_below_is_thi
     assert vols[True][SKIN] > 0.3 * vols[False][INFILL]
     # the solid ring took sparse area: about a fifth of its volume (20% infill) less sparse
     assert vols[True][INFILL] < vols[False][INFILL] - 0.12 * vols[True][SKIN]
+
+
+@pytest.mark.parametrize("shape", [towers, ziggurat])
+def test_every_extrusion_lies_inside_the_model(shape):
+    """Every point of every extruding path lies inside its layer's section shrunk by half the
+    path's width (50 um of tolerance): bridges, overhangs, gap fill and anchors included."""
+    from cooprint.slicing.polysplit import _inside
+    from cooprint.slicing.sections import LayerSlicer
+
+    sol = solid(shape())
+    layers = slice_solid(sol, SlicingSettings()).layers
+    slicer = LayerSlicer(sol.vertices, sol.faces)
+    sections = slicer.sections(np.array([L.z - L.height / 2 for L in layers]))
+    for L, cs in zip(layers, sections):
+        for w in np.unique(L.width[L.role != TRAVEL]):
+            rings = [np.asarray(r) for r in cs.offset(-(w / 2 - 0.05), m3d.JoinType.Miter).to_polygons()]
+            a0 = np.concatenate(rings)
+            a1 = np.concatenate([np.roll(r, -1, axis=0) for r in rings])
+            k = np.flatnonzero((L.role != TRAVEL) & (L.width == w))
+            pts = np.concatenate([L.path(j) for j in k])
+            assert _inside(pts, a0, a1).all(), (L.z, w)
