@@ -494,10 +494,14 @@ class _Job:
                 d, a = (ext_sp2 if k == 1 else per_sp), (min_sp / 2 if s.thin_walls else 0.0)
             shrunk = last.offset(-(d + a), _MITER)
             if k > 0 and with_gaps:
-                half = last.offset(-d / 2, _MITER)
-                reach = shrunk.offset(a + d / 2, _MITER) if not shrunk.is_empty() else CrossSection()
-                if half.area() - reach.area() > 1e-3:
-                    gaps.append(half - reach)
+                # a gap only where the loop's band does not reach back to ``last`` (one offset
+                # tells: the common case); there, half a spacing inside ``last`` less the band
+                cover = shrunk.offset(a + d, _MITER) if not shrunk.is_empty() else CrossSection()
+                if last.area() - cover.area() > 1e-3:
+                    half = last.offset(-d / 2, _MITER)
+                    reach = shrunk.offset(a + d / 2, _MITER) if not shrunk.is_empty() else CrossSection()
+                    if half.area() - reach.area() > 1e-3:
+                        gaps.append(half - reach)
             if printed and k == 0 and s.thin_walls:  # what the outer loop cannot cover
                 covered = shrunk.offset(a + d, _MITER) if not shrunk.is_empty() else CrossSection()
                 r = s.nozzle_diameter / 6
