@@ -261,6 +261,21 @@ def test_anchor_joins_only_within_anchor_max():
     assert np.linalg.norm(tips[:, None] - line_ends[None], axis=-1).min() == pytest.approx(0.225)
 
 
+def test_anchor_leaves_the_ring_where_a_line_runs_along_it():
+    rings = [box(0, 0, 20, 10)]
+    a = np.array([[5.0, 10.0], [5.0, 0.0]])
+    b = np.array([[8.0, 0.0], [8.0, 10.0]])
+    along = np.array([[0.0, 2.0], [4.0, 0.3], [9.5, 0.3], [20.0, 2.0]])  # 0.3 mm above the bottom
+    for lines, used in (([a, b], True), ([a, b, along], False)):
+        out = anchor_infill(lines, rings, 2.7, 4.0)
+        on_bottom = [(min(p[0], q[0]), max(p[0], q[0])) for o in out for p, q in zip(o[:-1], o[1:])
+                     if p[1] == 0 and q[1] == 0]
+        # the 3 mm between a's and b's bottom ends join them, unless `along` is printed over it
+        assert any(lo < 6.5 < hi for lo, hi in on_bottom) == used
+        # a and b are joined either way (over the top when the bottom is taken)
+        assert any(np.isclose(o[:, 0], 5).any() and np.isclose(o[:, 0], 8).any() for o in out)
+
+
 def test_anchor_joins_hatch_into_a_zigzag():
     rings = [box(0, 0.5, 30, 20.5)]  # (a scanline on an edge would run along the ring)
     lines = list(hatch(rings, 2.0, 0))
@@ -307,6 +322,15 @@ def test_bridge_across_a_gap_between_two_pads():
     assert bridge_angle(rect(0, 0, 40, 20), pads_y, 0.45) == pytest.approx(90.0)
     # turned by 30 degrees: the lines turn with the gap
     assert bridge_angle(rect(0, 0, 20, 40).rotate(30), pads.rotate(30), 0.45) == pytest.approx(30.0, abs=1e-6)
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(-180, 180), st.floats(8, 40), st.floats(15, 60))
+def test_bridge_lines_cross_the_gap_at_any_orientation(theta, gap, long):
+    pads = rect(-10, 0, 0, long) + rect(gap, 0, gap + 10, long)
+    got = bridge_angle(rect(0, 0, gap, long).rotate(theta), pads.rotate(theta), 0.45)
+    # across the gap (perpendicular to its long edges), whatever the turn
+    assert abs((got - theta + 90.0) % 180.0 - 90.0) < 1e-6
 
 
 def test_bridge_with_an_l_shaped_anchor_runs_diagonally():

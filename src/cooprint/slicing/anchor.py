@@ -21,7 +21,8 @@ longer one gets an anchor from each end into it. Ends still free then join a nei
 ``anchor_max`` or get an anchor along the side with more free ring. An anchor stops half a line
 width short of the neighbouring end and of the neighbour's own anchor, so no stretch of ring is
 printed twice (PrusaSlicer lets the second anchor run up to the first). Ends farther than ``END_TOL`` from every ring stay as they
-are. (PrusaSlicer also masks the ring where an infill line runs along it; not done here.)
+are. As PrusaSlicer, the ring is masked where an infill line runs along it (within
+``COLLIDE`` widths, away from the line's ends): no join over it, anchors stop before it.
 """
 
 from __future__ import annotations
@@ -31,10 +32,14 @@ import numba
 import numpy as np
 
 from cooprint.slicing.patterns import chain_order
-from cooprint.slicing.rings import RingSet
+from cooprint.slicing.rings import EdgeSet, RingSet
 
 #: A line end within this distance of a ring is on it, mm.
 END_TOL = 1e-3
+#: A stretch of ring within this many line widths of an infill line is not printed (PrusaSlicer: 0.8).
+COLLIDE = 0.8
+#: ...except near that line's own ends: its last this many widths (PrusaSlicer: 1.7).
+END_CLEAR = 1.7
 #: Default line width (``anchor_infill``'s ``width``): anchors stop half of it short of the next
 #: line's end, mm (PrusaSlicer's sparse infill width for a 0.4 mm nozzle).
 LINE_WIDTH = 0.45
@@ -69,9 +74,11 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     if not len(rs):
         return list(lines)
     n = len(lines)
+    pts = np.concatenate(lines)
+    lo = np.r_[0, np.cumsum([len(p) for p in lines])].astype(np.int64)  # line i: pts[lo[i]:lo[i + 1]]
     ends = np.empty((2 * n, 2))
-    ends[0::2] = [p[0] for p in lines]
-    ends[1::2] = [p[-1] for p in lines]
+    ends[0::2] = pts[lo[:-1]]
+    ends[1::2] = pts[lo[1:] - 1]
     edge, t, _ = rs.nearest(ends, END_TOL)
     on = edge >= 0
     ring = np.where(on, rs.ring_of[np.maximum(edge, 0)], -1)
@@ -92,8 +99,75 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     ring_len = np.where(on, rs.ring_len[np.maximum(ring, 0)], 0.0)
     arc = np.where(on, np.mod(param[np.maximum(nxt, 0)] - param, np.where(on, ring_len, 1.0)), 0.0)
     arc = np.where(on & (nxt == np.arange(2 * n)), ring_len, arc)
-    join, hook = _connect(nxt, prv, arc, ring_len, float(anchor), float(anchor_max), 0.5 * float(width))
-    return _assemble(lines, rs, ring, param, join, hook)
+    nt_next, nt_prev = _free_along(pts, lo, rs, on, ring, param, prv, arc, float(width))
+    join, hook = _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, float(anchor), float(anchor_max),
+                          0.5 * float(width))
+    return _assemble(pts, lo, rs, ring, param, join, hook)
+
+
+def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
+    """How far the ring is free from every line end forward and backward before it runs within
+    ``COLLIDE`` widths of an infill line (one's last ``END_CLEAR`` widths aside, which meet the
+    ring anyway): (forward (2n,), backward (2n,)), inf when free up to the neighbouring end.
+    PrusaSlicer's mark_boundary_segments_touching_infill: a stretch of ring next to an infill line
+    that runs along it would print that line twice."""
+    m = len(on)
+    fwd, bwd = np.full(m, np.inf), np.full(m, np.inf)
+    sizes = np.diff(lo)
+    first = lo[:-1]
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    cum = np.r_[0.0, np.cumsum(seg)]
+    s0 = cum[:-1] - np.repeat(cum[first], sizes)[:-1]  # along its line, at each segment's start
+    total = np.repeat(cum[first + sizes - 1] - cum[first], sizes)[:-1]
+    real = np.ones(len(seg), dtype=bool)
+    real[(first + sizes - 1)[:-1]] = False  # the joints between consecutive lines
+    start = np.maximum(s0, END_CLEAR * width)
+    stop = np.minimum(s0 + seg, total - END_CLEAR * width)
+    keep = real & (stop > start + 1e-9)
+    # only segments near the rings can block them (a long one always may)
+    short = seg <= 2.0
+    mid = 0.5 * (pts[:-1] + pts[1:])
+    check = keep & short
+    near = np.zeros(len(seg), dtype=bool)
+    if check.any():
+        near[check] = rs.nearest(mid[check], COLLIDE * width + 0.5 * seg[check].max())[0] >= 0
+    keep &= near | ~short
+    if not keep.any():
+        return fwd, bwd
+    i = np.flatnonzero(keep)
+    d = (pts[i + 1] - pts[i]) / seg[i, None]
+    a = pts[i] + d * (start[i] - s0[i])[:, None]
+    b = pts[i] + d * (stop[i] - s0[i])[:, None]
+    # samples along the rings every half width: those near an infill line are blocked
+    step = 0.5 * width
+    counts = np.maximum(np.ceil(rs.ring_len / step).astype(np.int64), 1)
+    r_of = np.repeat(np.arange(len(counts)), counts)
+    k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    sp = k * (rs.ring_len / counts)[r_of]
+    blocked = EdgeSet(a, b).nearest(rs.points_at(r_of, sp), COLLIDE * width)[0] >= 0
+    if not blocked.any():
+        return fwd, bwd
+    br, bp = r_of[blocked], sp[blocked]
+    big = float(rs.ring_len.max()) + 1.0
+    key = br * big + bp  # sorted: rings in order, arc length within each
+    ring_first = np.searchsorted(br, np.arange(len(counts)), side="left")
+    ring_last = np.searchsorted(br, np.arange(len(counts)), side="right") - 1
+    e = np.flatnonzero(on)
+    r = ring[e]
+    has = ring_last[r] >= ring_first[r]
+    e, r = e[has], r[has]
+    L = rs.ring_len[r]
+    q = r * big + param[e]
+    j = np.searchsorted(key, q, side="right")
+    ahead = np.where((j < len(bp)) & (br[np.minimum(j, len(bp) - 1)] == r),
+                     bp[np.minimum(j, len(bp) - 1)] - param[e], bp[ring_first[r]] + L - param[e])
+    j = np.searchsorted(key, q, side="left") - 1
+    behind = np.where((j >= 0) & (br[np.maximum(j, 0)] == r),
+                      param[e] - bp[np.maximum(j, 0)], param[e] + L - bp[ring_last[r]])
+    # only what lies before the neighbouring end matters
+    fwd[e] = np.where(ahead < arc[e], ahead, np.inf)
+    bwd[e] = np.where(behind < arc[prv[e]], behind, np.inf)
+    return fwd, bwd
 
 
 @numba.njit(cache=True)
@@ -145,17 +219,20 @@ def _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_pr
 
 
 @numba.njit(cache=True)
-def _connect(nxt, prv, arc, ring_len, anchor, anchor_max, hw):
-    """Which ends join which (``join[e]``: the other end, -1: none; the stretch runs forward
-    along the ring from the end ``e`` with ``join_forward``) and the signed anchor of every
-    free end (``hook[e]``: + forward, - backward, 0 none). Returns (join * 2 + forward flag
-    encoded as join_code (-1 none; 2 * other + 1 forward; 2 * other backward), hook)."""
+def _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, anchor, anchor_max, hw):
+    """Which line ends join which, and the anchors of the others (module docstring).
+
+    ``nxt``/``prv``: the neighbouring end along the ring (-1: the end is on no ring); ``arc``:
+    the ring's length from each end to ``nxt``; ``nt_next``/``nt_prev``: how far the ring is
+    free from each end (inf: up to the neighbour). Returns (code (2n,): -1 not joined,
+    2 * other + 1 joined to ``other`` going forward along the ring, 2 * other going backward;
+    hook (2n,): the anchor's length, + forward, - backward, 0 none)."""
     m = nxt.shape[0]
     consumed = nxt < 0
-    nt_next = np.full(m, np.inf)
-    nt_prev = np.full(m, np.inf)
-    trim_next = np.zeros(m, np.bool_)
-    trim_prev = np.zeros(m, np.bool_)
+    nt_next = nt_next.copy()
+    nt_prev = nt_prev.copy()
+    trim_next = nt_next < np.inf
+    trim_prev = nt_prev < np.inf
     parent = np.arange(m // 2)
     code = np.full(m, -1, np.int64)
     hook = np.zeros(m)
@@ -326,19 +403,16 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
     return buf[:m], off[:nc + 1], first[:nc]
 
 
-def _assemble(lines, rs, ring, param, code, hook) -> list[np.ndarray]:
+def _assemble(pts, lo, rs, ring, param, code, hook) -> list[np.ndarray]:
     """Chains of lines joined by ring stretches, with their anchors, as polylines in
     nearest-next order from the first line's chain."""
-    sizes = np.array([len(p) for p in lines], dtype=np.int64)
-    lo = np.r_[0, np.cumsum(sizes)].astype(np.int64)
-    pts, off, first = _chains(np.concatenate(lines), lo, ring, param, code, hook, rs.a, rs.b, rs.param,
+    pts, off, first = _chains(pts, lo, ring, param, code, hook, rs.a, rs.b, rs.param,
                               rs.seg_len, rs.ring_start, rs.ring_len)
     if len(off) < 2:
         return []
     polys = np.split(pts, off[1:-1])
     by_first = np.argsort(first, kind="stable")
-    polys = [polys[k] for k in by_first]
-    heads = np.array([p[0] for p in polys])
-    tails = np.array([p[-1] for p in polys])
+    heads, tails = pts[off[:-1]][by_first], pts[off[1:] - 1][by_first]
     order, rev = chain_order(heads, tails, heads[0])
-    return [polys[k][::-1].copy() if r else polys[k] for k, r in zip(order, rev)]
+    chosen = by_first[order]
+    return [polys[k][::-1].copy() if r else polys[k] for k, r in zip(chosen, rev)]

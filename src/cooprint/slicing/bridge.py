@@ -21,7 +21,10 @@ of the grown outline (which find the best direction for C-shaped supports), merg
 line. Differences: a line counts only if it also passes over unsupported area, so that lines
 lying wholly on a support do not make a cantilever look anchored; outline edges shorter than two
 spacings give no candidate (a curve's many short edges add nothing to the 5 degree step); a
-bridge wider than ``SCAN_LINES`` spacings is probed with sparser lines.
+direction's anchored length is measured with probe lines ``PROBES`` times denser than the
+spacing (at most ``SCAN_LINES`` across the bridge), scaled back: counted at the spacing itself, one
+line more or less (where the spacing grid falls) outweighs the difference between two directions
+a degree apart.
 
 All candidates are evaluated in one whole-array pass: the scanlines of every direction are cut
 by the grown bridge's and the anchors' edges together, and the anchor crossings on a scanline
@@ -42,7 +45,9 @@ STEP_DEG = 5.0
 #: Candidates closer than this are merged, degrees (PrusaSlicer: 1).
 MERGE_DEG = 1.0
 #: Most probe lines per direction across a bridge (a bigger bridge is probed more sparsely).
-SCAN_LINES = 300
+SCAN_LINES = 400
+#: Probe lines per line spacing (a bridge narrower than SCAN_LINES / PROBES spacings).
+PROBES = 4
 
 
 def _rings(cs: manifold3d.CrossSection) -> list[np.ndarray]:
@@ -63,10 +68,10 @@ def bridge_angle(area: manifold3d.CrossSection, anchors: manifold3d.CrossSection
     if not clip or not support_rings:
         return None
     angles = _candidates(_rings(area), _rings(grown), _rings(anchors), 2.0 * spacing)
-    # a big bridge is probed with sparser lines (at most ~SCAN_LINES per direction), its
+    # probes denser than the lines (up to SCAN_LINES across the bridge), their
     # anchored length scaled back to the line spacing
     lo, hi = np.asarray(area.bounds()[:2]), np.asarray(area.bounds()[2:])
-    scan = max(spacing, float(np.hypot(*(hi - lo))) / SCAN_LINES)
+    scan = max(spacing / PROBES, float(np.hypot(*(hi - lo))) / SCAN_LINES)
     cover, longest = _coverage(clip, support_rings, angles, scan)
     cover *= scan / spacing
     if not (cover > 0).any():
@@ -92,9 +97,19 @@ def _candidates(area: list[np.ndarray], grown: list[np.ndarray], anchors: list[n
     edges = np.arctan2(d[:, 1], d[:, 0])
     supported = clip_polylines([np.vstack([r, r[:1]]) for r in grown], anchors)
     chords = np.array([p[-1] - p[0] for p in supported if np.hypot(*(p[-1] - p[0])) > 1e-6]).reshape(-1, 2)
-    a = np.concatenate([fixed, edges, np.arctan2(chords[:, 1], chords[:, 0])]) % math.pi
-    a = np.sort(a)
     tol = math.radians(MERGE_DEG)
+    exact = _merge(np.concatenate([edges, np.arctan2(chords[:, 1], chords[:, 0])]) % math.pi, tol)
+    # a fixed step within the merge tolerance of an edge's own direction gives way to it
+    gap = np.abs((fixed[:, None] - exact[None, :] + 0.5 * math.pi) % math.pi - 0.5 * math.pi)
+    fixed = fixed[(gap > tol).all(axis=1)] if len(exact) else fixed
+    return np.sort(np.concatenate([exact, fixed]))
+
+
+def _merge(a: np.ndarray, tol: float) -> np.ndarray:
+    """Directions (radians in [0, pi)) with those within ``tol`` of a kept one dropped."""
+    a = np.sort(a)
+    if not len(a):
+        return a
     keep = np.r_[True, np.diff(a) > tol]
     a = a[keep]
     if len(a) > 1 and a[-1] - a[0] >= math.pi - tol:

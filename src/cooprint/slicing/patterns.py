@@ -18,7 +18,9 @@ pattern unit is ``spacing / 2.44`` mm (PrusaSlicer's DensityAdjust: a wave's arc
 pi / 2.44 times its straight length, so the total length is about area / spacing). When
 |sin z| <= |cos z| the waves run along y instead of x. The pattern's origin is a multiple of
 one period (2 pi units) in the rotated frame, so every region, layer and chunk cuts the same
-waves. PrusaSlicer's default (fill_angle 45 plus its -45 degree correction) is ``angle_deg=0``.
+waves. PrusaSlicer turns its gyroid by fill_angle + ``CORRECTION_DEG`` (-45): its default
+orientation (fill_angle 45) is ``angle_deg=0``; a caller holding PrusaSlicer's infill angle
+passes ``infill_angle_deg + CORRECTION_DEG``.
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ from cooprint.slicing.rings import RingSet, crossings
 
 #: PrusaSlicer's FillGyroid::DensityAdjust: pattern unit = line distance / this.
 DENSITY_ADJUST = 2.44
+#: PrusaSlicer's FillGyroid::CorrectionAngle, degrees: its gyroid is turned by the infill angle plus this.
+CORRECTION_DEG = -45.0
 #: Pieces of a clipped gyroid shorter than this are dropped, mm (PrusaSlicer: 0.8 x the 0.45 mm
 #: infill line spacing, so that tiny bits between a wave and the boundary are not printed).
 MIN_PIECE = 0.36

@@ -17,42 +17,13 @@ import numba
 import numpy as np
 
 
-class RingSet:
-    """The edges of a region's closed rings with their search structures.
+class EdgeSet:
+    """Straight edges ``a[i] -> b[i]`` ((E, 2) float64 each) with their search structures,
+    built on first use."""
 
-    Attributes
-    ----------
-    a, b : (E, 2) float64
-        Start and end of every edge (ring ``r``'s edges are ``ring_start[r]:ring_start[r + 1]``,
-        edge ``i`` runs from vertex ``i`` of its ring to the next, the last one back to the first).
-    ring_of : (E,) int64
-        Ring index of every edge.
-    ring_start : (R + 1,) int64
-        First edge of every ring.
-    param : (E,) float64
-        Arc length from the ring's first vertex to the start of every edge, mm.
-    ring_len : (R,) float64
-        Perimeter of every ring, mm.
-    """
-
-    def __init__(self, rings: list[np.ndarray]):
-        rings = [np.asarray(r, dtype=np.float64)[:, :2] for r in rings if len(r) >= 2]
-        self.rings = rings
-        if rings:
-            self.a = np.ascontiguousarray(np.concatenate(rings))
-            self.b = np.ascontiguousarray(np.concatenate([np.roll(r, -1, axis=0) for r in rings]))
-        else:
-            self.a = self.b = np.zeros((0, 2))
-        sizes = np.array([len(r) for r in rings], dtype=np.int64)
-        self.ring_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
-        self.ring_of = np.repeat(np.arange(len(rings), dtype=np.int64), sizes)
-        seg = np.hypot(*(self.b - self.a).T) if len(self.a) else np.zeros(0)
-        cum = np.cumsum(seg)
-        self.ring_len = (cum[self.ring_start[1:] - 1] - np.r_[0.0, cum[self.ring_start[1:-1] - 1]]
-                         if rings else np.zeros(0))
-        self.param = cum - seg - np.repeat(np.r_[0.0, cum[self.ring_start[1:-1] - 1]] if rings else np.zeros(0),
-                                           sizes)
-        self.seg_len = seg
+    def __init__(self, a: np.ndarray, b: np.ndarray):
+        self.a = np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 2)
+        self.b = np.ascontiguousarray(b, dtype=np.float64).reshape(-1, 2)
         self._bands = None
         self._grid = None
 
@@ -76,7 +47,7 @@ class RingSet:
         """Uniform grid of edges: (x0, y0, cell, nx, ny, cell start (nx*ny + 1,), edge ids).
 
         Every edge is registered in the 3 x 3 cells around each of its samples (one every half
-        cell), so a point within a quarter cell of an edge finds it in its own cell."""
+        cell), so a point within 3/4 of a cell of an edge finds it in its own cell."""
         if self._grid is None:
             lo = np.minimum(self.a.min(axis=0), self.b.min(axis=0)) if len(self.a) else np.zeros(2)
             hi = np.maximum(self.a.max(axis=0), self.b.max(axis=0)) if len(self.a) else np.ones(2)
@@ -103,6 +74,58 @@ class RingSet:
             return np.full(len(pts), -1, np.int64), np.zeros(len(pts)), np.full(len(pts), np.inf)
         x0, y0, cell, nx, ny, start, ids = self.grid
         return _nearest(pts, self.a, self.b, x0, y0, cell, nx, ny, start, ids, tol)
+
+
+class RingSet(EdgeSet):
+    """The edges of a region's closed rings with their search structures.
+
+    Attributes
+    ----------
+    a, b : (E, 2) float64
+        Start and end of every edge (ring ``r``'s edges are ``ring_start[r]:ring_start[r + 1]``,
+        edge ``i`` runs from vertex ``i`` of its ring to the next, the last one back to the first).
+    ring_of : (E,) int64
+        Ring index of every edge.
+    ring_start : (R + 1,) int64
+        First edge of every ring.
+    param : (E,) float64
+        Arc length from the ring's first vertex to the start of every edge, mm.
+    seg_len : (E,) float64
+        Length of every edge, mm.
+    ring_len : (R,) float64
+        Perimeter of every ring, mm.
+    """
+
+    def __init__(self, rings: list[np.ndarray]):
+        rings = [np.asarray(r, dtype=np.float64)[:, :2] for r in rings if len(r) >= 2]
+        self.rings = rings
+        sizes = np.array([len(r) for r in rings], dtype=np.int64)
+        self.ring_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+        if rings:
+            a = np.concatenate(rings)
+            after = np.arange(1, len(a) + 1)
+            after[self.ring_start[1:] - 1] = self.ring_start[:-1]  # each ring's last vertex: back to its first
+            super().__init__(a, a[after])
+        else:
+            super().__init__(np.zeros((0, 2)), np.zeros((0, 2)))
+        self.ring_of = np.repeat(np.arange(len(rings), dtype=np.int64), sizes)
+        seg = np.hypot(*(self.b - self.a).T) if len(self.a) else np.zeros(0)
+        cum = np.cumsum(seg)
+        before = np.r_[0.0, cum[self.ring_start[1:-1] - 1]] if rings else np.zeros(0)
+        self.ring_len = cum[self.ring_start[1:] - 1] - before if rings else np.zeros(0)
+        self.param = cum - seg - np.repeat(before, sizes)
+        self.seg_len = seg
+
+    def points_at(self, ring: np.ndarray, param: np.ndarray) -> np.ndarray:
+        """(n, 2) points at arc lengths ``param`` (taken modulo the perimeter) of rings ``ring``."""
+        ring = np.asarray(ring, dtype=np.int64)
+        p = np.mod(param, self.ring_len[ring])
+        # the edge holding each point: the last edge of its ring starting at or before it
+        key = self.ring_of.astype(np.float64) * (self.ring_len.max() + 1.0) + self.param
+        q = ring.astype(np.float64) * (self.ring_len.max() + 1.0) + p
+        e = np.clip(np.searchsorted(key, q, side="right") - 1, 0, len(self.a) - 1)
+        t = np.where(self.seg_len[e] > 0, (p - self.param[e]) / np.where(self.seg_len[e] > 0, self.seg_len[e], 1), 0)
+        return self.a[e] + t[:, None] * (self.b[e] - self.a[e])
 
 
 @numba.njit(cache=True)
@@ -202,25 +225,30 @@ def _nearest(pts, a, b, x0, y0, cell, nx, ny, start, ids, tol):
     edge = np.full(n, -1, np.int64)
     tt = np.zeros(n)
     dist = np.full(n, np.inf)
+    # an edge within 3/4 of a cell of a point is in the point's cell (3 x 3 registration);
+    # farther tolerances look that many cells further
+    reach = max(0, int(math.ceil((tol - 0.75 * cell) / cell)))
     for q in range(n):
         px, py = pts[q, 0], pts[q, 1]
         cx = int((px - x0) / cell)
         cy = int((py - y0) / cell)
-        if cx < 0 or cy < 0 or cx >= nx or cy >= ny:
+        if cx < -reach or cy < -reach or cx >= nx + reach or cy >= ny + reach:
             continue
-        k = cy * nx + cx
-        for j in range(start[k], start[k + 1]):
-            i = ids[j]
-            dx, dy = b[i, 0] - a[i, 0], b[i, 1] - a[i, 1]
-            l2 = dx * dx + dy * dy
-            t = 0.0 if l2 == 0 else ((px - a[i, 0]) * dx + (py - a[i, 1]) * dy) / l2
-            t = min(max(t, 0.0), 1.0)
-            ex, ey = a[i, 0] + t * dx - px, a[i, 1] + t * dy - py
-            d = math.sqrt(ex * ex + ey * ey)
-            if d <= tol and d < dist[q]:
-                dist[q] = d
-                edge[q] = i
-                tt[q] = t
+        for oy in range(max(cy - reach, 0), min(cy + reach + 1, ny)):
+            for ox in range(max(cx - reach, 0), min(cx + reach + 1, nx)):
+                k = oy * nx + ox
+                for j in range(start[k], start[k + 1]):
+                    i = ids[j]
+                    dx, dy = b[i, 0] - a[i, 0], b[i, 1] - a[i, 1]
+                    l2 = dx * dx + dy * dy
+                    t = 0.0 if l2 == 0 else ((px - a[i, 0]) * dx + (py - a[i, 1]) * dy) / l2
+                    t = min(max(t, 0.0), 1.0)
+                    ex, ey = a[i, 0] + t * dx - px, a[i, 1] + t * dy - py
+                    d = math.sqrt(ex * ex + ey * ey)
+                    if d <= tol and d < dist[q]:
+                        dist[q] = d
+                        edge[q] = i
+                        tt[q] = t
     return edge, tt, dist
 
 
