@@ -51,7 +51,7 @@ from cooprint.slicing.gapfill import medial_lines
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
                                     TOP_SKIN, TRAVEL, LayerPaths, extrusion_spacing)
-from cooprint.slicing.patterns import gyroid
+from cooprint.slicing.patterns import CORRECTION_DEG, gyroid
 from cooprint.slicing import polysplit
 from cooprint.slicing.polysplit import split_by_region
 from cooprint.slicing.sections import LayerSlicer
@@ -813,7 +813,8 @@ class _Job:
         sp = self.sparse_spacing
         w = s.role_width("infill", layer == 0)
         if s.infill_pattern == "gyroid":
-            lines = gyroid(rings, sp / s.infill_density, self.zmin + float(self.tops[layer]), s.infill_angle_deg)
+            lines = gyroid(rings, sp / s.infill_density, self.zmin + float(self.tops[layer]),
+                           s.infill_angle_deg + CORRECTION_DEG)  # PrusaSlicer's turn of its gyroid
         else:
             if s.infill_pattern == "rectilinear":
                 dirs = [(angle, sp / s.infill_density)]
