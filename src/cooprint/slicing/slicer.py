@@ -1,18 +1,33 @@
-"""Slice a watertight solid into layers of ordered tool paths (seed §4.2.1, Fig. 7).
+"""Slice a watertight solid into layers of ordered tool paths (seed §4.2.1, Fig. 7), with
+PrusaSlicer 2.5's regions (issue 17).
 
-Stages, each on whole layers:
+Stages, each on whole layers (manifold3d CrossSection booleans and offsets, no Python per point):
 
 1. layer planes: a first layer of its own height, then equal layers; each sliced at mid-height
    (:mod:`.sections`: closed polygons with holes and islands nested, a block of layers at once);
-2. regions: islands smaller than ``min_area`` dropped; N perimeters, the outer one's centre half a
-   width inside the outline and the next ones a line spacing (``extrusion_spacing``: lines touch
-   with their rounded sides) further in; the rest is the fill area;
-3. skins: top and bottom surfaces (what the next or previous section does not cover), grown 3 mm
-   into the fill area, are solid on ``top_layers`` / ``bottom_layers`` layers, as PrusaSlicer's
-   top/bottom solid layers; small sparse regions are solid too;
-4. infill: solid skin hatched at the line spacing, sparse infill by pattern and density;
-5. order: islands nearest-first, perimeters with a seam, then skin and infill in scan order, with
+2. perimeters (PrusaSlicer's classic generator, per-role widths): islands smaller than
+   ``min_area`` dropped; the outer loop half an external width inside the outline, the next
+   ones a spacing further in, every loop's region opened by 0.6 x half a spacing; what that
+   leaves between the loops is gap fill, a wall too thin for the outer loop a thin wall (both
+   along :func:`~cooprint.slicing.gapfill.medial_lines`); loop parts over air are overhang
+   perimeters; the fill area half a spacing inside the innermost loop, without the gaps;
+3. surfaces (detect_surfaces_type, process_external_surfaces): a layer's top is what the next
+   section does not cover (top solid infill), its bottom what the previous one does not (a
+   bridge over air, in the direction :func:`~cooprint.slicing.bridge.bridge_angle` finds; solid
+   on the first layer), both grown 3 mm into the fill area; sparse regions below
+   ``solid_infill_below_area`` are solid;
+4. shells (discover_horizontal_shells, or discover_vertical_shells with
+   ``ensure_vertical_shell_thickness``): the top and bottom surfaces make the internal area of
+   ``top_layers - 1`` layers under / ``bottom_layers - 1`` over them solid, narrow parts grown;
+   solid over sparse infill is a bridge (bridge_over_infill);
+5. fill: solid lines at a spacing adjusted to fill each region evenly, bridges as round
+   threads, sparse infill by pattern (hatch, or :func:`~cooprint.slicing.patterns.gyroid`)
+   anchored along the perimeters (:func:`~cooprint.slicing.anchor.anchor_infill`);
+6. order: islands nearest-first, perimeters with a seam, gap fill, then the fills, with
    explicit travel paths between.
+
+A block of ``BLOCK`` layers is sliced with the neighbours its surfaces need, so that every block
+is independent of the others and of who slices it.
 """
 
 from __future__ import annotations
@@ -30,10 +45,16 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, default_workers
 from cooprint.io.mesh import Solid
+from cooprint.slicing.anchor import anchor_infill
+from cooprint.slicing.bridge import bridge_angle
+from cooprint.slicing.gapfill import medial_lines
 from cooprint.slicing.infill import hatch
+from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
+                                    TOP_SKIN, TRAVEL, LayerPaths, extrusion_spacing)
+from cooprint.slicing.patterns import CORRECTION_DEG, gyroid
+from cooprint.slicing import polysplit
+from cooprint.slicing.polysplit import split_by_region
 from cooprint.slicing.sections import LayerSlicer
-from cooprint.slicing.paths import (INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, LayerPaths,
-                                    extrusion_spacing)
 
 CrossSection = manifold3d.CrossSection
 
@@ -92,11 +113,6 @@ SIMPLIFY = 0.0125
 #: Top and bottom surfaces are grown by this much into the fill area before they become solid
 #: skin, mm (PrusaSlicer's EXTERNAL_INFILL_MARGIN): skins anchor on the sparse infill.
 EXTERNAL_MARGIN = 3.0
-#: Each perimeter loop's region is opened by this many line widths: a part of it thinner than a
-#: quarter line (the two sides of the loop nearer than that: material laid twice, what the
-#: simulator's double-deposit looks for within an eighth) gets no loop; a wall wider than a line
-#: and a quarter keeps its one loop.
-LOOP_OPENING = 0.125
 #: From this many blocks on, slice_solid uses worker processes by default.
 PARALLEL_BLOCKS = 3
 
@@ -160,6 +176,8 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
         if workers is None:  # a pool costs ~0.3 s to start: worth it from a few hundred layers on
             workers = default_workers() if len(blocks) >= PARALLEL_BLOCKS else 1
         executor = ProcessExecutor(workers, min_tasks=2) if workers > 1 else InlineExecutor()
+    if settings.overhangs:
+        polysplit.warm()  # before the workers fork: they inherit the compiled kernels
     results = executor.map(_job_block, blocks, shared=job)
     del job  # the executor holds it while the blocks run
     done = 0
@@ -201,6 +219,8 @@ def slice_chunks(solids: Mapping[str, Solid], settings: SlicingSettings, base: f
     tasks = [(cid, lo, hi) for cid, bs in blocks.items() for lo, hi in bs]
     own = executor is None
     ex = ProcessExecutor() if own else executor
+    if settings.overhangs:
+        polysplit.warm()  # before the workers fork: they inherit the compiled kernels
     results = ex.map(_chunk_block, tasks, shared=shared)
     done = 0
     try:
@@ -322,6 +342,102 @@ def _job_block(job: "_Job", block: tuple[int, int]) -> PackedLayers:
     return pack_layers(job.block(*block))
 
 
+@dataclass(frozen=True)
+class _Flows:
+    """Extrusion widths of one layer's roles, mm (``SlicingSettings.role_width``), and the layer
+    height: the spacing of touching lines of each is :func:`extrusion_spacing`."""
+
+    ext: float
+    per: float
+    solid: float
+    top: float
+    height: float
+
+    def spacing(self, width: float) -> float:
+        return extrusion_spacing(width, self.height)
+
+
+@dataclass
+class _Island:
+    """One island's perimeter geometry (PrusaSlicer's classic perimeter generator): the loops
+    ``[(depth, rings)]`` (depth 0 the outer one), the fill area inside them, and for the layers
+    that are printed, what is left for gap fill between the loops and for thin walls."""
+
+    cs: CrossSection
+    loops: list[tuple[int, list[np.ndarray]]]
+    fill: CrossSection
+    gaps: CrossSection | None = None
+    thin: CrossSection | None = None
+
+
+@dataclass
+class _Surfaces:
+    """A layer's surfaces as PrusaSlicer's detect_surfaces_type and process_external_surfaces
+    type them.
+
+    ``top`` / ``bottom``: the parts of the section not covered by the next / previous section
+    (the perimeter zone included); ``top_g``, ``bottom_g`` (the first layer's) and ``bridge_g``
+    (a bottom over air on a higher layer): those parts of the fill area grown by
+    ``EXTERNAL_MARGIN`` within it; ``bridge_seed``: the bridges before growing (where their
+    direction is found); ``internal``: the rest of the fill area; ``small``: its parts below
+    ``solid_infill_below_area`` (solid)."""
+
+    islands: list[_Island]
+    fill: CrossSection
+    top: CrossSection
+    bottom: CrossSection
+    top_g: CrossSection
+    bottom_g: CrossSection
+    bridge_g: CrossSection
+    bridge_seed: CrossSection
+    internal: CrossSection
+    small: CrossSection
+
+    def source(self, top: bool) -> CrossSection:
+        """What this layer's top (``top``) or bottom surfaces make solid on its neighbours:
+        the exposed part of the whole section and the grown fill surfaces (PrusaSlicer's
+        discover_horizontal_shells takes both)."""
+        return _union([self.top, self.top_g] if top else [self.bottom, self.bottom_g, self.bridge_g])
+
+
+#: PrusaSlicer's INSET_OVERLAP_TOLERANCE: a perimeter loop's region is opened by (1 - this) x half
+#: a line spacing (parts narrower than that get no loop but gap fill), and the fill area by as
+#: much of the solid infill spacing.
+INSET_OVERLAP = 0.4
+#: Gap fill is laid in gaps from this many perimeter widths (x (1 - INSET_OVERLAP)) to two
+#: perimeter spacings wide (PrusaSlicer's classic gap fill); the gaps are not fill area.
+GAP_MIN = 0.2
+#: Overlap of the fill area with the innermost loop, as a fraction of half their spacings
+#: (PrusaSlicer's infill_overlap, 25%).
+INFILL_OVERLAP = 0.25
+#: Gap between the round threads of a bridge, mm: line spacing = diameter + this (PrusaSlicer's
+#: BRIDGE_EXTRA_SPACING of thick bridges).
+BRIDGE_GAP = 0.05
+#: A solid region propagated from a top or bottom surface that is narrower than twice this many
+#: solid line widths is grown by as much within the neighbour's internal area (PrusaSlicer's
+#: "too narrow" rule in discover_horizontal_shells: solid shells that would collapse).
+NARROW_WIDTHS = 3.0
+#: Internal solid over sparse infill is a bridge where it is wider than twice this many bridge
+#: widths (PrusaSlicer's bridge_over_infill opening).
+BRIDGE_OVER_INFILL_WIDTHS = 3.0
+#: Solid infill spacing is widened to fill a region with a whole number of lines, at most by this
+#: factor (PrusaSlicer's _adjust_solid_spacing).
+SOLID_SPACING_MAX = 1.2
+
+_MITER = manifold3d.JoinType.Miter
+_SQUARE = manifold3d.JoinType.Square
+
+
+def _opening(cs: CrossSection, r: float) -> CrossSection:
+    """``cs`` without its parts narrower than ``2 r``."""
+    core = cs.offset(-r, _MITER)
+    return core if core.is_empty() else core.offset(r, _MITER)
+
+
+def _nonempty(cs: CrossSection | None) -> bool:
+    return cs is not None and not cs.is_empty()
+
+
 class _Job:
     """Everything a block of layers needs: the mesh prepared for slicing, the layer planes."""
 
@@ -336,107 +452,370 @@ class _Job:
                                 settings.layer_height)
         self.start = np.array([lo[0], lo[1]])
         self.rear = np.array([hi[0], hi[1]])
+        s = settings
+        self.bridge_w = s.nozzle_diameter * math.sqrt(s.bridge_flow_ratio)
+        self.sparse_spacing = extrusion_spacing(s.role_width("infill"), s.layer_height)
 
     def sections(self, lo: int, hi: int) -> dict[int, CrossSection]:
         """Sections of layers ``lo .. hi - 1`` at their mid-heights, simplified."""
         mids = self.zmin + self.tops[lo:hi] - self.heights[lo:hi] / 2
         return {lo + k: cs.simplify(SIMPLIFY) for k, cs in enumerate(self.slicer.sections(mids))}
 
-    def fill_inset(self, i: int) -> float:
-        """Distance from the outline to the edge of the fill area on layer ``i``, mm: the outer
-        perimeter's centre at w/2, the next ones a line spacing further in each, the fill starting
-        half a spacing inside the last one, overlapping it by a quarter spacing (PrusaSlicer's
-        25% infill overlap)."""
-        s = self.s
-        if not s.perimeters:
-            return 0.0
-        sp = extrusion_spacing(s.extrusion_width, float(self.heights[i]))
-        return s.extrusion_width / 2 + (s.perimeters - 0.75) * sp
+    def flows(self, i: int) -> _Flows:
+        s, first = self.s, i == 0
+        return _Flows(s.role_width("external_perimeter", first), s.role_width("perimeter", first),
+                      s.role_width("solid_infill", first), s.role_width("top_infill", first), float(self.heights[i]))
+
+    def shells(self, isl: CrossSection, i: int, printed: bool) -> _Island:
+        """PrusaSlicer's classic perimeters of one island on layer ``i``: the outer loop's centre
+        half an external width inside the outline, the next one the mean of the two spacings
+        further in, the others a perimeter spacing each; every loop's region opened by
+        ``INSET_OVERLAP`` of half a spacing (with thin walls on), what that leaves between two
+        loops is gap, and a wall too thin for the outer loop is a thin wall. With gap fill on, an
+        island where one more loop would not fit has no fill area (its middle is gap). The fill
+        area: half a spacing inside the innermost loop, overlapping it by ``INFILL_OVERLAP``,
+        opened by the solid infill spacing. ``printed``: also the gap and thin-wall regions."""
+        s, f = self.s, self.flows(i)
+        if s.perimeters == 0:
+            return _Island(isl, [], isl)
+        ext_sp, per_sp, sol_sp = f.spacing(f.ext), f.spacing(f.per), f.spacing(f.solid)
+        ext_sp2 = (ext_sp + per_sp) / 2
+        min_sp, ext_min = per_sp * (1 - INSET_OVERLAP), ext_sp * (1 - INSET_OVERLAP)
+        with_gaps = s.gap_fill and s.infill_density > 0
+        out = _Island(isl, [], CrossSection())
+        gaps = []
+        last = isl
+        for k in range(s.perimeters + 1):
+            # a loop's region: ``last`` offset in by d, opened by a (one offset in by d + a, one
+            # back out by a); the gap: what half a spacing inside ``last`` the loop's band leaves
+            if k == 0:
+                d, a = f.ext / 2, (ext_min / 2 if s.thin_walls else 0.0)
+            else:
+                d, a = (ext_sp2 if k == 1 else per_sp), (min_sp / 2 if s.thin_walls else 0.0)
+            shrunk = last.offset(-(d + a), _MITER)
+            if k > 0 and with_gaps:
+                # a gap only where the loop's band does not reach back to ``last`` (one offset
+                # tells: the common case); there, half a spacing inside ``last`` less the band
+                cover = shrunk.offset(a + d, _MITER) if not shrunk.is_empty() else CrossSection()
+                if last.area() - cover.area() > 1e-3:
+                    half = last.offset(-d / 2, _MITER)
+                    reach = shrunk.offset(a + d / 2, _MITER) if not shrunk.is_empty() else CrossSection()
+                    if half.area() - reach.area() > 1e-3:
+                        gaps.append(half - reach)
+            if printed and k == 0 and s.thin_walls:  # what the outer loop cannot cover
+                covered = shrunk.offset(a + d, _MITER) if not shrunk.is_empty() else CrossSection()
+                r = s.nozzle_diameter / 6
+                if last.area() - covered.area() > 4 * r * r:
+                    bare = _opening(last - covered, r)
+                    out.thin = bare if not bare.is_empty() else None
+            if shrunk.is_empty():
+                last = CrossSection()
+                break
+            if k == s.perimeters:  # the extra round only looks for gaps
+                break
+            region = shrunk.offset(a, _MITER) if a else shrunk
+            out.loops.append((k, _rings(region) if printed else []))
+            last = region
+            if k == s.perimeters - 1 and not with_gaps:
+                break
+        lo_w, hi_w = GAP_MIN * f.per * (1 - INSET_OVERLAP), 2 * per_sp
+        if gaps:  # the gaps from lo_w to hi_w wide are gap fill, and not fill area
+            g = _union(gaps)
+            if g.area() > lo_w * hi_w:
+                g = _opening(g, lo_w / 2) - _opening(g, hi_w / 2)
+                if not g.is_empty():
+                    out.gaps = g
+                    if not last.is_empty():
+                        last = last - g
+        if not last.is_empty():
+            inset = (ext_sp if len(out.loops) == 1 else per_sp) / 2
+            inset -= INFILL_OVERLAP * (inset + sol_sp / 2)
+            r = sol_sp * (1 - INSET_OVERLAP) / 2
+            out.fill = last.offset(-(inset + r), _MITER).offset(r, _MITER)
+        return out
+
+    def surfaces(self, i: int, kept: dict[int, CrossSection], islands: list[CrossSection],
+                 printed: bool) -> _Surfaces:
+        """Layer ``i``'s typed surfaces (:class:`_Surfaces`), from its section and its
+        neighbours' (``kept``: the sections without their too small islands)."""
+        s, n = self.s, len(self.tops)
+        shells = [self.shells(isl, i, printed) for isl in islands]
+        fill = _union([sh.fill for sh in shells if not sh.fill.is_empty()])
+        here = kept[i]
+        sliver = s.role_width("external_perimeter", i == 0) / 10
+        top = _opening(here - kept[i + 1], sliver) if i + 1 < n else here
+        bottom = _opening(here - kept[i - 1], sliver) if i > 0 else here
+        if _nonempty(top) and _nonempty(bottom):
+            top = top - bottom  # a membrane: bottom (bridged)
+        empty = CrossSection()
+        top_f = top ^ fill if _nonempty(top) else empty
+        bottom_f = bottom ^ fill if _nonempty(bottom) else empty
+        internal = fill - _union([top_f, bottom_f]) if (_nonempty(top_f) or _nonempty(bottom_f)) else fill
+        small = empty
+        if s.infill_density > 0 and s.solid_infill_below_area > 0 and not internal.is_empty():
+            pieces = [p for p in internal.decompose() if p.area() <= s.solid_infill_below_area]
+            small = _union(pieces)
+        top_g = (top_f.offset(EXTERNAL_MARGIN, _SQUARE) ^ fill) if _nonempty(top_f) else empty
+        bottom_g = bridge_g = bridge_seed = empty
+        if _nonempty(bottom_f):
+            grown = bottom_f.offset(EXTERNAL_MARGIN, _SQUARE) ^ fill
+            if i == 0:
+                bottom_g = grown
+            else:  # each bridge grown within its own island only
+                pieces = grown.decompose()
+                if len(pieces) > 1:
+                    grown = _union([p for p in pieces if (p ^ bottom_f).area() > 0])
+                bridge_g, bridge_seed = grown, bottom_f
+        ext = [x for x in (top_g, bottom_g, bridge_g) if not x.is_empty()]
+        if ext:
+            e = _union(ext)
+            internal = internal - e
+            small = small - e if not small.is_empty() else small
+        return _Surfaces(shells, fill, top, bottom, top_g, bottom_g, bridge_g, bridge_seed, internal, small)
+
+    def solid_sparse(self, j: int, surf: dict[int, _Surfaces]) -> tuple[CrossSection, CrossSection]:
+        """Internal solid and sparse areas of layer ``j`` (PrusaSlicer's discover_horizontal_shells):
+        every top surface of the ``top_layers - 1`` layers above and bottom surface of the
+        ``bottom_layers - 1`` below, where it lies on this layer's internal area, is solid; a
+        piece of it narrower than ``2 x NARROW_WIDTHS`` solid widths is grown by
+        ``NARROW_WIDTHS`` widths within that area."""
+        s, me = self.s, surf[j]
+        internal = me.internal
+        solid = [me.small] if not me.small.is_empty() else []
+        if internal.is_empty():
+            return CrossSection(), CrossSection()
+        m = NARROW_WIDTHS * self.flows(j).solid
+        sources = [(k, True) for k in range(j + 1, min(len(self.tops), j + s.top_layers))]
+        sources += [(k, False) for k in range(max(0, j - s.bottom_layers + 1), j)]
+        if s.ensure_vertical_shell_thickness:
+            return self.vertical_shells(j, surf, sources)
+        narrow = []
+        for k, top in sources:
+            src = self._source(surf, k, top)
+            if src.is_empty():
+                continue
+            x = src ^ internal
+            if x.is_empty():
+                continue
+            solid.append(x)
+            core = x.offset(-m, _MITER)
+            if core.is_empty():  # all of it narrow (a step of a slope): grown with the others
+                narrow.append(x)
+            else:
+                part = x - core.offset(m, _MITER)  # x - opening(x, m)
+                if part.area() > 1e-6:
+                    narrow.append(part)
+        if narrow:  # growing each narrow part and uniting is growing their union
+            solid.append(_union(narrow).offset(m, _MITER) ^ internal)
+        if not solid:
+            return CrossSection(), internal
+        solid_cs = _union(solid)
+        return solid_cs, internal - solid_cs
+
+    def vertical_shells(self, j: int, surf: dict[int, _Surfaces], sources: list[tuple[int, bool]]
+                        ) -> tuple[CrossSection, CrossSection]:
+        """Internal solid and sparse areas of layer ``j`` with ``ensure_vertical_shell_thickness``
+        (PrusaSlicer's discover_vertical_shells, which then replaces the horizontal shells): the
+        top and bottom surfaces of the same neighbours grown by 1.05 solid spacings, and every
+        part of this layer's internal area that is not fill area on all of them (there the wall
+        above or below is thinner than this layer's perimeters), opened (in by half, out by
+        0.8 of that distance) and clipped to the internal area, are solid."""
+        me = surf[j]
+        internal = me.internal
+        g = 1.05 * self.flows(j).spacing(self.flows(j).solid)
+        shell = [self._source(surf, k, top) for k, top in sources]
+        shell = [x.offset(g, _SQUARE) for x in shell if not x.is_empty()]
+        keep = me.fill
+        for k, _ in sources:
+            keep = keep ^ surf[k].fill
+        parts = [_union(shell) ^ internal] if shell else []
+        parts += [internal - keep] + ([me.small] if not me.small.is_empty() else [])
+        solid = _union(parts).offset(-0.5 * g, _SQUARE).offset(0.8 * g, _SQUARE) ^ internal
+        return solid, internal - solid
+
+    def _source(self, surf: dict[int, _Surfaces], k: int, top: bool) -> CrossSection:
+        key = (k, top)
+        got = self._sources.get(key)
+        if got is None:
+            got = self._sources[key] = surf[k].source(top)
+        return got
 
     def block(self, lo: int, hi: int) -> list[LayerPaths]:
-        """Layers ``lo .. hi - 1``, sliced with the neighbours their skins need.
-
-        Solid skin (PrusaSlicer's top/bottom solid layers): a layer's top surface is the part of
-        its section not covered by the next section, its bottom surface the part not on the
-        previous one (both without slivers thinner than a tenth of the line width), clipped to the
-        layer's fill area. Each is grown by ``EXTERNAL_MARGIN`` within that fill area, for anchoring, and made solid on
-        ``top_layers`` layers down from a top surface and ``bottom_layers`` layers up from a
-        bottom one.
-        """
+        """Layers ``lo .. hi - 1``, with the neighbours their surfaces need: a layer's solid
+        comes from the top and bottom surfaces up to ``top_layers - 1`` / ``bottom_layers - 1``
+        layers away, and its bridges over infill look at the sparse areas of the two layers
+        under it."""
         s, n = self.s, len(self.tops)
-        first, last = max(0, lo - s.bottom_layers), min(n, hi + s.top_layers)
-        sections = self.sections(max(0, first - 1), min(n, last + 1))
-        islands = {i: _islands(sections[i], s.min_area) for i in range(first, last)}
-        kept = {i: _union(islands[i]) for i in islands}
-        fills = {i: kept[i].offset(-self.fill_inset(i), manifold3d.JoinType.Miter) for i in kept}
-        sliver = s.extrusion_width / 10
-
-        def exposed(i: int, other: int) -> CrossSection:
-            bare = kept[i] - sections[other] if other in sections else kept[i]
-            bare = bare.offset(-sliver, manifold3d.JoinType.Miter).offset(sliver, manifold3d.JoinType.Miter)
-            bare = bare ^ fills[i]  # a surface under the perimeters only is not grown
-            if bare.is_empty():
-                return bare
-            return bare.offset(EXTERNAL_MARGIN, manifold3d.JoinType.Round) ^ fills[i]
-
-        top = {i: exposed(i, i + 1) for i in range(lo, min(n, hi + s.top_layers - 1))}
-        bottom = {i: exposed(i, i - 1) for i in range(max(0, lo - s.bottom_layers + 1), hi)}
+        f_lo = max(0, lo - 2)
+        c_lo, c_hi = max(0, f_lo - max(s.bottom_layers - 1, 0)), min(n, hi + max(s.top_layers - 1, 0))
+        sections = self.sections(max(0, c_lo - 1), min(n, c_hi + 1))
+        islands = {i: _islands(cs, s.min_area) for i, cs in sections.items()}
+        kept = {i: _union(isl) for i, isl in islands.items()}
+        surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi) for i in range(c_lo, c_hi)}
+        self._sources: dict[tuple[int, bool], CrossSection] = {}
+        final = {j: self.solid_sparse(j, surf) for j in range(f_lo, hi)}
         here = self.start
         out = []
         for i in range(lo, hi):
-            shells = [top[k] for k in range(i, min(n, i + s.top_layers))]
-            shells += [bottom[k] for k in range(max(0, i - s.bottom_layers + 1), i + 1)]
-            solid = _union(shells) ^ fills[i] if shells else CrossSection()
+            fills = self.fill_regions(i, surf, final)
+            # PrusaSlicer's overhang perimeters: loop points more than half a nozzle from the layer
+            # below. A loop point lies more than that inside the section, so its half-nozzle disc
+            # is in the section: it is over air iff the disc is in the bottom surface, i.e. iff
+            # it is in the bottom surface shrunk by half a nozzle (empty on a steep wall)
+            over = None
+            if s.overhangs and i > 0 and not surf[i].bottom.is_empty():
+                over = surf[i].bottom.offset(-s.nozzle_diameter / 2, _MITER)
+                over = None if over.is_empty() else over
             paths: list[tuple[np.ndarray, int, float]] = []
-            remaining = list(islands[i])
+            remaining = list(surf[i].islands)
             while remaining:  # islands nearest-first from where the nozzle is
-                b = np.array([isl.bounds() for isl in remaining])  # xmin, ymin, xmax, ymax
+                b = np.array([isl.cs.bounds() for isl in remaining])  # xmin, ymin, xmax, ymax
                 centres = (b[:, :2] + b[:, 2:]) / 2
                 k = int(np.argmin(((centres - here) ** 2).sum(axis=1)))
-                here = self.island_paths(remaining.pop(k), i, solid, paths, here)
+                isl = remaining.pop(k)
+                here = self.island_paths(isl, i, over, fills, len(surf[i].islands) == 1, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
+        del self._sources
         return out
 
-    def island_paths(self, isl: CrossSection, layer: int, solid: CrossSection,
+    def fill_regions(self, i: int, surf: dict[int, _Surfaces], final: dict) -> list[tuple[CrossSection, int, float | None]]:
+        """Layer ``i``'s fill regions in print order, ``[(region, role, bridge angle or None)]``:
+        bridges over air (each with its direction), top solid, bottom solid (first layer),
+        internal solid, bridges over sparse infill (PrusaSlicer's bridge_over_infill: internal
+        solid over sparse infill on both layers under it, wider than ``2 x
+        BRIDGE_OVER_INFILL_WIDTHS`` bridge widths) and sparse. Overlaps go to the first."""
+        s, me = self.s, surf[i]
+        solid, sparse = final[i]
+        out: list[tuple[CrossSection, int, float | None]] = []
+        taken: list[CrossSection] = []
+        if not me.bridge_g.is_empty():
+            below = surf[i - 1].islands if i - 1 in surf else []
+            anchors = _union([isl.cs for isl in below])
+            for group in me.bridge_g.decompose():
+                angle = s.bridge_angle_deg
+                if angle is None:
+                    angle = bridge_angle(group ^ me.bridge_seed, anchors, self.bridge_w + BRIDGE_GAP)
+                out.append((group, BRIDGE, angle))
+            taken.append(me.bridge_g)
+        for region, role in ((me.top_g, TOP_SKIN), (me.bottom_g, SKIN)):
+            if not region.is_empty():
+                out.append((region - _union(taken) if taken else region, role, None))
+                taken.append(region)
+        if not solid.is_empty() and i > 0 and s.infill_density < 1:
+            lower = [final[j][1] for j in (i - 1, i - 2) if j >= 0 and j in final
+                     and self.tops[j] >= self.tops[i] - self.bridge_w - 1e-6]
+            cand = solid
+            for sp in lower:
+                cand = cand ^ sp if not cand.is_empty() else cand
+            if not cand.is_empty():
+                cand = _opening(cand, BRIDGE_OVER_INFILL_WIDTHS * self.bridge_w) ^ solid
+            if not cand.is_empty() and cand.area() > 1e-6:
+                out.append((solid - cand, SKIN, None))
+                out.append((cand, BRIDGE, s.bridge_angle_deg))
+                solid = CrossSection()
+        if not solid.is_empty():
+            out.append((solid, SKIN, None))
+        if not sparse.is_empty():
+            out.append((sparse, INFILL, None))
+        return [(r, role, a) for r, role, a in out if not r.is_empty() and r.area() >= s.min_area]
+
+    def island_paths(self, isl: _Island, layer: int, over: CrossSection | None,
+                     fills: list[tuple[CrossSection, int, float | None]], alone: bool,
                      paths: list, here: np.ndarray) -> np.ndarray:
-        """Append one island's perimeters, skin and infill to ``paths``; return the nozzle position."""
-        s = self.s
-        w = s.extrusion_width
-        sp = extrusion_spacing(w, float(self.heights[layer]))
-        loops = []
-        for p in range(s.perimeters):
-            # each loop's region is opened (offset in by ``r`` more, then back out), so that a
-            # sliver of it thinner than 2 r (between a hole and a chunk's cut face) gets no loop,
-            # whose two sides would lay material twice (PrusaSlicer's perimeter generator opens
-            # by half a spacing and gap-fills what that leaves; cooprint has no gap fill yet, so
-            # it removes only the slivers whose sides nearly coincide)
-            r = LOOP_OPENING * w
-            rings = _rings(isl.offset(-(w / 2 + p * sp + r), manifold3d.JoinType.Miter)
-                           .offset(r, manifold3d.JoinType.Miter))
-            if not rings:
-                break
-            loops.append((p, rings))
-        order = loops if s.outer_perimeter_first else loops[::-1]
-        for p, rings in order:
-            role = PERIMETER_OUTER if p == 0 else PERIMETER_INNER
+        """Append one island's perimeters (overhanging parts as overhang perimeters), thin walls,
+        gap fill, solid fills and sparse infill to ``paths``; return the nozzle position."""
+        s, f = self.s, self.flows(layer)
+        if over is not None and not alone:
+            over = over ^ isl.cs
+        over_rings = _rings(over) if over is not None and not over.is_empty() else None
+        order = isl.loops if s.outer_perimeter_first else isl.loops[::-1]
+        for depth, rings in order:
+            role, w = (PERIMETER_OUTER, f.ext) if depth == 0 else (PERIMETER_INNER, f.per)
             for ring in rings:
                 start = _seam_start(ring, s, here, self.rear)
                 closed = _closed(ring, start)
-                paths.append((closed, role, w))
-                here = closed[-1]
-        fill = isl.offset(-self.fill_inset(layer), manifold3d.JoinType.Miter)
-        if fill.is_empty() or fill.area() < s.min_area:
-            return here
-        solid_part, sparse = fill ^ solid, fill - solid
-        small = [p for p in sparse.decompose() if p.area() < s.solid_infill_below_area]
-        if small:  # PrusaSlicer's solid infill threshold: small sparse regions are filled solid
-            solid_part = _union([solid_part, *small])
-            sparse = sparse - _union(small)
+                if over_rings is not None:
+                    for piece, air in split_by_region(closed, over_rings):
+                        paths.append((piece, OVERHANG, self.bridge_w) if air else (piece, role, w))
+                else:
+                    paths.append((closed, role, w))
+                here = paths[-1][0][-1]
+        if isl.thin is not None and not isl.thin.is_empty():
+            for pts, width in medial_lines(isl.thin, s.nozzle_diameter / 3,
+                                           f.ext + (f.spacing(f.ext) + f.spacing(f.per)) / 2):
+                paths.append((pts, PERIMETER_OUTER, width))
+        if isl.gaps is not None:
+            lo_w, hi_w = GAP_MIN * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
+            for pts, width in medial_lines(isl.gaps, lo_w, hi_w):
+                paths.append((pts, GAP_FILL, width))
+        if isl.fill.is_empty():
+            return _last_point(paths, here)
         angle = s.infill_angle_deg + 90.0 * (layer % 2)
-        for seg in hatch(_rings(solid_part), sp, angle) if not solid_part.is_empty() else []:
-            paths.append((seg, SKIN, w))
-        if s.infill_density > 0 and not sparse.is_empty() and sparse.area() >= s.min_area:
-            rings = _rings(sparse)
+        for region, role, bridge in fills:
+            if not alone:
+                region = region ^ isl.fill
+                if region.is_empty():
+                    continue
+            if role == INFILL:
+                self.sparse_paths(region, layer, angle, paths)
+            elif role == BRIDGE:
+                self.solid_paths(region, role, bridge if bridge is not None else angle, self.bridge_w, f.height, paths)
+            else:
+                self.solid_paths(region, role, angle, f.top if role == TOP_SKIN else f.solid, f.height, paths)
+        return _last_point(paths, here)
+
+    def solid_paths(self, region: CrossSection, role: int, angle: float, width: float, height: float,
+                    paths: list) -> None:
+        """Solid lines over ``region`` at ``angle``: each connected piece gets a whole number of
+        lines, the spacing widened by at most ``SOLID_SPACING_MAX`` and the width with it (the
+        volume per area stays one layer height; PrusaSlicer's adjusted solid spacing). A bridge
+        (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads."""
+        bridge = role == BRIDGE
+        rings = [r for piece in region.decompose() for r in [_rings(piece)] if r]
+        if not rings:
+            return
+        a = math.radians(angle)
+        rot = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])  # world -> (along, across)
+        flat = [r for rs in rings for r in rs]
+        sizes = np.array([len(r) for r in flat])
+        piece = np.repeat(np.arange(len(rings)), [len(rs) for rs in rings])
+        uv = np.concatenate(flat) @ rot.T
+        owner = np.repeat(piece, sizes)
+        firsts = np.r_[0, np.flatnonzero(np.diff(owner)) + 1]
+        lo_, hi_ = np.minimum.reduceat(uv[:, 1], firsts), np.maximum.reduceat(uv[:, 1], firsts)
+        spacing = width + BRIDGE_GAP if bridge else extrusion_spacing(width, height)
+        span = hi_ - lo_
+        count = np.floor((span - 1e-9) / spacing)
+        new = np.where(count > 0, span / np.maximum(count, 1), spacing)
+        new = np.minimum(new, spacing * SOLID_SPACING_MAX)
+        line_w = new - BRIDGE_GAP if bridge else width + (new - spacing)
+        # every piece in a band of its own, scaled across the lines so that its lines (the first
+        # half a spacing in) fall on whole numbers: one hatch for all pieces
+        band = np.concatenate([[0], np.cumsum(np.ceil(span / new) + 2)])[:-1]
+        uv[:, 1] = (uv[:, 1] - lo_[owner]) / new[owner] - 0.5 + band[owner]
+        cuts = np.cumsum(sizes)[:-1]
+        seg = hatch(np.split(uv, cuts), 1.0, 0.0)
+        if not len(seg):
+            return
+        k = seg[:, 0, 1]
+        p = np.searchsorted(band, k + 0.25, side="right") - 1
+        seg[:, :, 1] = ((k - band[p] + 0.5) * new[p] + lo_[p])[:, None]
+        paths.append((seg @ rot, role, line_w[p]))
+
+    def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
+        """Sparse infill of ``region`` in ``infill_pattern`` at ``infill_density`` (line
+        distance: the infill line spacing at the layer height over the density, on a global
+        grid), anchored along its boundary (:func:`~cooprint.slicing.anchor.anchor_infill`)."""
+        s = self.s
+        if s.infill_density <= 0:
+            return
+        rings = _rings(region)
+        sp = self.sparse_spacing
+        w = s.role_width("infill", layer == 0)
+        if s.infill_pattern == "gyroid":
+            lines = gyroid(rings, sp / s.infill_density, self.zmin + float(self.tops[layer]),
+                           s.infill_angle_deg + CORRECTION_DEG)  # PrusaSlicer's turn of its gyroid
+        else:
             if s.infill_pattern == "rectilinear":
                 dirs = [(angle, sp / s.infill_density)]
             elif s.infill_pattern == "grid":
@@ -444,21 +823,61 @@ class _Job:
                         (s.infill_angle_deg + 90, 2 * sp / s.infill_density)]
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
-            for ang, spacing in dirs:
-                for seg in hatch(rings, spacing, ang):
-                    paths.append((seg, INFILL, w))
-        if paths:
-            here = paths[-1][0][-1]
+            lines = [seg for ang, spacing in dirs for seg in hatch(rings, spacing, ang)]
+        lines = anchor_infill(lines, rings, s.infill_anchor, s.infill_anchor_max)
+        if lines and all(len(line) == 2 for line in lines):
+            paths.append((np.stack(lines), INFILL, w))  # a batch of segments
+        else:
+            paths.extend((line, INFILL, w) for line in lines)
+
+
+def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
+    """Where the nozzle ends after ``paths`` (``here`` if there are none)."""
+    if not paths:
         return here
+    last = paths[-1][0]
+    return last[-1, -1] if last.ndim == 3 else last[-1]
 
 
 def _with_travel(z: float, height: float, paths: list[tuple[np.ndarray, int, float]]) -> LayerPaths:
-    """Insert a travel path wherever one path does not start where the previous one ended."""
-    out: list[tuple[np.ndarray, int, float]] = []
-    prev = None
+    """The layer's :class:`LayerPaths`: ``paths`` in order (an entry is one path (k, 2), or a
+    batch of paths of equal length (m, k, 2) with one role and one width), with a travel path
+    inserted wherever one path does not start where the previous one ended."""
+    if not paths:
+        return LayerPaths.build(z, height, [])
+    blocks, roles, widths, lens = [], [], [], []
     for pts, role, width in paths:
-        if prev is not None and np.linalg.norm(pts[0] - prev) > 1e-9:
-            out.append((np.stack([prev, pts[0]]), TRAVEL, 0.0))
-        out.append((pts, role, width))
-        prev = pts[-1]
-    return LayerPaths.build(z, height, out)
+        if pts.ndim == 3:
+            m, k = pts.shape[:2]
+            blocks.append(pts.reshape(-1, 2))
+            lens.append(np.full(m, k, dtype=np.int64))
+            roles.append(np.full(m, role, dtype=np.uint8))
+            widths.append(np.broadcast_to(np.asarray(width, dtype=np.float64), (m,)))
+        else:
+            blocks.append(pts)
+            lens.append(np.array([len(pts)], dtype=np.int64))
+            roles.append(np.array([role], dtype=np.uint8))
+            widths.append(np.array([width], dtype=np.float64))
+    pts = np.concatenate(blocks)
+    lens, role, width = np.concatenate(lens), np.concatenate(roles), np.concatenate(widths)
+    ends = np.cumsum(lens)
+    first, last = pts[ends - lens], pts[ends - 1]
+    jump = np.r_[False, np.linalg.norm(first[1:] - last[:-1], axis=1) > 1e-9]
+    # output: each path preceded by a 2-point travel where it jumps
+    size = lens + 2 * jump
+    start = np.cumsum(size) - size
+    out = np.empty((int(size.sum()), 2))
+    shift = start + 2 * jump - (ends - lens)
+    out[np.arange(len(pts)) + np.repeat(shift, lens)] = pts
+    j = np.flatnonzero(jump)
+    out[start[j]] = last[j - 1]
+    out[start[j] + 1] = first[j]
+    n_out = len(lens) + len(j)
+    seq = np.arange(len(lens)) + np.cumsum(jump)  # where each path lands among all paths
+    lengths = np.empty(n_out, dtype=np.int64)
+    roles_out = np.full(n_out, TRAVEL, dtype=np.uint8)
+    widths_out = np.zeros(n_out)
+    lengths[seq], roles_out[seq], widths_out[seq] = lens, role, width
+    lengths[seq[j] - 1] = 2
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+    return LayerPaths(z, height, out, offsets, roles_out, widths_out)
