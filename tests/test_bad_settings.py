@@ -40,6 +40,24 @@ SETTINGS_CASES = [
     (["--infill", "nan"], "--infill nan"),
     (["--infill", "%"], "--infill '%'"),
     (["--infill-pattern", "honeycomb"], "'honeycomb' is not one of"),
+    (["--infill-pattern", "gyroid", "--infill", "150%"], "--infill 150%: expected a fraction"),
+    (["--infill-pattern", "gyroid", "--set", "slicing.infill_density=1.5"],
+     "slicing.infill_density = 1.5: expected a number >= 0 and <= 1"),
+    (["--set", "slicing.bridge_flow_ratio=0"], "slicing.bridge_flow_ratio = 0: expected a number > 0 and <= 2"),
+    (["--set", "slicing.bridge_flow_ratio=2.5"], "slicing.bridge_flow_ratio = 2.5: expected a number > 0 and <= 2"),
+    (["--set", "slicing.bridge_speed=0"], "slicing.bridge_speed = 0: expected a number > 0"),
+    (["--set", "slicing.bridge_angle_deg=400"], "slicing.bridge_angle_deg = 400: expected a number >= -360 and <= 360"),
+    (["--set", "slicing.top_infill_extrusion_width=0.2"],
+     "slicing.top_infill_extrusion_width = 0.2 mm: expected 1 to 3 x slicing.nozzle_diameter = 0.4 to 1.2 mm"),
+    (["--set", "slicing.external_perimeter_extrusion_width=0.3"],
+     "slicing.external_perimeter_extrusion_width = 0.3 mm: expected 1 to 3 x slicing.nozzle_diameter"),
+    (["--set", "slicing.first_layer_extrusion_width=1.5"],
+     "slicing.first_layer_extrusion_width = 1.5 mm: expected 1 to 3 x slicing.nozzle_diameter"),
+    (["--nozzle", "0.6", "--extrusion-width", "0.7", "--set", "slicing.infill_extrusion_width=0.5"],
+     "slicing.infill_extrusion_width = 0.5 mm: expected 1 to 3 x slicing.nozzle_diameter = 0.6 to 1.8 mm"),
+    (["--set", "slicing.infill_anchor=-1"], "slicing.infill_anchor = -1: expected a number >= 0"),
+    (["--set", "slicing.infill_pattern=gyroi"], "(did you mean 'gyroid'?)"),
+    (["--set", "slicing.gap_fill=1"], "slicing.gap_fill = 1: expected true or false"),
     (["--perimeters", "0", "--infill", "0", "--top-layers", "0", "--bottom-layers", "0"],
      "slicing.perimeters = 0, infill_density = 0, top_layers = 0 and bottom_layers = 0 print nothing"),
     (["--perimeters", "-1"], "slicing.perimeters = -1: expected a whole number >= 0 and <= 100"),
@@ -238,3 +256,15 @@ def test_a_part_scaled_too_large(tmp_path, capsys, part, name, flags, needle):
     line = assert_rejected(command(name, part, tmp_path / "out", flags), capsys, [tmp_path, part.parent],
                            contains=needle)
     assert "mm" in line
+
+
+def test_the_infill_pattern_flag_offers_every_pattern_the_settings_take():
+    """``--infill-pattern`` and ``[slicing] infill_pattern`` accept the same patterns (gyroid too)."""
+    import dataclasses
+
+    from cooprint.cli import SETTING_FLAGS
+    from cooprint.config import SlicingSettings
+
+    flag = next(f for f in SETTING_FLAGS if f[0] == "--infill-pattern")
+    field = next(f for f in dataclasses.fields(SlicingSettings) if f.name == "infill_pattern")
+    assert list(flag[3].choices) == list(field.metadata["choices"])

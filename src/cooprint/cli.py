@@ -108,7 +108,7 @@ SETTING_FLAGS: tuple[tuple[str, str, str, Any, str], ...] = (
      "Line width, mm [0.45; 1 to 3 x nozzle]."),
     ("--infill", "infill", "slicing.infill_density", str, "Sparse infill density: 0.2 or 20% [20%]."),
     ("--infill-pattern", "infill_pattern", "slicing.infill_pattern",
-     click.Choice(["rectilinear", "grid", "triangles"]), "Infill pattern [rectilinear]."),
+     click.Choice(["rectilinear", "grid", "triangles", "gyroid"]), "Infill pattern [rectilinear]."),
     ("--perimeters", "perimeters", "slicing.perimeters", int, "Perimeters [2]."),
     ("--top-layers", "top_layers", "slicing.top_layers", int, "Solid top layers [4]."),
     ("--bottom-layers", "bottom_layers", "slicing.bottom_layers", int, "Solid bottom layers [4]."),
