@@ -97,13 +97,17 @@ class Calibration:
 #: commands are made as it arrives, inside the slicing stage); writing 1.5 µs a command. The
 #: first fit (whole job held) was checked on the 600 x 4000 x 400 mm beam's bundle of that
 #: revision (``--check``: 47.4 M commands, 2.44 GB, 8 min 59 s, 10.2 GB peak): commands +5%,
-#: bytes +1%.
+#: bytes +1%. Fitted again for issue 17's slicer (main 2026-12-02 after the regions merge: sparse
+#: lines joined along the perimeters, so fewer and longer; solid spacing fitted per region; gap
+#: fill, bridges), the same seven parts on the same loaded machine: commands per robot within
+#: -10.7% .. +7.0% (the hollow box again the worst), bytes -13% .. +4%, peak memory rms 3.7%
+#: (chunks in flight); slicing now 7.6 µs a command.
 CALIBRATION = Calibration(
-    vertex=0.24, loop=0.0, line=3.301, layer=0.0,
-    coop_bytes=19.64, gcode_bytes=29.74,
-    start_s=0.22, slice_layer_s=0.000176, slice_command_s=3.03e-06, program_command_s=2.55e-09,
+    vertex=0.495, loop=0.0, line=2.353, layer=0.0,
+    coop_bytes=26.21, gcode_bytes=29.87,
+    start_s=0.35, slice_layer_s=0.0, slice_command_s=7.6e-06, program_command_s=3.69e-09,
     write_command_s=1.51e-06, slice_cores=2,
-    memory_base=189e6, memory_job_command=0.0, memory_chunk_command=74.1,
+    memory_base=190e6, memory_job_command=0.0, memory_chunk_command=87.4,
 )
 
 #: Bytes of ``job.json`` per chunk (its row: bbox, planes, deps, times) and fixed (settings,
