@@ -36,6 +36,9 @@ GENERATED = {large_part.NAME: large_part.ensure}
 PEER_PACKAGES = ["cura-engine", "prusa-slicer", "slic3r"]
 FILAMENT_MM = 1.75
 SINGLE_RUN_TRIANGLES = 1_000_000
+#: A mesh on which some tool's first run took longer than this (s) gets no more runs: the whole
+#: stage stays within an hour (nefertiti's 2,473 layers, the 500 mm parts).
+SINGLE_RUN_S = 60.0
 #: cooprint's flags beyond the common ones, for the meshes that need them (with the reason).
 COOPRINT_FLAGS = {
     "stanford_bunny_open.stl": (["--set", "mesh.max_hole_fraction=0.5"],
@@ -83,7 +86,7 @@ class Peer:
 
 PEERS = [Peer("CuraEngine", "cura-engine", "cura_slice.sh"),
          Peer("PrusaSlicer", "prusa-slicer", "prusa_slice.sh"),
-         Peer("Slic3r", "slic3r", "slic3r_slice.sh", timeout_s=600.0)]
+         Peer("Slic3r", "slic3r", "slic3r_slice.sh", timeout_s=180.0)]
 REFERENCE = "PrusaSlicer"
 SPEED_PEER = "CuraEngine"
 MOVE = re.compile(r"^G[0-3](?!\d)")
@@ -110,7 +113,8 @@ def run(ctx: BenchContext, meshes: list[Path]) -> dict:
     timeouts = {p.name: p.timeout_s for p in peers} | {"cooprint": TIMEOUT_S}
     watch = SourceWatch(ctx.src)
     rows = [bench_mesh(ctx, source, commands, timeouts, watch) for source in meshes]
-    return {"runs": ctx.runs, "single_run_triangles": SINGLE_RUN_TRIANGLES, "tools": tools,
+    return {"runs": ctx.runs, "single_run_triangles": SINGLE_RUN_TRIANGLES, "single_run_s": SINGLE_RUN_S,
+            "tools": tools,
             "timeouts_s": timeouts, "sources_changed": watch.changed, "meshes": rows}
 
 
@@ -163,6 +167,9 @@ def bench_mesh(ctx: BenchContext, source: Path, commands: dict, timeouts: dict,
             measured[tool].append(timed(cmd, out, tool, i, runs, timeouts[tool]))
             if tool == "cooprint":
                 watch.check()
+        if i == 1 and max(m[0].wall_s for m in measured.values()) > SINGLE_RUN_S:
+            runs = 1
+            break
     tools = {}
     for tool, results in measured.items():
         tools[tool] = summarise(results)
@@ -430,7 +437,8 @@ def render(result: dict) -> str:
         "Each tool runs as a whole process under `/usr/bin/time -v`, "
         f"{plural(result['runs'], 'run')} per tool alternating between the tools (meshes of "
         "more than "
-        f"{result['single_run_triangles']:,} triangles: 1 run per tool, to bound the time); "
+        f"{result['single_run_triangles']:,} triangles, or on which some tool's first run took more "
+        f"than {result.get('single_run_s', SINGLE_RUN_S):g} s: 1 run per tool, to bound the time); "
         "the table gives medians of wall time and of peak resident memory (MB = 2²⁰ bytes)"
         + (f". Slic3r is stopped after {slic3r_limit:g} s." if slic3r_limit else "."),
         "",
