@@ -39,19 +39,32 @@ def main() -> None:
 
 
 def slicer_figures() -> None:
-    """A part with two holes, sliced (seed Fig. 7 and 9); 0.5 mm layers so that lines show."""
+    """A block with a tunnel through it and thin fins on top, sliced (seed Fig. 7 and 9): a layer
+    of bottom solid, the layer over the tunnel (a bridge with overhang perimeters), a layer of
+    perimeters, gap fill and sparse infill, and the whole part; 0.3 mm layers so that lines show."""
     import manifold3d as m3d
     import numpy as np
 
-    part = (m3d.Manifold.cylinder(20, 25, 25, 96) - m3d.Manifold.cylinder(22, 10, 10, 64).translate((0, 0, -1))
-            + m3d.Manifold.cube((40, 8, 20), center=True).translate((0, 0, 10)))
+    block = m3d.Manifold.cube((60, 40, 16), center=True).translate((0, 0, 8))
+    tunnel = m3d.Manifold.cube((70, 14, 8), center=True).translate((0, 0, 8))
+    fins = [m3d.Manifold.cube((40, w, 6), center=True).translate((0, y, 19)) for y, w in ((-12, 0.7), (-6, 1.2), (6, 2.2))]
+    part = block - tunnel
+    for fin in fins:
+        part = part + fin
     mesh = part.to_mesh64()
     solid = solid_from_arrays(np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
-    sliced = slice_solid(solid, SlicingSettings(layer_height=0.5, first_layer_height=0.5))
-    render_layer(sliced.layers[2], IMG / "slice_layer.png", title="layer 3: bottom skin")
-    render_layer(sliced.layers[20], IMG / "slice_layer_infill.png",
-                 title="layer 21: perimeters and 20% rectilinear infill")
-    render_model(sliced.layers, IMG / "slice_model.png", title="sliced part (0.5 mm layers for visibility)")
+    s = SlicingSettings(layer_height=0.3, first_layer_height=0.3)
+    sliced = slice_solid(solid, s)
+    tops = np.array([layer.z for layer in sliced.layers])
+    at = {z: int(np.argmin(abs(tops - z))) for z in (0.9, 12.3, 8.1, 18.0)}
+    render_layer(sliced.layers[at[0.9]], IMG / "slice_layer.png", title="layer 3: bottom solid infill")
+    render_layer(sliced.layers[at[12.3]], IMG / "slice_layer_bridge.png",
+                 title="over the tunnel: a bridge laid across it, overhang perimeters")
+    render_layer(sliced.layers[at[8.1]], IMG / "slice_layer_infill.png",
+                 title="perimeters and 20% rectilinear infill anchored along them")
+    render_layer(sliced.layers[at[18.0]], IMG / "slice_layer_fins.png",
+                 title="fins 0.7, 1.2, 2.2 mm: a thin wall; a loop and gap fill; two loops and gap fill")
+    render_model(sliced.layers, IMG / "slice_model.png", title="sliced part (0.3 mm layers)")
 
 
 def simulation_figures() -> None:
