@@ -31,6 +31,7 @@ from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loo
                                open_edges, signed_volume, winding_consistent)
 from cooprint.errors import MeshError, clip
 from cooprint.io.files import regular_file
+from cooprint.io.repair import fill_loop, split_nonmanifold, unconnected_faces
 
 FORMATS = ("stl", "obj", "ply", "3mf")
 #: Largest decompressed input read, bytes (a 20M-triangle binary STL is 1 GB).
@@ -533,28 +534,6 @@ def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     return None if edges is None else edge_loops(*edges)
 
 
-def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:
-    """Triangles closing one boundary loop, wound against the loop (so edges pair up)."""
-    pts = vertices[loop]
-    centred = pts - pts.mean(axis=0)
-    _, _, vt = np.linalg.svd(centred, full_matrices=False)
-    uv = centred @ vt[:2].T
-    try:
-        tris = np.asarray(manifold3d.triangulate([uv.astype(np.float64)]), dtype=np.int64)
-    except Exception:
-        return None
-    if len(tris) != len(loop) - 2:
-        return None
-    faces = loop[tris]
-    # the loop runs along existing faces' edges a->b; the cap must hold b->a
-    first = {(int(a), int(b)) for a, b in zip(loop, np.roll(loop, -1))}
-    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    same = sum((int(a), int(b)) in first for a, b in e)
-    if same > len(e) // 2:
-        faces = faces[:, ::-1]
-    return faces
-
-
 #: Vertices are merged in this many groups, chosen by a hash of their coordinates (equal
 #: vertices share a group): each group is sorted alone, so the sort's arrays are a fraction
 #: of the mesh's.
@@ -642,6 +621,15 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         verts, faces = compact(verts, faces[keep])
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} usable triangles; not a solid")
+    verts, faces, n_split = split_nonmanifold(verts, faces)
+    if n_split:
+        repairs.append(f"split {n_split} non-manifold edges (shared by more than two triangles)")
+    loose = unconnected_faces(faces)
+    if loose.any():
+        repairs.append(f"removed {int(loose.sum())} unconnected triangles")
+        verts, faces = compact(verts, faces[~loose])
+    if len(faces) < 4:
+        raise MeshError(f"{path}: only {len(faces)} connected triangles; not a solid")
     if not winding_consistent(faces):
         import trimesh  # ~1 s to import (scipy): only for this rare repair
 
@@ -663,11 +651,19 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
                 f"holes; {big} too large to close (largest perimeter {max(perims):.1f} mm, limit "
                 f"mesh.max_hole_fraction {settings.max_hole_fraction:g} x diagonal = {limit:.1f} mm); "
                 + _hole_hint(max(perims) / diag if diag > 0 else math.inf))
-        caps = [_fill_loop(verts, lp) for lp in loops]
-        if any(c is None for c in caps):
-            raise MeshError(f"{path}: not watertight: {len(loops)} holes, some cannot be triangulated")
+        e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2).astype(np.int64), axis=1)
+        keys = np.unique(e[:, 0] * len(verts) + e[:, 1])
+        del e
+        added, caps = [], []
+        for lp in loops:
+            new_v, cap = fill_loop(verts, lp, keys)
+            cap[cap < 0] = len(verts) + sum(len(x) for x in added)  # the cap's new centre vertex
+            added.append(new_v)
+            caps.append(cap)
+        verts = np.vstack([verts, *added])
         faces = np.vstack([faces, *(c.astype(faces.dtype) for c in caps)])
-        repairs.append(f"closed {len(loops)} holes ({sum(len(lp) for lp in loops)} open edges)")
+        repairs.append(f"closed {len(loops)} holes ({sum(len(lp) for lp in loops)} open edges, "
+                       f"{sum(len(c) for c in caps)} triangles added)")
     if not is_closed(faces):
         raise MeshError(_describe_open(path, faces))
     return verts, faces

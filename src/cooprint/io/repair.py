@@ -1,0 +1,155 @@
+"""Mesh repairs the loader makes on a mesh that is not a closed 2-manifold as read: splitting
+non-manifold edges, removing facets left without a neighbour, closing holes.
+
+These follow admesh (PrusaSlicer's repair) in what they fix, not in how: admesh matches every
+edge with one neighbour and drops the rest; here the faces around an edge shared by more than two
+triangles are paired by the wedges of solid between them (so two solids touching along an edge
+stay two solids, and a stray fin is cut loose and dropped), and the vertices are split so that
+each pair of faces has an edge of its own. The surface is unchanged (split vertices keep their
+position), so sections and volume are those of the mesh as read.
+"""
+
+from __future__ import annotations
+
+import manifold3d
+import numpy as np
+
+from cooprint.geometry import index_dtype
+
+
+def _edge_groups(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The directed edges of ``faces`` (half-edge ``3 f + j`` runs from corner ``j`` to corner
+    ``j + 1``) sorted by their undirected edge: the order, the start of each edge's run in it and
+    the run lengths (how many faces share each edge)."""
+    a = faces.reshape(-1).astype(np.int64)
+    b = faces[:, [1, 2, 0]].reshape(-1).astype(np.int64)
+    n = np.int64(len(faces) and int(faces.max()) + 1)
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
+    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+    return order, starts, np.diff(np.r_[starts, len(sk)])
+
+
+def _pair_nonmanifold(vertices: np.ndarray, faces: np.ndarray, halfedges: np.ndarray) -> list[tuple[int, int]]:
+    """Pairs of half-edges around one edge shared by more than two faces, each pair bounding a
+    wedge of solid.
+
+    Seen along the edge a -> b, a face a -> b -> c faces towards increasing angle (its solid is
+    just below its own angle) and a face b -> a -> c the other way: so a face run b -> a pairs
+    with the next face round the edge when that one runs a -> b. Faces left over (a fin, a third
+    sheet) get no partner; their edge becomes open.
+    """
+    f, j = halfedges // 3, halfedges % 3
+    a0 = faces[f[0], j[0]]
+    b0 = faces[f[0], (j[0] + 1) % 3]
+    src = faces[f, j]
+    third = faces[f, (j + 2) % 3]
+    p, q = vertices[a0], vertices[b0]
+    d = (q - p) / max(float(np.linalg.norm(q - p)), 1e-300)
+    r = vertices[third] - p
+    r -= np.outer(r @ d, d)
+    e1 = r[0] / max(float(np.linalg.norm(r[0])), 1e-300)
+    e2 = np.cross(d, e1)
+    order = np.argsort(np.arctan2(r @ e2, r @ e1), kind="stable")
+    forward = (src == a0)[order]
+    h = halfedges[order]
+    pairs, used = [], np.zeros(len(h), dtype=bool)
+    for i in range(len(h)):
+        k = (i + 1) % len(h)
+        if not forward[i] and forward[k] and not used[i] and not used[k]:
+            pairs.append((int(h[i]), int(h[k])))
+            used[i] = used[k] = True
+    return pairs
+
+
+def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Split every edge shared by more than two faces (and every vertex where surfaces only
+    touch) so that each edge has at most two faces: the faces around such an edge are paired
+    by :func:`_pair_nonmanifold`, and a vertex gets one copy per fan of faces joined through
+    paired edges. Returns the vertices (copies appended at their positions), the faces and the
+    number of non-manifold edges split."""
+    order, starts, runs = _edge_groups(faces)
+    n_he = 3 * len(faces)
+    pa, pb = [], []
+    two = runs == 2
+    pa.append(order[starts[two]])
+    pb.append(order[starts[two] + 1])
+    multi = np.flatnonzero(runs > 2)
+    for g in multi.tolist():
+        he = order[starts[g]:starts[g] + runs[g]]
+        for x, y in _pair_nonmanifold(vertices, faces, he):
+            pa.append(np.array([x]))
+            pb.append(np.array([y]))
+    ha, hb = np.concatenate(pa), np.concatenate(pb)
+    # corners (3 f + j) joined across each paired edge: the same vertex in both faces
+    fa, ja, fb, jb = ha // 3, ha % 3, hb // 3, hb % 3
+    va, vb = faces[fa, ja], faces[fb, jb]
+    same = va == vb  # pair runs the same way (winding not yet consistent)
+    jb_next = (jb + 1) % 3
+    c1 = np.c_[3 * fa + ja, np.where(same, 3 * fb + jb, 3 * fb + jb_next)]
+    c2 = np.c_[3 * fa + (ja + 1) % 3, np.where(same, 3 * fb + jb_next, 3 * fb + jb)]
+    links = np.vstack([c1, c2])
+    label = np.arange(n_he)
+    while True:  # smallest corner label over each fan: a few passes (fans are small)
+        m = np.minimum(label[links[:, 0]], label[links[:, 1]])
+        new = label.copy()
+        np.minimum.at(new, links[:, 0], m)
+        np.minimum.at(new, links[:, 1], m)
+        new = new[new]
+        if np.array_equal(new, label):
+            break
+        label = new
+    corner_vertex = faces.reshape(-1)
+    uniq, inv = np.unique(label, return_inverse=True)
+    if len(uniq) == len(vertices):
+        return vertices, faces, int(len(multi))
+    new_faces = inv.reshape(-1, 3).astype(index_dtype(len(uniq)))
+    return vertices[corner_vertex[uniq]], new_faces, int(len(multi))
+
+
+def unconnected_faces(faces: np.ndarray) -> np.ndarray:
+    """(m,) bool: faces sharing no edge with another face (admesh's unconnected facets: a fin
+    cut loose by :func:`split_nonmanifold`, a stray triangle)."""
+    order, starts, runs = _edge_groups(faces)
+    shared = np.repeat(runs > 1, runs)
+    per_he = np.empty(len(order), dtype=bool)
+    per_he[order] = shared
+    return ~per_he.reshape(-1, 3).any(axis=1)
+
+
+def fill_loop(vertices: np.ndarray, loop: np.ndarray, edge_keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles closing one boundary loop (its edges a -> b run along existing faces, so the
+    cap holds b -> a): the loop triangulated in its best-fit plane when that projection is a
+    simple polygon whose triangulation adds no edge the mesh already has (``edge_keys``, sorted
+    ``min * len(vertices) + max``); else a fan from a new vertex at the loop's centroid, which
+    never repeats an edge. Returns the new vertices ((0, 3) or (1, 3)) and the cap's faces, in
+    which the new vertex is numbered -1."""
+    pts = vertices[loop]
+    centre = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - centre, full_matrices=False)
+    uv = (pts - centre) @ vt[:2].T
+    n = np.int64(len(vertices))
+    try:
+        tris = np.asarray(manifold3d.triangulate([uv.astype(np.float64)]), dtype=np.int64)
+    except Exception:
+        tris = np.zeros((0, 3), dtype=np.int64)
+    if len(tris) == len(loop) - 2:
+        p0, p1, p2 = uv[tris[:, 0]], uv[tris[:, 1]], uv[tris[:, 2]]
+        area = (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p1[:, 1] - p0[:, 1]) * (p2[:, 0] - p0[:, 0])
+        cap = loop[tris]
+        nxt = np.empty(int(loop.max()) + 1, dtype=np.int64)
+        nxt[loop] = np.roll(loop, -1)
+        if (nxt[cap[:, 0]] == cap[:, 1]).any() or (nxt[cap[:, 1]] == cap[:, 2]).any() \
+                or (nxt[cap[:, 2]] == cap[:, 0]).any():  # runs with the loop: turn it over
+            cap = cap[:, ::-1]
+        e = np.sort(cap[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        keys = e[:, 0] * n + e[:, 1]
+        pos = np.minimum(np.searchsorted(edge_keys, keys), len(edge_keys) - 1)
+        on_loop = np.isin(keys, np.sort(np.minimum(loop, np.roll(loop, -1)) * n
+                                        + np.maximum(loop, np.roll(loop, -1))))
+        clash = (edge_keys[pos] == keys) & ~on_loop
+        if (np.all(area > 0) or np.all(area < 0)) and not clash.any():
+            return np.zeros((0, 3)), cap
+    fan = np.c_[np.roll(loop, -1), loop, np.full(len(loop), -1)]
+    return centre[None, :], fan
