@@ -651,9 +651,12 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
                 f"holes; {big} too large to close (largest perimeter {max(perims):.1f} mm, limit "
                 f"mesh.max_hole_fraction {settings.max_hole_fraction:g} x diagonal = {limit:.1f} mm); "
                 + _hole_hint(max(perims) / diag if diag > 0 else math.inf))
-        e = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2).astype(np.int64), axis=1)
-        keys = np.unique(e[:, 0] * len(verts) + e[:, 1])
-        del e
+        rim = np.zeros(len(verts), dtype=bool)
+        rim[np.concatenate(loops)] = True
+        e = faces[rim[faces].sum(axis=1) >= 2][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2).astype(np.int64)
+        e = np.sort(e[rim[e].all(axis=1)], axis=1)
+        keys = np.unique(e[:, 0] * len(verts) + e[:, 1])  # the edges between boundary vertices
+        del e, rim
         added, caps = [], []
         for lp in loops:
             new_v, cap = fill_loop(verts, lp, keys)

@@ -118,38 +118,73 @@ def unconnected_faces(faces: np.ndarray) -> np.ndarray:
     return ~per_he.reshape(-1, 3).any(axis=1)
 
 
+def _against_loop(loop: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """``cap`` (triangles over the loop's vertices) wound so that it holds each loop edge
+    a -> b as b -> a (the loop runs along existing faces)."""
+    nxt = np.full(int(loop.max()) + 1, -1, dtype=np.int64)
+    nxt[loop] = np.roll(loop, -1)
+    if (nxt[cap] == np.roll(cap, -1, axis=1)).any():
+        return cap[:, ::-1]
+    return cap
+
+
+def _projected(loop: np.ndarray, pts: np.ndarray) -> np.ndarray | None:
+    """The loop triangulated in its best-fit plane, ``None`` unless that projection is a simple
+    polygon (every triangle turning the same way)."""
+    centred = pts - pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    uv = centred @ vt[:2].T
+    try:
+        tris = np.asarray(manifold3d.triangulate([uv]), dtype=np.int64).reshape(-1, 3)
+    except Exception:
+        return None
+    if len(tris) != len(loop) - 2:
+        return None
+    p0, p1, p2 = uv[tris[:, 0]], uv[tris[:, 1]], uv[tris[:, 2]]
+    area = (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p1[:, 1] - p0[:, 1]) * (p2[:, 0] - p0[:, 0])
+    return tris if np.all(area > 0) or np.all(area < 0) else None
+
+
+def _least_area(pts: np.ndarray, ea: np.ndarray, eb: np.ndarray) -> np.ndarray | None:
+    """:func:`~cooprint.io.holefill.least_area_triangulation` of a loop whose vertices at
+    positions ``ea[i]``, ``eb[i]`` already share an edge; ``None`` beyond
+    :data:`~cooprint.io.holefill.MAX_LOOP` vertices."""
+    from cooprint.io.holefill import MAX_LOOP, least_area_triangulation  # numba: only for holes
+
+    if len(pts) > MAX_LOOP:
+        return None
+    banned = np.zeros((len(pts), len(pts)), dtype=np.bool_)
+    banned[np.minimum(ea, eb), np.maximum(ea, eb)] = True
+    return least_area_triangulation(pts, banned)
+
+
 def fill_loop(vertices: np.ndarray, loop: np.ndarray, edge_keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Triangles closing one boundary loop (its edges a -> b run along existing faces, so the
-    cap holds b -> a): the loop triangulated in its best-fit plane when that projection is a
-    simple polygon whose triangulation adds no edge the mesh already has (``edge_keys``, sorted
-    ``min * len(vertices) + max``); else a fan from a new vertex at the loop's centroid, which
-    never repeats an edge. Returns the new vertices ((0, 3) or (1, 3)) and the cap's faces, in
-    which the new vertex is numbered -1."""
-    pts = vertices[loop]
-    centre = pts.mean(axis=0)
-    _, _, vt = np.linalg.svd(pts - centre, full_matrices=False)
-    uv = (pts - centre) @ vt[:2].T
+    cap holds b -> a), adding no edge the mesh already has (``edge_keys``: sorted
+    ``min * len(vertices) + max``, at least those between the loop's vertices; a repeated edge
+    would be non-manifold). The
+    first that fits of: the least-area triangulation (:mod:`cooprint.io.holefill`, loops up
+    to :data:`~cooprint.io.holefill.MAX_LOOP` vertices), the triangulation of the loop
+    projected on its best-fit plane, and a fan from a new vertex at the loop's centroid (which
+    never repeats an edge). Returns the new vertices ((0, 3) or (1, 3)) and the cap's faces,
+    in which the new vertex is numbered -1."""
+    pts = vertices[loop].astype(np.float64)
     n = np.int64(len(vertices))
-    try:
-        tris = np.asarray(manifold3d.triangulate([uv.astype(np.float64)]), dtype=np.int64)
-    except Exception:
-        tris = np.zeros((0, 3), dtype=np.int64)
-    if len(tris) == len(loop) - 2:
-        p0, p1, p2 = uv[tris[:, 0]], uv[tris[:, 1]], uv[tris[:, 2]]
-        area = (p1[:, 0] - p0[:, 0]) * (p2[:, 1] - p0[:, 1]) - (p1[:, 1] - p0[:, 1]) * (p2[:, 0] - p0[:, 0])
-        cap = loop[tris]
-        nxt = np.empty(int(loop.max()) + 1, dtype=np.int64)
-        nxt[loop] = np.roll(loop, -1)
-        if (nxt[cap[:, 0]] == cap[:, 1]).any() or (nxt[cap[:, 1]] == cap[:, 2]).any() \
-                or (nxt[cap[:, 2]] == cap[:, 0]).any():  # runs with the loop: turn it over
-            cap = cap[:, ::-1]
+    ring = np.sort(np.minimum(loop, np.roll(loop, -1)) * n + np.maximum(loop, np.roll(loop, -1)))
+    at = np.full(len(vertices), -1, dtype=np.int64)
+    at[loop] = np.arange(len(loop))
+    ea, eb = at[edge_keys // n], at[edge_keys % n]
+    inner = (ea >= 0) & (eb >= 0) & ~np.isin(edge_keys, ring)
+    del at
+    for make in (lambda: _least_area(pts, ea[inner], eb[inner]), lambda: _projected(loop, pts)):
+        tris = make()
+        if tris is None:
+            continue
+        cap = _against_loop(loop, loop[tris])
         e = np.sort(cap[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         keys = e[:, 0] * n + e[:, 1]
         pos = np.minimum(np.searchsorted(edge_keys, keys), len(edge_keys) - 1)
-        on_loop = np.isin(keys, np.sort(np.minimum(loop, np.roll(loop, -1)) * n
-                                        + np.maximum(loop, np.roll(loop, -1))))
-        clash = (edge_keys[pos] == keys) & ~on_loop
-        if (np.all(area > 0) or np.all(area < 0)) and not clash.any():
+        if not ((edge_keys[pos] == keys) & ~np.isin(keys, ring)).any():
             return np.zeros((0, 3)), cap
     fan = np.c_[np.roll(loop, -1), loop, np.full(len(loop), -1)]
-    return centre[None, :], fan
+    return pts.mean(axis=0)[None, :], fan
