@@ -635,8 +635,10 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
 
         tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
         trimesh.repair.fix_winding(tm)
-        faces = np.asarray(tm.faces, dtype=faces.dtype)
-        repairs.append("made triangle winding consistent")
+        fixed = np.asarray(tm.faces, dtype=faces.dtype)
+        flipped = int((fixed != faces).any(axis=1).sum())
+        faces = fixed
+        repairs.append(f"made triangle winding consistent ({flipped} triangles turned over)")
     loops = _boundary_loops(faces)
     if loops is None:
         raise MeshError(_describe_open(path, faces))

@@ -70,12 +70,14 @@ def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
     paired edges. Returns the vertices (copies appended at their positions), the faces and the
     number of non-manifold edges split."""
     order, starts, runs = _edge_groups(faces)
+    multi = np.flatnonzero(runs > 2)
+    if len(multi) == 0:
+        return vertices, faces, 0
     n_he = 3 * len(faces)
     pa, pb = [], []
     two = runs == 2
     pa.append(order[starts[two]])
     pb.append(order[starts[two] + 1])
-    multi = np.flatnonzero(runs > 2)
     for g in multi.tolist():
         he = order[starts[g]:starts[g] + runs[g]]
         for x, y in _pair_nonmanifold(vertices, faces, he):
@@ -100,12 +102,15 @@ def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
         if np.array_equal(new, label):
             break
         label = new
-    corner_vertex = faces.reshape(-1)
-    uniq, inv = np.unique(label, return_inverse=True)
-    if len(uniq) == len(vertices):
-        return vertices, faces, int(len(multi))
+    corner_vertex = faces.reshape(-1).astype(np.int64)
+    touched = np.zeros(len(vertices), dtype=bool)  # only the ends of split edges are split
+    for g in multi.tolist():
+        he = order[starts[g]]
+        touched[faces[he // 3, [he % 3, (he % 3 + 1) % 3]]] = True
+    key = np.where(touched[corner_vertex], len(vertices) + label, corner_vertex)
+    uniq, first, inv = np.unique(key, return_index=True, return_inverse=True)
     new_faces = inv.reshape(-1, 3).astype(index_dtype(len(uniq)))
-    return vertices[corner_vertex[uniq]], new_faces, int(len(multi))
+    return vertices[corner_vertex[first]], new_faces, int(len(multi))
 
 
 def unconnected_faces(faces: np.ndarray) -> np.ndarray:
