@@ -621,9 +621,11 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         verts, faces = compact(verts, faces[keep])
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} usable triangles; not a solid")
-    verts, faces, n_split = split_nonmanifold(verts, faces)
+    verts, faces, n_split, n_cut = split_nonmanifold(verts, faces)
     if n_split:
-        repairs.append(f"split {n_split} non-manifold edges (shared by more than two triangles)")
+        repairs.append(f"split {n_split} non-manifold edges (shared by more than two triangles)"
+                       + (f", removing {n_cut} triangles of the open pieces cut loose" if n_cut else ""))
+        verts, faces = compact(verts, faces)
     loose = unconnected_faces(faces)
     if loose.any():
         repairs.append(f"removed {int(loose.sum())} unconnected triangles")

@@ -63,16 +63,17 @@ def _pair_nonmanifold(vertices: np.ndarray, faces: np.ndarray, halfedges: np.nda
     return pairs
 
 
-def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Split every edge shared by more than two faces (and every vertex where surfaces only
     touch) so that each edge has at most two faces: the faces around such an edge are paired
     by :func:`_pair_nonmanifold`, and a vertex gets one copy per fan of faces joined through
-    paired edges. Returns the vertices (copies appended at their positions), the faces and the
-    number of non-manifold edges split."""
+    paired edges; the open pieces this cuts loose are dropped (:func:`_cut_loose`). Returns the
+    vertices (a copy per fan, at the vertex's position), the faces, the number of non-manifold
+    edges split and the number of faces dropped."""
     order, starts, runs = _edge_groups(faces)
     multi = np.flatnonzero(runs > 2)
     if len(multi) == 0:
-        return vertices, faces, 0
+        return vertices, faces, 0, 0
     n_he = 3 * len(faces)
     pa, pb = [], []
     two = runs == 2
@@ -110,7 +111,35 @@ def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
     key = np.where(touched[corner_vertex], len(vertices) + label, corner_vertex)
     uniq, first, inv = np.unique(key, return_index=True, return_inverse=True)
     new_faces = inv.reshape(-1, 3).astype(index_dtype(len(uniq)))
-    return vertices[corner_vertex[first]], new_faces, int(len(multi))
+    loose = _cut_loose(new_faces, touched[corner_vertex].reshape(-1, 3).any(axis=1))
+    return vertices[corner_vertex[first]], new_faces[~loose], int(len(multi)), int(loose.sum())
+
+
+def _cut_loose(faces: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """(m,) bool: the faces of the open pieces that the split cut loose (a fin, a sheet inside
+    the solid): edge-connected components with an open edge and a face ``near`` a split edge,
+    except the largest component (an open part's own body, whose holes are closed later)."""
+    order, starts, runs = _edge_groups(faces)
+    two = runs == 2
+    fa, fb = order[starts[two]] // 3, order[starts[two] + 1] // 3
+    label = np.arange(len(faces))
+    while True:  # smallest face label over each component, with pointer jumps
+        m = np.minimum(label[fa], label[fb])
+        new = label.copy()
+        np.minimum.at(new, fa, m)
+        np.minimum.at(new, fb, m)
+        new = new[new[new]]
+        if np.array_equal(new, label):
+            break
+        label = new
+    size = np.bincount(label, minlength=len(faces))
+    is_open = np.zeros(len(faces), dtype=bool)
+    is_open[label[order[starts[runs == 1]] // 3]] = True
+    touched = np.zeros(len(faces), dtype=bool)
+    touched[label[near]] = True
+    loose = is_open & touched
+    loose[int(np.argmax(size))] = False
+    return loose[label]
 
 
 def unconnected_faces(faces: np.ndarray) -> np.ndarray:
