@@ -75,3 +75,30 @@ def least_area_triangulation(points: np.ndarray, banned: np.ndarray) -> np.ndarr
     would be non-manifold); ``None`` when every triangulation needs one."""
     tris = _least_area(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(banned))
     return tris if len(tris) else None
+
+
+@numba.njit(cache=True)
+def _union_find(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    parent = np.arange(n)
+    for k in range(len(a)):
+        x, y = a[k], b[k]
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        while parent[y] != y:
+            parent[y] = parent[parent[y]]
+            y = parent[y]
+        if x != y:
+            if x < y:
+                parent[y] = x
+            else:
+                parent[x] = y
+    for i in range(n):  # parents are smaller: one pass in order settles every label
+        parent[i] = parent[parent[i]]
+    return parent
+
+
+def components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n,) int64: for items 0 .. n - 1 joined by the links ``a[k] - b[k]``, the smallest item
+    of each one's group (union-find, linear time; the repairs' fans and pieces)."""
+    return _union_find(n, np.ascontiguousarray(a, dtype=np.int64), np.ascontiguousarray(b, dtype=np.int64))

@@ -31,7 +31,6 @@ from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loo
                                open_edges, signed_volume, winding_consistent)
 from cooprint.errors import MeshError, clip
 from cooprint.io.files import regular_file
-from cooprint.io.repair import fill_loop, split_nonmanifold, unconnected_faces
 
 FORMATS = ("stl", "obj", "ply", "3mf")
 #: Largest decompressed input read, bytes (a 20M-triangle binary STL is 1 GB).
@@ -614,6 +613,8 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
     """The slow path, for meshes that are not already closed and consistently wound: drop
     duplicate and zero-area triangles, fix the winding, close small holes. Takes ownership of
     ``mesh = [(vertices, faces)]`` (popped, so that replaced arrays die at once)."""
+    from cooprint.io.repair import fill_loop, separate  # numba: the slow path only
+
     verts, faces = mesh.pop()
     keep = _proper_faces(verts, faces)
     if not keep.all():
@@ -621,15 +622,13 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         verts, faces = compact(verts, faces[keep])
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} usable triangles; not a solid")
-    verts, faces, n_split, n_cut = split_nonmanifold(verts, faces)
+    verts, faces, n_split, n_cut = separate(verts, faces)
     if n_split:
-        repairs.append(f"split {n_split} non-manifold edges (shared by more than two triangles)"
-                       + (f", removing {n_cut} triangles of the open pieces cut loose" if n_cut else ""))
+        repairs.append(f"split {n_split} non-manifold edges (shared by more than two triangles)")
+    if n_cut:
+        repairs.append(f"removed {n_cut} unconnected triangles (sharing no edge, or cut loose by the split)")
+    if n_split or n_cut:
         verts, faces = compact(verts, faces)
-    loose = unconnected_faces(faces)
-    if loose.any():
-        repairs.append(f"removed {int(loose.sum())} unconnected triangles")
-        verts, faces = compact(verts, faces[~loose])
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} connected triangles; not a solid")
     if not winding_consistent(faces):

@@ -15,6 +15,7 @@ import manifold3d
 import numpy as np
 
 from cooprint.geometry import index_dtype
+from cooprint.io.holefill import MAX_LOOP, components, least_area_triangulation
 
 
 def _edge_groups(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -63,17 +64,19 @@ def _pair_nonmanifold(vertices: np.ndarray, faces: np.ndarray, halfedges: np.nda
     return pairs
 
 
-def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+def separate(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
     """Split every edge shared by more than two faces (and every vertex where surfaces only
     touch) so that each edge has at most two faces: the faces around such an edge are paired
     by :func:`_pair_nonmanifold`, and a vertex gets one copy per fan of faces joined through
-    paired edges; the open pieces this cuts loose are dropped (:func:`_cut_loose`). Returns the
-    vertices (a copy per fan, at the vertex's position), the faces, the number of non-manifold
-    edges split and the number of faces dropped."""
+    paired edges; the open pieces this cuts loose are dropped (:func:`_cut_loose`), and so are
+    faces that share no edge with another (a stray triangle). Returns the vertices (a copy per
+    fan, at the vertex's position), the faces, the number of non-manifold edges split and the
+    number of faces dropped."""
     order, starts, runs = _edge_groups(faces)
     multi = np.flatnonzero(runs > 2)
     if len(multi) == 0:
-        return vertices, faces, 0, 0
+        lone = _lone(order, runs)
+        return vertices, faces[~lone], 0, int(lone.sum())
     n_he = 3 * len(faces)
     pa, pb = [], []
     two = runs == 2
@@ -93,16 +96,7 @@ def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
     c1 = np.c_[3 * fa + ja, np.where(same, 3 * fb + jb, 3 * fb + jb_next)]
     c2 = np.c_[3 * fa + (ja + 1) % 3, np.where(same, 3 * fb + jb_next, 3 * fb + jb)]
     links = np.vstack([c1, c2])
-    label = np.arange(n_he)
-    while True:  # smallest corner label over each fan: a few passes (fans are small)
-        m = np.minimum(label[links[:, 0]], label[links[:, 1]])
-        new = label.copy()
-        np.minimum.at(new, links[:, 0], m)
-        np.minimum.at(new, links[:, 1], m)
-        new = new[new]
-        if np.array_equal(new, label):
-            break
-        label = new
+    label = components(n_he, links[:, 0], links[:, 1])  # a vertex's corners, by fan
     corner_vertex = faces.reshape(-1).astype(np.int64)
     touched = np.zeros(len(vertices), dtype=bool)  # only the ends of split edges are split
     for g in multi.tolist():
@@ -118,20 +112,12 @@ def split_nonmanifold(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarr
 def _cut_loose(faces: np.ndarray, near: np.ndarray) -> np.ndarray:
     """(m,) bool: the faces of the open pieces that the split cut loose (a fin, a sheet inside
     the solid): edge-connected components with an open edge and a face ``near`` a split edge,
-    except the largest component (an open part's own body, whose holes are closed later)."""
+    except the largest component (an open part's own body, whose holes are closed later); and
+    faces sharing no edge at all."""
     order, starts, runs = _edge_groups(faces)
     two = runs == 2
     fa, fb = order[starts[two]] // 3, order[starts[two] + 1] // 3
-    label = np.arange(len(faces))
-    while True:  # smallest face label over each component, with pointer jumps
-        m = np.minimum(label[fa], label[fb])
-        new = label.copy()
-        np.minimum.at(new, fa, m)
-        np.minimum.at(new, fb, m)
-        new = new[new[new]]
-        if np.array_equal(new, label):
-            break
-        label = new
+    label = components(len(faces), fa, fb)
     size = np.bincount(label, minlength=len(faces))
     is_open = np.zeros(len(faces), dtype=bool)
     is_open[label[order[starts[runs == 1]] // 3]] = True
@@ -139,17 +125,15 @@ def _cut_loose(faces: np.ndarray, near: np.ndarray) -> np.ndarray:
     touched[label[near]] = True
     loose = is_open & touched
     loose[int(np.argmax(size))] = False
-    return loose[label]
+    return loose[label] | _lone(order, runs)
 
 
-def unconnected_faces(faces: np.ndarray) -> np.ndarray:
-    """(m,) bool: faces sharing no edge with another face (admesh's unconnected facets: a fin
-    cut loose by :func:`split_nonmanifold`, a stray triangle)."""
-    order, starts, runs = _edge_groups(faces)
-    shared = np.repeat(runs > 1, runs)
-    per_he = np.empty(len(order), dtype=bool)
-    per_he[order] = shared
-    return ~per_he.reshape(-1, 3).any(axis=1)
+def _lone(order: np.ndarray, runs: np.ndarray) -> np.ndarray:
+    """(m,) bool: faces sharing no edge with another face (admesh's unconnected facets), from
+    :func:`_edge_groups`' order and runs."""
+    shared = np.empty(len(order), dtype=bool)
+    shared[order] = np.repeat(runs > 1, runs)
+    return ~shared.reshape(-1, 3).any(axis=1)
 
 
 def _against_loop(loop: np.ndarray, cap: np.ndarray) -> np.ndarray:
@@ -183,8 +167,6 @@ def _least_area(pts: np.ndarray, ea: np.ndarray, eb: np.ndarray) -> np.ndarray |
     """:func:`~cooprint.io.holefill.least_area_triangulation` of a loop whose vertices at
     positions ``ea[i]``, ``eb[i]`` already share an edge; ``None`` beyond
     :data:`~cooprint.io.holefill.MAX_LOOP` vertices."""
-    from cooprint.io.holefill import MAX_LOOP, least_area_triangulation  # numba: only for holes
-
     if len(pts) > MAX_LOOP:
         return None
     banned = np.zeros((len(pts), len(pts)), dtype=np.bool_)
