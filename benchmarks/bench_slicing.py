@@ -42,7 +42,7 @@ COOPRINT_FLAGS = {
                                 "its scan holes in the base are larger than the default "
                                 "`mesh.max_hole_fraction` (0.15) closes"),
     "beetle_open.stl": (["--set", "mesh.max_hole_fraction=3"],
-                        "its open bottom (a loop of 787 mm round the sills and wheel arches, 2.79 x the "
+                        "its open bottom (a loop of 761 mm round the sills and wheel arches, 2.69 x the "
                         "diagonal) is larger than the default `mesh.max_hole_fraction` (0.15) closes"),
 }
 #: Where every tool centres the part (the peers' scripts: --center / --print-center 500,500).
