@@ -6,6 +6,8 @@ import manifold3d as m3d
 import numpy as np
 import pytest
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cooprint.config import JobSettings, MeshSettings
 from cooprint.errors import MeshError
@@ -152,3 +154,19 @@ def test_slice_notes_the_repairs_on_stderr(tmp_path, capsys):
     assert err.strip() == f"cooprint: note: {path}: repaired: split 1 non-manifold edges (shared by more than " \
                           "two triangles)"
     assert solid.volume == pytest.approx(2000.0, rel=1e-6)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.integers(0, 1151), min_size=1, max_size=12, unique=True))
+def test_any_few_missing_triangles_close_to_the_same_solid(missing):
+    """Triangles dropped anywhere from a sphere (holes touching at corners included): the
+    repaired mesh is closed, every edge has two faces, and the volume is the sphere's within
+    the area of the holes' flattening (0.5 %)."""
+    man = m3d.Manifold.sphere(30, 24)
+    tm = to_trimesh(man)
+    keep = np.ones(len(tm.faces), dtype=bool)
+    keep[[i % len(keep) for i in missing]] = False
+    s = solid_from_arrays(tm.vertices, tm.faces[keep], MeshSettings(max_hole_fraction=10), path="holes.obj",
+                          fmt="obj")
+    assert is_closed(s.faces)
+    assert s.volume == pytest.approx(man.volume(), rel=5e-3)

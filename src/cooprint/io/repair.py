@@ -187,11 +187,15 @@ def fill_loop(vertices: np.ndarray, loop: np.ndarray, edge_keys: np.ndarray) -> 
     pts = vertices[loop].astype(np.float64)
     n = np.int64(len(vertices))
     ring = np.sort(np.minimum(loop, np.roll(loop, -1)) * n + np.maximum(loop, np.roll(loop, -1)))
-    at = np.full(len(vertices), -1, dtype=np.int64)
-    at[loop] = np.arange(len(loop))
-    ea, eb = at[edge_keys // n], at[edge_keys % n]
+    by_id = np.argsort(loop)
+    ids = loop[by_id]
+
+    def at(v: np.ndarray) -> np.ndarray:  # the position of vertex v on the loop, -1 if off it
+        i = np.minimum(np.searchsorted(ids, v), len(ids) - 1)
+        return np.where(ids[i] == v, by_id[i], -1)
+
+    ea, eb = at(edge_keys // n), at(edge_keys % n)
     inner = (ea >= 0) & (eb >= 0) & ~np.isin(edge_keys, ring)
-    del at
     for make in (lambda: _least_area(pts, ea[inner], eb[inner]), lambda: _projected(loop, pts)):
         tris = make()
         if tris is None:
