@@ -1,8 +1,10 @@
 """Mesh input: read STL (binary/ASCII), OBJ, PLY and 3MF, each optionally gzipped, into a
 watertight :class:`Solid`, repairing what slicer users expect to be repaired and reporting it.
 
-Repairs done silently-but-reported: merging duplicate vertices, dropping degenerate and duplicate
-triangles, making the winding consistent and outward, closing small holes. Anything that still is
+Repairs done silently-but-reported (:mod:`cooprint.io.repair`): merging duplicate vertices, dropping
+degenerate and duplicate triangles, splitting non-manifold edges (and dropping what that cuts
+loose, and triangles connected to nothing), making the winding consistent and outward, closing
+holes up to ``mesh.max_hole_fraction``. Anything that still is
 not a closed 2-manifold after that is refused with a :class:`~cooprint.errors.MeshError` that says
 what is wrong (open edges, hole sizes) and which setting would change the decision.
 """

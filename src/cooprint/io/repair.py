@@ -65,10 +65,10 @@ def _pair_nonmanifold(vertices: np.ndarray, faces: np.ndarray, halfedges: np.nda
 
 
 def separate(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
-    """Split every edge shared by more than two faces (and every vertex where surfaces only
-    touch) so that each edge has at most two faces: the faces around such an edge are paired
-    by :func:`_pair_nonmanifold`, and a vertex gets one copy per fan of faces joined through
-    paired edges; the open pieces this cuts loose are dropped (:func:`_cut_loose`), and so are
+    """Split every edge shared by more than two faces so that each edge has at most two: the
+    faces around such an edge are paired by :func:`_pair_nonmanifold`, and each end of it gets
+    one copy per fan of faces joined through paired edges (other vertices, a hole's pinch
+    corner included, stay one); the open pieces this cuts loose are dropped (:func:`_cut_loose`), and so are
     faces that share no edge with another (a stray triangle). Returns the vertices (a copy per
     fan, at the vertex's position), the faces, the number of non-manifold edges split and the
     number of faces dropped."""
