@@ -83,12 +83,6 @@ def test_big_hole_is_refused_with_the_setting_named():
         solid_from_trimesh(tm, MeshSettings(max_hole_fraction=0.01), path="open.stl")
 
 
-def test_non_manifold_is_refused(cube_tm):
-    faces = np.vstack([cube_tm.faces, [[0, 1, 7]], [[1, 0, 6]]])
-    with pytest.raises(MeshError, match="not watertight"):
-        solid_from_trimesh(trimesh.Trimesh(cube_tm.vertices, faces, process=False), path="nm.stl")
-
-
 def _write(tmp_path, name, data: bytes):
     p = tmp_path / name
     p.write_bytes(data)

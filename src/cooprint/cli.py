@@ -200,7 +200,7 @@ def info(mesh: str, config: tuple[str, ...], overrides: dict[str, Any], robots: 
     from cooprint.jobs import load_placed
 
     settings = _settings(config, overrides)
-    solid, placement = load_placed(mesh, settings)
+    solid, placement = load_placed(mesh, settings, note=False)
     click.echo(fmt_report(solid.report))
     click.echo(f"  {placement.describe()}")
     layout = settings.chunking.layout

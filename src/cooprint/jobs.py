@@ -61,16 +61,32 @@ class ChunkJob:
 
 
 def load_placed(mesh: str | Path | Solid, settings: JobSettings, *, bed: bool = False,
-                center: Sequence[float] | None = None) -> tuple[Solid, Placement]:
+                center: Sequence[float] | None = None, note: bool = True) -> tuple[Solid, Placement]:
     """Load (unless given a Solid), scale and place the part (:mod:`cooprint.io.place`): on the
     floor, and with ``bed`` centred on the bed (``cooprint slice``). The slicing settings are
-    checked against each other here too (settings made in Python skip :func:`load_settings`)."""
+    checked against each other here too (settings made in Python skip :func:`load_settings`).
+    ``note``: say on stderr what the loader repaired (:func:`note_repairs`; `info` lists it in
+    its report instead)."""
     from cooprint.config.settings import check_slicing
 
     check_slicing(settings.slicing)
     if isinstance(mesh, Solid):
         return place(mesh, settings.mesh, settings.slicing, bed=bed, center=center)
-    return place(load_mesh(mesh, settings.mesh), settings.mesh, settings.slicing, bed=bed, center=center, own=True)
+    solid = load_mesh(mesh, settings.mesh)
+    if note:
+        note_repairs(solid)
+    return place(solid, settings.mesh, settings.slicing, bed=bed, center=center, own=True)
+
+
+def note_repairs(solid: Solid) -> None:
+    """One line on stderr listing what the loader repaired (counts), when it changed the
+    surface: a part sliced from a repaired mesh is not quite the file's (merging duplicate
+    vertices changes nothing and is not listed)."""
+    import sys
+
+    done = [r for r in solid.report.repairs if not r.startswith("merged ")]
+    if done:
+        print(f"cooprint: note: {solid.report.path}: repaired: {'; '.join(done)}", file=sys.stderr, flush=True)
 
 
 def chunk_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robots: int = 2,

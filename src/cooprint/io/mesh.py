@@ -1,8 +1,10 @@
 """Mesh input: read STL (binary/ASCII), OBJ, PLY and 3MF, each optionally gzipped, into a
 watertight :class:`Solid`, repairing what slicer users expect to be repaired and reporting it.
 
-Repairs done silently-but-reported: merging duplicate vertices, dropping degenerate and duplicate
-triangles, making the winding consistent and outward, closing small holes. Anything that still is
+Repairs done silently-but-reported (:mod:`cooprint.io.repair`): merging duplicate vertices, dropping
+degenerate and duplicate triangles, splitting non-manifold edges (and dropping what that cuts
+loose, and triangles connected to nothing), making the winding consistent and outward, closing
+holes up to ``mesh.max_hole_fraction``. Anything that still is
 not a closed 2-manifold after that is refused with a :class:`~cooprint.errors.MeshError` that says
 what is wrong (open edges, hole sizes) and which setting would change the decision.
 """
@@ -533,28 +535,6 @@ def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     return None if edges is None else edge_loops(*edges)
 
 
-def _fill_loop(vertices: np.ndarray, loop: np.ndarray) -> np.ndarray | None:
-    """Triangles closing one boundary loop, wound against the loop (so edges pair up)."""
-    pts = vertices[loop]
-    centred = pts - pts.mean(axis=0)
-    _, _, vt = np.linalg.svd(centred, full_matrices=False)
-    uv = centred @ vt[:2].T
-    try:
-        tris = np.asarray(manifold3d.triangulate([uv.astype(np.float64)]), dtype=np.int64)
-    except Exception:
-        return None
-    if len(tris) != len(loop) - 2:
-        return None
-    faces = loop[tris]
-    # the loop runs along existing faces' edges a->b; the cap must hold b->a
-    first = {(int(a), int(b)) for a, b in zip(loop, np.roll(loop, -1))}
-    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    same = sum((int(a), int(b)) in first for a, b in e)
-    if same > len(e) // 2:
-        faces = faces[:, ::-1]
-    return faces
-
-
 #: Vertices are merged in this many groups, chosen by a hash of their coordinates (equal
 #: vertices share a group): each group is sorted alone, so the sort's arrays are a fraction
 #: of the mesh's.
@@ -635,6 +615,8 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
     """The slow path, for meshes that are not already closed and consistently wound: drop
     duplicate and zero-area triangles, fix the winding, close small holes. Takes ownership of
     ``mesh = [(vertices, faces)]`` (popped, so that replaced arrays die at once)."""
+    from cooprint.io.repair import fill_loop, separate  # numba: the slow path only
+
     verts, faces = mesh.pop()
     keep = _proper_faces(verts, faces)
     if not keep.all():
@@ -642,13 +624,24 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         verts, faces = compact(verts, faces[keep])
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} usable triangles; not a solid")
+    verts, faces, n_split, n_cut = separate(verts, faces)
+    if n_split:
+        repairs.append(f"split {n_split} non-manifold edges (shared by more than two triangles)")
+    if n_cut:
+        repairs.append(f"removed {n_cut} unconnected triangles (sharing no edge, or cut loose by the split)")
+    if n_split or n_cut:
+        verts, faces = compact(verts, faces)
+    if len(faces) < 4:
+        raise MeshError(f"{path}: only {len(faces)} connected triangles; not a solid")
     if not winding_consistent(faces):
         import trimesh  # ~1 s to import (scipy): only for this rare repair
 
         tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
         trimesh.repair.fix_winding(tm)
-        faces = np.asarray(tm.faces, dtype=faces.dtype)
-        repairs.append("made triangle winding consistent")
+        fixed = np.asarray(tm.faces, dtype=faces.dtype)
+        flipped = int((fixed != faces).any(axis=1).sum())
+        faces = fixed
+        repairs.append(f"made triangle winding consistent ({flipped} triangles turned over)")
     loops = _boundary_loops(faces)
     if loops is None:
         raise MeshError(_describe_open(path, faces))
@@ -663,11 +656,22 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
                 f"holes; {big} too large to close (largest perimeter {max(perims):.1f} mm, limit "
                 f"mesh.max_hole_fraction {settings.max_hole_fraction:g} x diagonal = {limit:.1f} mm); "
                 + _hole_hint(max(perims) / diag if diag > 0 else math.inf))
-        caps = [_fill_loop(verts, lp) for lp in loops]
-        if any(c is None for c in caps):
-            raise MeshError(f"{path}: not watertight: {len(loops)} holes, some cannot be triangulated")
+        rim = np.zeros(len(verts), dtype=bool)
+        rim[np.concatenate(loops)] = True
+        e = faces[rim[faces].sum(axis=1) >= 2][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2).astype(np.int64)
+        e = np.sort(e[rim[e].all(axis=1)], axis=1)
+        keys = np.unique(e[:, 0] * len(verts) + e[:, 1])  # the edges between boundary vertices
+        del e, rim
+        added, caps = [], []
+        for lp in loops:
+            new_v, cap = fill_loop(verts, lp, keys)
+            cap[cap < 0] = len(verts) + sum(len(x) for x in added)  # the cap's new centre vertex
+            added.append(new_v)
+            caps.append(cap)
+        verts = np.vstack([verts, *added])
         faces = np.vstack([faces, *(c.astype(faces.dtype) for c in caps)])
-        repairs.append(f"closed {len(loops)} holes ({sum(len(lp) for lp in loops)} open edges)")
+        repairs.append(f"closed {len(loops)} holes ({sum(len(lp) for lp in loops)} open edges, "
+                       f"{sum(len(c) for c in caps)} triangles added)")
     if not is_closed(faces):
         raise MeshError(_describe_open(path, faces))
     return verts, faces
