@@ -578,26 +578,35 @@ def _merge_vertices(v: np.ndarray, f: np.ndarray | None) -> tuple[np.ndarray, np
     bits = v.view(np.uint32 if v.dtype == np.float32 else np.uint64).reshape(-1, 3)
     n = len(bits)
     dtype = index_dtype(n)
-    local, first = np.empty(n, dtype=dtype), np.empty(n, dtype=dtype)
-    # a table twice the distinct vertices: a soup has about n / 6 of them, other meshes up to n
+    local = np.empty(n, dtype=dtype)
+    # a table at least twice the distinct vertices: a soup has about n / 6 of them, others up to n
     size_log2 = max(4, math.ceil(math.log2(max(n, 2))) + (-1 if f is None else 1))
-    while (u := first_copies(bits, size_log2, local, first)) < 0:
+    while True:
+        first = np.empty(1 << (size_log2 - 1), dtype=dtype)
+        u = first_copies(bits, size_log2, local, first)
+        if u >= 0:
+            break
         size_log2 += 2
     first = first[:u]
     ub = bits[first]
-    h = ub.astype(np.uint64) * np.array(MIX, dtype=np.uint64)  # wraps modulo 2**64
-    group = (h[:, 0] ^ h[:, 1] ^ h[:, 2]) >> np.uint64(64 - int(math.log2(MERGE_GROUPS)))
-    del h
+    mix = [np.uint64(m) for m in MIX]
+    group = ub[:, 0].astype(np.uint64) * mix[0]  # wraps modulo 2**64
+    group ^= ub[:, 1].astype(np.uint64) * mix[1]
+    group ^= ub[:, 2].astype(np.uint64) * mix[2]
+    group >>= np.uint64(64 - int(math.log2(MERGE_GROUPS)))
     if ub.dtype == np.uint32:  # two 64-bit keys: (group, x bits), (y bits, z bits)
-        order = np.lexsort(((ub[:, 1].astype(np.uint64) << np.uint64(32)) | ub[:, 2],
-                            (group << np.uint64(32)) | ub[:, 0]))
+        group <<= np.uint64(32)
+        group |= ub[:, 0]
+        order = np.lexsort(((ub[:, 1].astype(np.uint64) << np.uint64(32)) | ub[:, 2], group))
     else:
         order = np.lexsort((ub[:, 2], ub[:, 1], ub[:, 0], group))
     del ub, group
     rank = np.empty(u, dtype=dtype)
     rank[order] = np.arange(u, dtype=dtype)
-    inverse = rank[local]
-    del local, rank
+    for lo in range(0, n, 1 << 16):  # in place, a slice at a time: the corners' vertex numbers
+        local[lo:lo + (1 << 16)] = rank[local[lo:lo + (1 << 16)]]
+    inverse = local
+    del rank
     verts = v[first[order]].astype(np.float64)
     return verts, (inverse.reshape(-1, 3) if f is None else inverse[f])
 
