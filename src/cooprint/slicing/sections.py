@@ -7,30 +7,38 @@ stay closed. Segments run so that the solid is on their left: outlines come out 
 and holes clockwise, and ``CrossSection(..., FillRule.Positive)`` nests them (and unites
 overlapping shells).
 
-The loops are found without a Python loop over segments: each segment points to the one that
-starts on the edge where it ends (a sort and a search), the cycles of that permutation are
-labelled by pointer doubling (min label over 2, 4, 8 ... successors) and ordered by list ranking.
-The memory is that of the segments of the layers asked for, not of a mesh data structure.
+The loops are found by compiled passes (numba) over the segments: the segments of a group of
+layers are made (:func:`_segments`), each is linked to the one that starts on the edge where it
+ends (a hash table of the start edges, :func:`_link`), and the cycles of that permutation are
+walked from their smallest member (:func:`_walk`). The memory is that of the segments of the
+layers asked for, not of a mesh data structure.
 """
 
 from __future__ import annotations
 
 import manifold3d
+import numba
 import numpy as np
 
 from cooprint.geometry import STEP, index_dtype
+from cooprint.interrupts import hold_compiles
 
-#: Segments made in one numpy pass (about 200 bytes of temporaries each): bounds the memory of a
-#: block of layers without changing its sections.
+hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+
+#: Segments made in one pass (about 100 bytes each: points, keys, links, order, hash table): bounds
+#: the memory of a block of layers without changing its sections.
 SEGMENTS = 1 << 15
 
 
 class LayerSlicer:
-    """A closed mesh prepared for slicing (triangles sorted by their lowest corner)."""
+    """A closed mesh prepared for slicing: triangles sorted by their lowest corner, vertices
+    renumbered in the order these triangles first use them (a layer's triangles then read
+    vertices stored near each other), each keeping its number in the mesh (``number``), which
+    decides the direction in which an edge is cut."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        self.vertices = np.asarray(vertices, dtype=np.float64)
-        z = self.vertices[:, 2]
+        vertices = np.asarray(vertices, dtype=np.float64)
+        z = vertices[:, 2]
         lo, hi = np.empty(len(faces)), np.empty(len(faces))
         for a in range(0, len(faces), STEP):  # a slice at a time: no (m, 3) temporaries
             tz = z[faces[a:a + STEP]]
@@ -38,7 +46,11 @@ class LayerSlicer:
         order = np.argsort(lo, kind="stable")
         self.lo, self.hi = lo[order], hi[order]
         del lo, hi
-        self.faces = np.asarray(faces)[order].astype(index_dtype(len(self.vertices)), copy=False)
+        faces = np.asarray(faces)[order].astype(index_dtype(len(vertices)), copy=False)
+        del order
+        self.faces, self.number = _renumber(faces, len(vertices))
+        del faces
+        self.vertices = vertices[self.number]
 
     def rings(self, heights: np.ndarray) -> list[list[np.ndarray]]:
         """For every height (ascending), the closed rings (k, 2) of the section there.
@@ -72,48 +84,18 @@ class LayerSlicer:
                      out: list[list[np.ndarray]]) -> None:
         """Append to ``out`` the rings of triangles ``cand``, each crossing layers ``first`` to
         ``last - 1``."""
-        count = last - first
         if len(cand) == 0:
             return
-        tri = np.repeat(cand, count)
-        layer = np.repeat(first, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
-        del cand, first, count
-        f = self.faces[tri].astype(np.int64)
-        del tri
-        h = heights[layer]
-        z = self.vertices[f, 2]
-        above = z > h[:, None]
-        n_above = above.sum(axis=1)
-        lone_above = n_above == 1
-        lone = np.where(lone_above[:, None], above, ~above).argmax(axis=1)
-        rot = (np.arange(3)[None, :] + lone[:, None]) % 3
-        f = np.take_along_axis(f, rot, axis=1)
-        z = np.take_along_axis(z, rot, axis=1)
-        a, b, c = f[:, 0], f[:, 1], f[:, 2]
-        p_ab = _cut(self.vertices, a, b, z[:, 0], z[:, 1], h)
-        p_ac = _cut(self.vertices, a, c, z[:, 0], z[:, 2], h)
-        n_v = np.int64(len(self.vertices))
-        k_ab = (np.minimum(a, b) * n_v + np.maximum(a, b)) * len(heights) + layer
-        k_ac = (np.minimum(a, c) * n_v + np.maximum(a, c)) * len(heights) + layer
-        # the solid on the left: ab -> ac when the lone corner is above, ac -> ab when below
-        start = np.where(lone_above[:, None], p_ab, p_ac)
-        s_key = np.where(lone_above, k_ab, k_ac)
-        e_key = np.where(lone_above, k_ac, k_ab)
-        del p_ab, p_ac, k_ab, k_ac, f, z, above, rot, a, b, c, h
-        order = np.argsort(s_key)
-        pos = np.searchsorted(s_key[order], e_key)
-        pos = np.minimum(pos, len(order) - 1)
-        if not np.array_equal(s_key[order][pos], e_key):
-            raise ValueError("the mesh is not closed: a section does not form loops")
-        nxt = order[pos]
-        del order, pos, s_key, e_key
-        label, rank = _cycles(nxt)
-        seq = np.lexsort((rank, label))
-        pts, lab, lay = start[seq], label[seq], layer[seq]
-        cuts = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1], True])
-        for s, e in zip(cuts[:-1].tolist(), cuts[1:].tolist()):
+        start, s_key, e_key, layer = _segments(self.vertices, self.number, self.faces, heights,
+                                               cand.astype(np.int64), first.astype(np.int64), last.astype(np.int64))
+        order, ring_at = _walk(_link(s_key, e_key))
+        del s_key, e_key
+        pts = start[order]
+        del start
+        ring_layer = layer[order[ring_at[:-1]]].tolist()
+        for k, (s, e) in enumerate(zip(ring_at[:-1].tolist(), ring_at[1:].tolist())):
             if e - s >= 3:
-                out[int(lay[s])].append(pts[s:e])
+                out[ring_layer[k]].append(pts[s:e])
 
     def sections(self, heights: np.ndarray) -> list[manifold3d.CrossSection]:
         """:meth:`rings` as cross-sections (outlines and holes nested, overlaps united)."""
@@ -121,38 +103,129 @@ class LayerSlicer:
                 for r in self.rings(heights)]
 
 
-def _cut(v: np.ndarray, i: np.ndarray, j: np.ndarray, zi: np.ndarray, zj: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """XY where the edge i-j meets z = h, computed from the edge's ends in index order (so both
-    triangles of the edge get the same point)."""
-    swap = i > j
-    i, j = np.where(swap, j, i), np.where(swap, i, j)
-    zi, zj = np.where(swap, zj, zi), np.where(swap, zi, zj)
-    t = (h - zi) / (zj - zi)
-    return v[i, :2] + t[:, None] * (v[j, :2] - v[i, :2])
+@numba.njit(cache=True, nogil=True)
+def _segments(v, number, faces, heights, cand, first, last):
+    """The segment of every triangle ``cand[t]`` at every height ``first[t] .. last[t] - 1``
+    (triangle by triangle, each one's layers upwards): its start point (k, 2), the keys of the
+    edges (and layer) where it starts and ends, and its layer. Each segment runs between the
+    cuts of the two edges at the triangle's lone corner (the one corner above the plane, or the
+    one at or below it), so that the solid is on its left; each cut is made from the edge's
+    ends in the order of their numbers in the mesh (``number``), so both triangles of an edge
+    get the same point."""
+    n = 0
+    for t in range(len(cand)):
+        n += last[t] - first[t]
+    start = np.empty((n, 2))
+    s_key = np.empty(n, np.int64)
+    e_key = np.empty(n, np.int64)
+    layer = np.empty(n, np.int64)
+    nv = np.int64(len(v))
+    nh = np.int64(len(heights))
+    i = 0
+    for t in range(len(cand)):
+        f0, f1, f2 = np.int64(faces[cand[t], 0]), np.int64(faces[cand[t], 1]), np.int64(faces[cand[t], 2])
+        z0, z1, z2 = v[f0, 2], v[f1, 2], v[f2, 2]
+        for k in range(first[t], last[t]):
+            h = heights[k]
+            u0, u1, u2 = z0 > h, z1 > h, z2 > h
+            lone_above = np.int64(u0) + np.int64(u1) + np.int64(u2) == 1
+            if u0 == lone_above:
+                a, b, c = f0, f1, f2
+            elif u1 == lone_above:
+                a, b, c = f1, f2, f0
+            else:
+                a, b, c = f2, f0, f1
+            if not lone_above:  # ac -> ab, else ab -> ac
+                b, c = c, b
+            # start on edge a-b, end on edge a-c
+            lo, hi = (a, b) if number[a] < number[b] else (b, a)
+            t_ = (h - v[lo, 2]) / (v[hi, 2] - v[lo, 2])
+            start[i, 0] = v[lo, 0] + t_ * (v[hi, 0] - v[lo, 0])
+            start[i, 1] = v[lo, 1] + t_ * (v[hi, 1] - v[lo, 1])
+            s_key[i] = (min(a, b) * nv + max(a, b)) * nh + k
+            e_key[i] = (min(a, c) * nv + max(a, c)) * nh + k
+            layer[i] = k
+            i += 1
+    return start, s_key, e_key, layer
 
 
-def _cycles(nxt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For a permutation ``nxt``: each element's cycle label (its smallest member) and its rank
-    along the cycle from that member (0, 1, 2 ...)."""
+@numba.njit(cache=True, nogil=True)
+def _renumber(faces, n_vertices):
+    """``faces`` with the vertices numbered in the order the faces first use them (row by row),
+    and each used vertex's old number by its new one."""
+    new = np.full(n_vertices, -1, faces.dtype)
+    number = np.empty(n_vertices, faces.dtype)
+    out = np.empty_like(faces)
+    k = 0
+    for i in range(faces.shape[0]):
+        for c in range(3):
+            old = faces[i, c]
+            if new[old] < 0:
+                new[old] = k
+                number[k] = old
+                k += 1
+            out[i, c] = new[old]
+    return out, number[:k]
+
+
+@numba.njit(cache=True, nogil=True)
+def _link(s_key, e_key):
+    """The segment that starts where each segment ends (``s_key`` of the next is ``e_key`` of
+    this one), found with an open-addressing hash table of the start keys. A key that starts
+    two segments or ends one that none starts: the mesh is not closed (ValueError)."""
+    n = len(s_key)
+    bits = 1
+    while (1 << bits) < 2 * n:
+        bits += 1
+    mask = (1 << bits) - 1
+    shift = np.uint64(64 - bits)
+    mix = np.uint64(0x9E3779B97F4A7C15)
+    table = np.full(1 << bits, -1, np.int64)
+    for i in range(n):
+        s = np.int64((np.uint64(s_key[i]) * mix) >> shift)
+        while table[s] >= 0:
+            if s_key[table[s]] == s_key[i]:
+                raise ValueError("the mesh is not closed: a section does not form loops")
+            s = (s + 1) & mask
+        table[s] = i
+    nxt = np.empty(n, np.int64)
+    for i in range(n):
+        s = np.int64((np.uint64(e_key[i]) * mix) >> shift)
+        while True:
+            j = table[s]
+            if j < 0:
+                raise ValueError("the mesh is not closed: a section does not form loops")
+            if s_key[j] == e_key[i]:
+                nxt[i] = j
+                break
+            s = (s + 1) & mask
+    return nxt
+
+
+@numba.njit(cache=True, nogil=True)
+def _walk(nxt):
+    """The cycles of the permutation ``nxt``: ``order`` lists the elements cycle by cycle,
+    cycles in the order of their smallest member, each from that member along ``nxt``; cycle
+    ``r`` is ``order[ring_at[r]:ring_at[r + 1]]``. (Walking up from element 0, every element
+    not yet seen starts a cycle whose other members are all larger.)"""
     n = len(nxt)
-    idx = np.arange(n)
-    label, ptr = idx.copy(), nxt.copy()
-    while True:  # min over 1, 2, 4 ... successors; stops when a doubling changes nothing
-        new = np.minimum(label, label[ptr])
-        ptr = ptr[ptr]
-        if np.array_equal(new, label):
-            break
-        label = new
-    # list ranking: cut each cycle before its label, count the steps to the end
-    succ = nxt.copy()
-    tail = nxt == label  # the element whose successor is the cycle's first
-    succ[tail] = idx[tail]
-    dist = (~tail).astype(np.int64)
-    while True:
-        nd = dist + dist[succ]
-        ns = succ[succ]
-        if np.array_equal(ns, succ):
-            break
-        dist, succ = nd, ns
-    length = np.bincount(label, minlength=n)[label]
-    return label, length - 1 - dist
+    seen = np.zeros(n, np.bool_)
+    order = np.empty(n, np.int64)
+    ring_at = np.empty(n + 1, np.int64)
+    w = 0
+    r = 0
+    for i in range(n):
+        if seen[i]:
+            continue
+        ring_at[r] = w
+        r += 1
+        j = i
+        while not seen[j]:
+            seen[j] = True
+            order[w] = j
+            w += 1
+            j = nxt[j]
+        if j != i:
+            raise ValueError("the mesh is not closed: a section does not form loops")
+    ring_at[r] = w
+    return order, ring_at[:r + 1]
