@@ -7,7 +7,8 @@ from hypothesis import strategies as st
 
 from cooprint.io.mesh import solid_from_trimesh
 from cooprint.slicing import sections
-from cooprint.slicing.sections import LayerSlicer, _link, _walk
+from cooprint.slicing.section_kernels import link, walk
+from cooprint.slicing.sections import LayerSlicer
 
 from solids import box, car, to_trimesh, tube
 
@@ -66,7 +67,7 @@ def test_walk_gives_each_cycle_from_its_smallest_member(lengths, rnd):
         for i, m in enumerate(members):
             nxt[m] = members[(i + 1) % L]
         cycles.append(members)
-    order, ring_at = _walk(nxt)
+    order, ring_at = walk(nxt)
     walked = [order[a:b].tolist() for a, b in zip(ring_at[:-1], ring_at[1:])]
     expected = []
     for members in sorted(cycles, key=min):  # cycles by their smallest member, each walked from it
@@ -81,13 +82,13 @@ def test_walk_gives_each_cycle_from_its_smallest_member(lengths, rnd):
 def test_link_finds_the_next_segment_and_refuses_open_chains():
     s_key = np.array([30, 10, 20], np.int64)
     e_key = np.array([10, 20, 30], np.int64)
-    assert _link(s_key, e_key).tolist() == [1, 2, 0]
+    assert link(s_key, e_key).tolist() == [1, 2, 0]
     with pytest.raises(ValueError, match="not closed"):
-        _link(s_key, np.array([10, 20, 40], np.int64))  # 40 starts no segment
+        link(s_key, np.array([10, 20, 40], np.int64))  # 40 starts no segment
     with pytest.raises(ValueError, match="not closed"):
-        _link(np.array([10, 10], np.int64), np.array([10, 10], np.int64))  # two segments start on one edge
+        link(np.array([10, 10], np.int64), np.array([10, 10], np.int64))  # two segments start on one edge
     with pytest.raises(ValueError, match="not closed"):
-        _walk(np.array([1, 1], np.int64))  # not a permutation
+        walk(np.array([1, 1], np.int64))  # not a permutation
 
 
 def test_segment_groups_change_nothing(monkeypatch):
