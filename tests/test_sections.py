@@ -7,7 +7,8 @@ from hypothesis import strategies as st
 
 from cooprint.io.mesh import solid_from_trimesh
 from cooprint.slicing import sections
-from cooprint.slicing.sections import LayerSlicer, _cycles
+from cooprint.slicing.section_kernels import link, walk
+from cooprint.slicing.sections import LayerSlicer
 
 from solids import box, car, to_trimesh, tube
 
@@ -53,7 +54,7 @@ def test_an_open_mesh_is_refused():
 
 @settings(max_examples=50, deadline=None)
 @given(st.lists(st.integers(1, 40), min_size=1, max_size=12), st.randoms(use_true_random=False))
-def test_cycles_labels_and_ranks(lengths, rnd):
+def test_walk_gives_each_cycle_from_its_smallest_member(lengths, rnd):
     # build a permutation out of cycles of the given lengths over shuffled elements
     n = sum(lengths)
     perm = list(range(n))
@@ -66,16 +67,28 @@ def test_cycles_labels_and_ranks(lengths, rnd):
         for i, m in enumerate(members):
             nxt[m] = members[(i + 1) % L]
         cycles.append(members)
-    label, rank = _cycles(nxt)
-    for members in cycles:
-        first = min(members)
-        assert set(label[members].tolist()) == {first}
-        # walking from the first member, ranks count 0, 1, 2 ...
-        cur, seen = first, []
+    order, ring_at = walk(nxt)
+    walked = [order[a:b].tolist() for a, b in zip(ring_at[:-1], ring_at[1:])]
+    expected = []
+    for members in sorted(cycles, key=min):  # cycles by their smallest member, each walked from it
+        cur, seen = min(members), []
         for _ in range(len(members)):
-            seen.append(int(rank[cur]))
-            cur = nxt[cur]
-        assert seen == list(range(len(members)))
+            seen.append(cur)
+            cur = int(nxt[cur])
+        expected.append(seen)
+    assert walked == expected
+
+
+def test_link_finds_the_next_segment_and_refuses_open_chains():
+    s_key = np.array([30, 10, 20], np.int64)
+    e_key = np.array([10, 20, 30], np.int64)
+    assert link(s_key, e_key).tolist() == [1, 2, 0]
+    with pytest.raises(ValueError, match="not closed"):
+        link(s_key, np.array([10, 20, 40], np.int64))  # 40 starts no segment
+    with pytest.raises(ValueError, match="not closed"):
+        link(np.array([10, 10], np.int64), np.array([10, 10], np.int64))  # two segments start on one edge
+    with pytest.raises(ValueError, match="not closed"):
+        walk(np.array([1, 1], np.int64))  # not a permutation
 
 
 def test_segment_groups_change_nothing(monkeypatch):

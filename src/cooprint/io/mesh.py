@@ -535,9 +535,8 @@ def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
     return None if edges is None else edge_loops(*edges)
 
 
-#: Vertices are merged in this many groups, chosen by a hash of their coordinates (equal
-#: vertices share a group): each group is sorted alone, so the sort's arrays are a fraction
-#: of the mesh's.
+#: The distinct vertices are ordered by a group chosen by a hash of their bits (one of this
+#: many), then by their bits: the vertex numbering the loader has always given.
 MERGE_GROUPS = 16
 
 
@@ -546,39 +545,49 @@ def _merge_vertices(v: np.ndarray, f: np.ndarray | None) -> tuple[np.ndarray, np
     turns a soup into a mesh).
 
     ``v`` is float32 or float64 (modified in place: -0.0 becomes 0.0); ``f`` is ``None`` for a
-    soup (vertices 3k, 3k+1, 3k+2 make triangle k). The vertices are split into
-    ``MERGE_GROUPS`` groups by a hash of their bits, and each group is merged by a lexicographic
-    sort of its bit patterns, so that besides ``v`` only the face indices and a group's sort are
-    in memory at once (on a large STL this step sets the loader's peak memory). Returns the
-    unique vertices as float64 (group by group, sorted within a group) and the faces re-indexed,
-    in :func:`~cooprint.geometry.index_dtype`.
+    soup (vertices 3k, 3k+1, 3k+2 make triangle k). One pass with a hash table finds every
+    vertex's first copy (:func:`~cooprint.io.mesh_kernels.first_copies`), so that only the
+    distinct vertices (a sixth of a soup's) are sorted: by a group of ``MERGE_GROUPS`` chosen by
+    a hash of their bits, then by their bit patterns. Returns the distinct vertices as float64
+    in that order (the faces' vertex numbers, which the slicer's sections follow) and the faces
+    re-indexed, in :func:`~cooprint.geometry.index_dtype`.
     """
+    from cooprint.io.mesh_kernels import MIX, first_copies  # numba: on first use
+
     v += v.dtype.type(0)  # -0.0 -> 0.0, in place
     bits = v.view(np.uint32 if v.dtype == np.float32 else np.uint64).reshape(-1, 3)
-    group = np.empty(len(v), dtype=np.uint8)
-    mix = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9], dtype=np.uint64)
-    for lo in range(0, len(v), 1 << 16):
-        h = bits[lo:lo + (1 << 16)].astype(np.uint64) * mix  # wraps modulo 2**64
-        group[lo:lo + (1 << 16)] = (h[:, 0] ^ h[:, 1] ^ h[:, 2]) >> np.uint64(60)
-    inverse = np.empty(len(v), dtype=index_dtype(len(v)))
-    unique: list[np.ndarray] = []
-    done = 0
-    for g in range(MERGE_GROUPS):
-        members = np.flatnonzero(group == g)
-        if len(members) == 0:
-            continue
-        b = bits[members]
-        order = np.lexsort((b[:, 2], b[:, 1], b[:, 0]))
-        b = b[order]
-        new = np.r_[True, (b[1:] != b[:-1]).any(axis=1)]
-        del b
-        unique.append(v[members[order[new]]].astype(np.float64))
-        rank = np.cumsum(new, dtype=inverse.dtype)
-        rank += done - 1
-        inverse[members[order]] = rank
-        done += len(unique[-1])
-    del group, bits
-    verts = np.concatenate(unique)
+    n = len(bits)
+    dtype = index_dtype(n)
+    local = np.empty(n, dtype=dtype)
+    # a table at least twice the distinct vertices: a soup has about n / 6 of them, others up to n
+    size_log2 = max(4, math.ceil(math.log2(max(n, 2))) + (-1 if f is None else 1))
+    while True:
+        first = np.empty(1 << (size_log2 - 1), dtype=dtype)
+        u = first_copies(bits, size_log2, local, first)
+        if u >= 0:
+            break
+        size_log2 += 2
+    first = first[:u]
+    ub = bits[first]
+    mix = [np.uint64(m) for m in MIX]
+    group = ub[:, 0].astype(np.uint64) * mix[0]  # wraps modulo 2**64
+    group ^= ub[:, 1].astype(np.uint64) * mix[1]
+    group ^= ub[:, 2].astype(np.uint64) * mix[2]
+    group >>= np.uint64(64 - int(math.log2(MERGE_GROUPS)))
+    if ub.dtype == np.uint32:  # two 64-bit keys: (group, x bits), (y bits, z bits)
+        group <<= np.uint64(32)
+        group |= ub[:, 0]
+        order = np.lexsort(((ub[:, 1].astype(np.uint64) << np.uint64(32)) | ub[:, 2], group))
+    else:
+        order = np.lexsort((ub[:, 2], ub[:, 1], ub[:, 0], group))
+    del ub, group
+    rank = np.empty(u, dtype=dtype)
+    rank[order] = np.arange(u, dtype=dtype)
+    for lo in range(0, n, 1 << 16):  # in place, a slice at a time: the corners' vertex numbers
+        local[lo:lo + (1 << 16)] = rank[local[lo:lo + (1 << 16)]]
+    inverse = local
+    del rank
+    verts = v[first[order]].astype(np.float64)
     return verts, (inverse.reshape(-1, 3) if f is None else inverse[f])
 
 

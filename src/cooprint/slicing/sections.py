@@ -7,10 +7,11 @@ stay closed. Segments run so that the solid is on their left: outlines come out 
 and holes clockwise, and ``CrossSection(..., FillRule.Positive)`` nests them (and unites
 overlapping shells).
 
-The loops are found without a Python loop over segments: each segment points to the one that
-starts on the edge where it ends (a sort and a search), the cycles of that permutation are
-labelled by pointer doubling (min label over 2, 4, 8 ... successors) and ordered by list ranking.
-The memory is that of the segments of the layers asked for, not of a mesh data structure.
+The loops are found by compiled passes (numba) over the segments: the segments of a group of
+layers are made, each is linked to the one that starts on the edge where it ends (a hash table of
+the start edges), and the cycles of that permutation are walked from their smallest member
+(:mod:`.section_kernels`, imported on first use: importing the slicer does not load numba). The memory is that of the segments of the
+layers asked for, not of a mesh data structure.
 """
 
 from __future__ import annotations
@@ -20,17 +21,22 @@ import numpy as np
 
 from cooprint.geometry import STEP, index_dtype
 
-#: Segments made in one numpy pass (about 200 bytes of temporaries each): bounds the memory of a
-#: block of layers without changing its sections.
+#: Segments made in one pass (about 100 bytes each: points, keys, links, order, hash table): bounds
+#: the memory of a block of layers without changing its sections.
 SEGMENTS = 1 << 15
 
 
 class LayerSlicer:
-    """A closed mesh prepared for slicing (triangles sorted by their lowest corner)."""
+    """A closed mesh prepared for slicing: triangles sorted by their lowest corner, vertices
+    renumbered in the order these triangles first use them (a layer's triangles then read
+    vertices stored near each other), each keeping its number in the mesh (``number``), which
+    decides the direction in which an edge is cut."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        self.vertices = np.asarray(vertices, dtype=np.float64)
-        z = self.vertices[:, 2]
+        from cooprint.slicing.section_kernels import renumber  # numba: on first use
+
+        vertices = np.asarray(vertices, dtype=np.float64)
+        z = vertices[:, 2]
         lo, hi = np.empty(len(faces)), np.empty(len(faces))
         for a in range(0, len(faces), STEP):  # a slice at a time: no (m, 3) temporaries
             tz = z[faces[a:a + STEP]]
@@ -38,7 +44,11 @@ class LayerSlicer:
         order = np.argsort(lo, kind="stable")
         self.lo, self.hi = lo[order], hi[order]
         del lo, hi
-        self.faces = np.asarray(faces)[order].astype(index_dtype(len(self.vertices)), copy=False)
+        faces = np.asarray(faces)[order].astype(index_dtype(len(vertices)), copy=False)
+        del order
+        self.faces, self.number = renumber(faces, len(vertices))
+        del faces
+        self.vertices = vertices[self.number]
 
     def rings(self, heights: np.ndarray) -> list[list[np.ndarray]]:
         """For every height (ascending), the closed rings (k, 2) of the section there.
@@ -72,87 +82,22 @@ class LayerSlicer:
                      out: list[list[np.ndarray]]) -> None:
         """Append to ``out`` the rings of triangles ``cand``, each crossing layers ``first`` to
         ``last - 1``."""
-        count = last - first
+        from cooprint.slicing.section_kernels import link, segments, walk
+
         if len(cand) == 0:
             return
-        tri = np.repeat(cand, count)
-        layer = np.repeat(first, count) + (np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count))
-        del cand, first, count
-        f = self.faces[tri].astype(np.int64)
-        del tri
-        h = heights[layer]
-        z = self.vertices[f, 2]
-        above = z > h[:, None]
-        n_above = above.sum(axis=1)
-        lone_above = n_above == 1
-        lone = np.where(lone_above[:, None], above, ~above).argmax(axis=1)
-        rot = (np.arange(3)[None, :] + lone[:, None]) % 3
-        f = np.take_along_axis(f, rot, axis=1)
-        z = np.take_along_axis(z, rot, axis=1)
-        a, b, c = f[:, 0], f[:, 1], f[:, 2]
-        p_ab = _cut(self.vertices, a, b, z[:, 0], z[:, 1], h)
-        p_ac = _cut(self.vertices, a, c, z[:, 0], z[:, 2], h)
-        n_v = np.int64(len(self.vertices))
-        k_ab = (np.minimum(a, b) * n_v + np.maximum(a, b)) * len(heights) + layer
-        k_ac = (np.minimum(a, c) * n_v + np.maximum(a, c)) * len(heights) + layer
-        # the solid on the left: ab -> ac when the lone corner is above, ac -> ab when below
-        start = np.where(lone_above[:, None], p_ab, p_ac)
-        s_key = np.where(lone_above, k_ab, k_ac)
-        e_key = np.where(lone_above, k_ac, k_ab)
-        del p_ab, p_ac, k_ab, k_ac, f, z, above, rot, a, b, c, h
-        order = np.argsort(s_key)
-        pos = np.searchsorted(s_key[order], e_key)
-        pos = np.minimum(pos, len(order) - 1)
-        if not np.array_equal(s_key[order][pos], e_key):
-            raise ValueError("the mesh is not closed: a section does not form loops")
-        nxt = order[pos]
-        del order, pos, s_key, e_key
-        label, rank = _cycles(nxt)
-        seq = np.lexsort((rank, label))
-        pts, lab, lay = start[seq], label[seq], layer[seq]
-        cuts = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1], True])
-        for s, e in zip(cuts[:-1].tolist(), cuts[1:].tolist()):
+        start, s_key, e_key, layer = segments(self.vertices, self.number, self.faces, heights,
+                                               cand.astype(np.int64), first.astype(np.int64), last.astype(np.int64))
+        order, ring_at = walk(link(s_key, e_key))
+        del s_key, e_key
+        pts = start[order]
+        del start
+        ring_layer = layer[order[ring_at[:-1]]].tolist()
+        for k, (s, e) in enumerate(zip(ring_at[:-1].tolist(), ring_at[1:].tolist())):
             if e - s >= 3:
-                out[int(lay[s])].append(pts[s:e])
+                out[ring_layer[k]].append(pts[s:e])
 
     def sections(self, heights: np.ndarray) -> list[manifold3d.CrossSection]:
         """:meth:`rings` as cross-sections (outlines and holes nested, overlaps united)."""
         return [manifold3d.CrossSection(r, manifold3d.FillRule.Positive) if r else manifold3d.CrossSection()
                 for r in self.rings(heights)]
-
-
-def _cut(v: np.ndarray, i: np.ndarray, j: np.ndarray, zi: np.ndarray, zj: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """XY where the edge i-j meets z = h, computed from the edge's ends in index order (so both
-    triangles of the edge get the same point)."""
-    swap = i > j
-    i, j = np.where(swap, j, i), np.where(swap, i, j)
-    zi, zj = np.where(swap, zj, zi), np.where(swap, zi, zj)
-    t = (h - zi) / (zj - zi)
-    return v[i, :2] + t[:, None] * (v[j, :2] - v[i, :2])
-
-
-def _cycles(nxt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For a permutation ``nxt``: each element's cycle label (its smallest member) and its rank
-    along the cycle from that member (0, 1, 2 ...)."""
-    n = len(nxt)
-    idx = np.arange(n)
-    label, ptr = idx.copy(), nxt.copy()
-    while True:  # min over 1, 2, 4 ... successors; stops when a doubling changes nothing
-        new = np.minimum(label, label[ptr])
-        ptr = ptr[ptr]
-        if np.array_equal(new, label):
-            break
-        label = new
-    # list ranking: cut each cycle before its label, count the steps to the end
-    succ = nxt.copy()
-    tail = nxt == label  # the element whose successor is the cycle's first
-    succ[tail] = idx[tail]
-    dist = (~tail).astype(np.int64)
-    while True:
-        nd = dist + dist[succ]
-        ns = succ[succ]
-        if np.array_equal(ns, succ):
-            break
-        dist, succ = nd, ns
-    length = np.bincount(label, minlength=n)[label]
-    return label, length - 1 - dist
