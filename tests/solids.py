@@ -84,6 +84,13 @@ def hollow(x: float = 120.0, y: float = 300.0, z: float = 50.0, wall: float = 10
     return box(x, y, z) - cavity
 
 
+def ledge(x: float = 120.0, y: float = 300.0, z: float = 30.0, reach: float = 12.0) -> m3d.Manifold:
+    """A box with a ledge along its side at its top, sticking out ``reach`` mm over air: held on one
+    side only (a cantilever, not a bridge), so its first layer is an overhang."""
+    shelf = m3d.Manifold.cube((reach + 1.0, y, 3.0), center=True).translate((x / 2 + reach / 2 - 0.5, 0, z - 1.5))
+    return box(x, y, z) + shelf
+
+
 def sheet(x: float = 300.0, y: float = 600.0, z: float = 1.6) -> m3d.Manifold:
     """A sheet two coarse layers thick: its centre chunk (a thin wedge) has nothing to print."""
     return box(x, y, z)

@@ -41,7 +41,7 @@ SOLIDS = {
     "lying_tube": (solids.lying_tube, FINE), "car": (solids.car, FINE), "thin_walls": (solids.thin_walls, FINE),
     "plate": (solids.plate, BIG), "slender": (solids.slender, FINE), "islands": (solids.islands, FINE),
     "hollow": (solids.hollow, FINE), "wide": (lambda: solids.box(600.0, 250.0, 25.0), BIG),
-    "sheet": (solids.sheet, FINE),
+    "sheet": (solids.sheet, FINE), "ledge": (solids.ledge, FINE),
     "plate turned 30 deg": (solids.plate, {**BIG, "chunking.centre_angle_deg": 30.0}),  # 7 chunks, oblique axis
 }
 
@@ -221,7 +221,7 @@ def test_the_snapshot_draws_the_body_in_the_facing_of_the_moment(plate_one_robot
 def meshes(tmp_path_factory):
     folder = tmp_path_factory.mktemp("meshes")
     paths = {}
-    for name in ("plate", "box", "hollow"):
+    for name in ("plate", "box", "hollow", "ledge"):
         mesh = SOLIDS[name][0]().to_mesh64()
         paths[name] = folder / f"{name}.stl"
         write_stl(paths[name], np.asarray(mesh.vert_properties)[:, :3], np.asarray(mesh.tri_verts))
@@ -267,13 +267,16 @@ def test_a_clean_plan_exits_0_and_strict_fails_on_warnings_only(meshes, tmp_path
     assert _run(["run", paths["box"], "--out", tmp_path / "box2", "--simulate", "-q", "--strict", "--no-picture",
                  "--config", folder / "fine.toml"], capsys) == (0, "", "")
     assert _run(["simulate", out, "-q", "--force", "--strict"], capsys) == (0, "", "")
-    # the hollow box: its roof is laid over the cavity (overhang warnings), nothing else
-    out = tmp_path / "hollow"
-    assert _run(["run", paths["hollow"], "--out", out, "--simulate", "-q", "--no-picture", "--config",
+    # the hollow box: its roof is a bridge over the cavity, held at both ends: no finding
+    assert _run(["run", paths["hollow"], "--out", tmp_path / "hollow", "--simulate", "-q", "--strict", "--no-picture",
+                 "--config", folder / "fine.toml"], capsys) == (0, "", "")
+    # the ledge: laid over air and held on one side only (overhang warnings), nothing else
+    out = tmp_path / "ledge"
+    assert _run(["run", paths["ledge"], "--out", out, "--simulate", "-q", "--no-picture", "--config",
                  folder / "fine.toml"], capsys) == (0, "", "")
     counts = json.loads((out / "sim" / "summary.json").read_text())["finding_counts"]
     assert counts["overhang"] > 0 and sum(counts.values()) == counts["overhang"]
-    code, stdout, stderr = _run(["run", paths["hollow"], "--out", out, "--force", "--simulate", "-q", "--strict",
+    code, stdout, stderr = _run(["run", paths["ledge"], "--out", out, "--force", "--simulate", "-q", "--strict",
                                  "--no-picture", "--config", folder / "fine.toml"], capsys)
     assert code == 1 and stdout == ""
     assert stderr.splitlines() == [

@@ -9,7 +9,7 @@ from cooprint.cli import main
 from cooprint.config import load_settings
 from cooprint.jobs import coop_job, run, write_coop_bundle
 from cooprint.program.commands import MOVE, NOTIFY, WAIT, read_coop
-from cooprint.slicing import extrusion_area, iter_layers
+from cooprint.slicing import flow_area, iter_layers
 from cooprint.slicing.sections import LayerSlicer
 
 from solids import COARSE
@@ -103,7 +103,8 @@ def test_extruded_volume_is_the_sum_over_chunks_sliced_alone(job, bundle):
     for ch in job.chunked.chunks.chunks:
         for layer in iter_layers(ch.as_solid(), s, base=base, workers=1):
             extr = layer.role != 4
-            alone += float((extrusion_area(layer.width[extr], layer.height) * layer.lengths()[extr]).sum())
+            area = flow_area(layer.width[extr], layer.height, layer.role[extr])
+            alone += float((area * layer.lengths()[extr]).sum())
     _, record = bundle
     programs = sum(r["stats"]["volume_mm3"] for r in record["robots"])
     assert programs == pytest.approx(alone, rel=1e-3)

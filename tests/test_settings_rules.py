@@ -132,16 +132,21 @@ def test_a_part_in_metres_is_an_error_with_the_units_hint(tmp_path, capsys):
 
 
 def test_a_thin_wall_is_a_part_and_a_flat_sheet_gets_no_units_hint(tmp_path, capsys):
-    """A 100 x 0.5 x 20 mm wall is narrower than 3 lines in Y only: it is a part, printed; a
-    100 x 100 x 0.05 mm sheet is lower than the first layer, refused without a units hint (it is
+    """A 100 x 0.5 x 20 mm wall is narrower than 3 lines in Y only: it is a part, printed (a thin
+    wall: one line along its middle); a 0.3 mm foil too (a thin wall from a third of the nozzle
+    on, PrusaSlicer's limit); a 0.1 mm foil is sliced to nothing, and said so; a 100 x 100 x 0.05 mm sheet is lower than the first layer, refused without a units hint (it is
     large across); a 0.2 mm cube keeps the hint (the metres case above)."""
     wall = stl(tmp_path / "wall.stl", cube(100, 0.5, 20))
     code, stdout, err = cli(["info", wall], capsys)
     assert code == 0 and "size 100.0 x 0.5 x 20.0 mm" in stdout and "--units" not in err
     code, stdout, _ = cli(["slice", wall, "--out", tmp_path / "wall.gcode", "-q"], capsys)
     assert code == 0 and (tmp_path / "wall.gcode").exists()
-    foil = stl(tmp_path / "foil.stl", cube(100, 0.3, 20))  # thinner than a line: sliced to nothing, and said so
+    foil = stl(tmp_path / "foil.stl", cube(100, 0.3, 20))  # thinner than a line: a thin wall
     code, _, err = cli(["slice", foil, "--out", tmp_path / "foil.gcode", "-q"], capsys)
+    assert code == 0 and "nothing to print" not in err and "Internal" not in (tmp_path / "foil.gcode").read_text()
+    assert ";TYPE:External perimeter" in (tmp_path / "foil.gcode").read_text()
+    foil = stl(tmp_path / "foil.stl", cube(100, 0.1, 20))  # under a third of the nozzle: sliced to nothing, said so
+    code, _, err = cli(["slice", foil, "--out", tmp_path / "foil.gcode", "-q", "--force"], capsys)
     assert code == 0 and "cooprint: warning:" in err and "nothing to print" in err
     sheet = stl(tmp_path / "sheet.stl", cube(100, 100, 0.05))
     line = assert_rejected(["info", sheet], capsys, [tmp_path])

@@ -1,7 +1,7 @@
 """The viewer page (``cooprint view DIR`` -> DIR/sim/viewer.html) driven in Debian's headless chromium.
 
-Issue 16's "Tested in a real browser": a small two-robot plan made here (a hollow bar: the seed's
-three chunks, robot B waiting for A's centre chunk, overhang warnings under the cavity's roof) and a
+Issue 16's "Tested in a real browser": a small two-robot plan made here (a bar with a ledge: the
+seed's three chunks, robot B waiting for A's centre chunk, overhang warnings under the ledge) and a
 one-printer G-code file are simulated and viewed; each page is opened from file:// with the network
 blocked, and must draw the robots' colours, play, seek from the slider, the findings and the Gantt
 chart, switch colour modes, travel and the layer range, all without a console error. The page also
@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from browser import open_viewer
 from PIL import Image
-from solids import COARSE, box, hollow, to_trimesh
+from solids import COARSE, box, ledge, to_trimesh
 
 from cooprint.cli import main
 from cooprint.render.palette import robot_colour
@@ -42,9 +42,10 @@ def _cli(*args) -> None:
 
 @pytest.fixture(scope="module")
 def plan(tmp_path_factory, viewer_bundle):
-    """A simulated two-robot plan of a 40 x 420 x 12 mm hollow bar and its viewer page."""
+    """A simulated two-robot plan of a 40 x 420 x 12 mm bar with a ledge (a cantilever: overhang
+    findings) and its viewer page."""
     root = tmp_path_factory.mktemp("viewer")
-    to_trimesh(hollow(40, 420, 12, 4)).export(root / "bar.stl")
+    to_trimesh(ledge(40, 420, 12, 16)).export(root / "bar.stl")
     out = root / "job"
     _cli("run", root / "bar.stl", "--out", out, "--robots", 2, "--simulate", "-q", "--no-picture", *SETTINGS)
     _cli("view", out)
@@ -202,7 +203,7 @@ def test_the_status_lines_follow_each_robots_printing(view, plan):
 def test_clicking_a_finding_jumps_to_its_time(view, plan):
     _, summary = plan
     findings = summary["findings"]
-    assert findings, "the test plan should have findings (overhangs under the cavity's roof)"
+    assert findings, "the test plan should have findings (overhangs under the ledge)"
     assert view.page.locator("#findings [data-index]").count() == len(findings)
     for i in sorted(range(len(findings)), key=lambda i: -findings[i]["time_s"])[:2]:
         view.hook("c.seek(0)")
