@@ -224,12 +224,13 @@ def _runs(kind, extr, moving, climbs, chunk, layer, role, turn_at, first_moved, 
 
 
 @numba.njit(cache=True, nogil=True)
-def _states(kind, long_wait, travel_pre, starts, go, role, hot0, retracted0, role0, can_retract):
+def _states(kind, long_wait, travel_pre, starts, role, hot0, retracted0, role0, can_retract):
     """The state in force before each command 0..n (n: after the last), each set by the last
     command that changes it: the nozzle is hot (TOOL ON heats it, a long WAIT cools it); the
     filament is retracted (by a travel that retracts, ``travel_pre`` and hot, or a long WAIT
-    while hot; TOOL ON pushes it back); the role of the extrusion in progress (set where an
-    extrusion run starts, -1 after a travel line)."""
+    while hot; TOOL ON pushes it back); the role of the last extrusion run (set where one starts;
+    a travel keeps it: a ``;TYPE:`` line is written where the role changes, as PrusaSlicer does,
+    not again after every travel)."""
     n = len(kind)
     hot = np.empty(n + 1, np.bool_)
     retracted = np.empty(n + 1, np.bool_)
@@ -247,8 +248,6 @@ def _states(kind, long_wait, travel_pre, starts, go, role, hot0, retracted0, rol
             r = True
         if starts[i]:
             lr = role[i]
-        elif go[i]:
-            lr = -1
     hot[n], retracted[n], last_role[n] = h, r, lr
     return hot, retracted, last_role
 
@@ -407,7 +406,7 @@ class GcodeWriter:
         if self.retract:
             travel_pre[mv] = off & (length > 0) & (run_len >= s.retract_before_travel)
         starts = ext_cmd & ~cont
-        hot, retracted, last_role = _states(kind, long_wait, travel_pre, starts, go, role, self.hot, self.retracted,
+        hot, retracted, last_role = _states(kind, long_wait, travel_pre, starts, role, self.hot, self.retracted,
                                             -1 if self.role is None else self.role, bool(self.retract))
         travel_retract = travel_pre & hot[:-1]
         # the operations, command by command: turns, layer, ;TYPE, feed, text, the numeric line
