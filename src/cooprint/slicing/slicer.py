@@ -54,6 +54,7 @@ from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETE
 from cooprint.slicing.patterns import CORRECTION_DEG, gyroid
 from cooprint.slicing import polysplit
 from cooprint.slicing.polysplit import split_by_region
+from cooprint.slicing.rings import drop_collinear
 from cooprint.slicing.sections import LayerSlicer
 
 CrossSection = manifold3d.CrossSection
@@ -460,7 +461,12 @@ class _Job:
     def sections(self, lo: int, hi: int) -> dict[int, CrossSection]:
         """Sections of layers ``lo .. hi - 1`` at their mid-heights, simplified."""
         mids = self.zmin + self.tops[lo:hi] - self.heights[lo:hi] / 2
-        return {lo + k: cs.simplify(SIMPLIFY) for k, cs in enumerate(self.slicer.sections(mids))}
+        out = {}
+        for k, rings in enumerate(self.slicer.rings(mids)):
+            rings = drop_collinear(rings)  # a tessellated flat face's vertices: cheap to drop first
+            out[lo + k] = CrossSection(rings, manifold3d.FillRule.Positive).simplify(SIMPLIFY) if rings \
+                else CrossSection()
+        return out
 
     def flows(self, i: int) -> _Flows:
         s, first = self.s, i == 0
