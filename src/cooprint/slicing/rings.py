@@ -306,3 +306,52 @@ def crossings(pts, a, b, x0, y0, cell, nx, ny, start, ids):
                 t_out[nc] = min(max(t, 0.0), 1.0)
                 nc += 1
     return seg_out[:nc], t_out[:nc]
+
+
+def drop_collinear(rings: list[np.ndarray], eps: float = 1e-6, run: int = 1024) -> list[np.ndarray]:
+    """``rings`` without the vertices that lie on the segment between the last kept vertex and
+    the next one (within ``eps`` mm; at most ``run`` in a row, so that the dropped ones stay
+    within ``run x eps`` of the result: 1 um by default, a tenth of the slicer's simplification
+    tolerance). A section of a finely tessellated mesh has a vertex wherever an edge of a flat
+    face crosses the plane (20,000 per layer of the large benchmark part, 360 after
+    simplifying): dropping those first makes building and simplifying the cross-section 5x
+    cheaper there, for the same simplified outline (same vertex count and area). A larger
+    ``eps`` drops more (an STL's float32 noise is 1.5e-5 mm at 250 mm) but moves benchy's
+    bridges by 1%: the simplification downstream is sensitive to the points it is given."""
+    if not rings:
+        return rings
+    sizes = np.array([len(r) for r in rings], dtype=np.int64)
+    pts = np.ascontiguousarray(np.concatenate(rings), dtype=np.float64)
+    keep = _collinear_keep(pts, np.r_[0, np.cumsum(sizes)], eps, run)
+    counts = np.add.reduceat(keep, np.r_[0, np.cumsum(sizes)[:-1]]) if len(pts) else sizes
+    if counts.sum() == len(pts):
+        return rings
+    out = np.split(pts[keep], np.cumsum(counts)[:-1])
+    return [r for r in out if len(r) >= 3]
+
+
+@numba.njit(cache=True)
+def _collinear_keep(pts, starts, eps, run):
+    keep = np.ones(pts.shape[0], np.bool_)
+    for r in range(starts.shape[0] - 1):
+        s, e = starts[r], starts[r + 1]
+        if e - s < 4:
+            continue
+        prev = s  # the first vertex is always kept
+        dropped = 0
+        for j in range(s + 1, e):
+            nxt = j + 1 if j + 1 < e else s
+            ax, ay = pts[prev, 0], pts[prev, 1]
+            dx, dy = pts[nxt, 0] - ax, pts[nxt, 1] - ay
+            l2 = dx * dx + dy * dy
+            px, py = pts[j, 0] - ax, pts[j, 1] - ay
+            if dropped < run and l2 > 0.0:
+                t = (px * dx + py * dy) / l2
+                cross = px * dy - py * dx
+                if 0.0 <= t <= 1.0 and cross * cross <= eps * eps * l2:
+                    keep[j] = False
+                    dropped += 1
+                    continue
+            prev = j
+            dropped = 0
+    return keep
