@@ -67,7 +67,7 @@ def medial_lines(region: manifold3d.CrossSection, min_width: float, max_width: f
     polys = [np.asarray(p, dtype=np.float64) for p in region.to_polygons() if len(p) >= 3]
     if not polys:
         return []
-    h = float(np.clip(min_width / 3.0, 0.025, 0.05))
+    h = float(np.clip(min_width / 3.0, 0.05, 0.08))
     r_max = 0.5 * max_width * 1.05
     pts, nrm, edge, point_like, cstart, seg_a, seg_b = _sample_boundary(polys, h, r_max)
     grid = _grid(pts, r_max, h)
