@@ -29,6 +29,8 @@ SETTINGS_CASES = [
     (["--nozzle", "100"], "slicing.nozzle_diameter = 100.0"),
     (["--nozzle", "0.1"], "is thicker than slicing.nozzle_diameter = 0.1"),
     (["--nozzle", "1.2"], "slicing.extrusion_width = 0.45 mm: expected 1 to 3 x slicing.nozzle_diameter"),
+    (["--nozzle", "0.8", "--layer-height", "0.6"], "(the default width; set --extrusion-width, e.g. 0.9 mm = 1.125 x "
+                                                   "nozzle, PrusaSlicer's auto width)"),
     (["--extrusion-width", "0.1"], "slicing.extrusion_width = 0.1 mm: expected 1 to 3 x"),
     (["--extrusion-width", "2"], "slicing.extrusion_width = 2 mm: expected 1 to 3 x"),
     (["--extrusion-width", "-1"], "slicing.extrusion_width = -1.0: expected a number > 0"),

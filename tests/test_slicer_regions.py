@@ -119,7 +119,8 @@ def test_a_wall_too_thin_for_a_loop_is_one_line_along_its_middle():
         pts = np.concatenate([layer.path(j) for j in k])
         assert np.abs(pts[:, 0]).max() < 0.1
         vol = float((flow_area(layer.width[k], layer.height, layer.role[k]) * layer.lengths()[k]).sum())
-        assert vol == pytest.approx(0.675 * 30 * layer.height, rel=0.15)
+        # the bead fills the thickness (width = thickness + h (1 - pi / 4), PrusaSlicer's)
+        assert vol == pytest.approx(0.675 * 30 * layer.height, rel=0.03)
 
 
 def ziggurat():

@@ -49,6 +49,8 @@ MAX_LAYER_PER_NOZZLE = 1.0
 MIN_WIDTH_PER_NOZZLE = 1.0
 #: ... to this many (PrusaSlicer refuses 3 x nozzle and more).
 MAX_WIDTH_PER_NOZZLE = 3.0
+#: PrusaSlicer's auto extrusion width, in nozzle diameters (Flow::auto_extrusion_width).
+AUTO_WIDTH_PER_NOZZLE = 1.125
 #: The slicing fields that are extrusion widths (each within the nozzle's range, :func:`check_slicing`).
 WIDTH_FIELDS = ("extrusion_width", "external_perimeter_extrusion_width", "perimeter_extrusion_width",
                 "infill_extrusion_width", "solid_infill_extrusion_width", "top_infill_extrusion_width",
@@ -481,8 +483,11 @@ def check_slicing(s: SlicingSettings, origin: Mapping[str, str] | None = None) -
         w = getattr(s, name)
         if w is not None and not lo - 1e-12 <= w <= hi + 1e-12:
             where = where_of(name, "nozzle_diameter")
+            # a default width that no longer suits a nozzle the user changed: say which width to set
+            hint = (f" (the default width; set --extrusion-width, e.g. {AUTO_WIDTH_PER_NOZZLE * d:g} mm = "
+                    f"{AUTO_WIDTH_PER_NOZZLE:g} x nozzle, PrusaSlicer's auto width)" if name not in given else "")
             raise ConfigError(f"{where}slicing.{name} = {w:g} mm: expected {MIN_WIDTH_PER_NOZZLE:g} to "
-                              f"{MAX_WIDTH_PER_NOZZLE:g} x slicing.nozzle_diameter = {lo:g} to {hi:g} mm")
+                              f"{MAX_WIDTH_PER_NOZZLE:g} x slicing.nozzle_diameter = {lo:g} to {hi:g} mm{hint}")
 
 
 def check_robot(r: RobotProfile, origin: Mapping[str, str] | None = None) -> None:

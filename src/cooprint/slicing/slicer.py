@@ -747,14 +747,18 @@ class _Job:
                 else:
                     paths.append((closed, role, w))
                 here = paths[-1][0][-1]
+        # a medial line's local thickness is the spacing of its bead (PrusaSlicer's variable_width:
+        # width = thickness + h (1 - pi / 4)), so that the bead fills the thickness: a 0.3 mm wall
+        # gets its 0.3 x h of cross-section, not the less of a 0.3 mm wide bead
+        bead = float(self.heights[layer]) * (1 - math.pi / 4)
         if isl.thin is not None and not isl.thin.is_empty():
             for pts, width in medial_lines(isl.thin, s.nozzle_diameter / 3,
                                            f.ext + (f.spacing(f.ext) + f.spacing(f.per)) / 2):
-                paths.append((pts, PERIMETER_OUTER, width))
+                paths.append((pts, PERIMETER_OUTER, width + bead))
         if isl.gaps is not None:
             lo_w, hi_w = GAP_MIN * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
             for pts, width in medial_lines(isl.gaps, lo_w, hi_w):
-                paths.append((pts, GAP_FILL, width))
+                paths.append((pts, GAP_FILL, width + bead))
         if isl.fill.is_empty():
             return _last_point(paths, here)
         angle = s.infill_angle_deg + 90.0 * (layer % 2)
