@@ -496,15 +496,15 @@ class _Job:
         self.bridge_w = s.nozzle_diameter * math.sqrt(s.bridge_flow_ratio)
         self.sparse_spacing = extrusion_spacing(s.role_width("infill"), s.layer_height)
 
-    def sections(self, lo: int, hi: int, context: bool = False) -> dict[int, CrossSection]:
+    def sections(self, lo: int, hi: int, context: bool = False, clip: bool = True) -> dict[int, CrossSection]:
         """Sections of layers ``lo .. hi - 1`` at their mid-heights, simplified (``context``: the
-        object's, clipped to the chunk's surroundings)."""
+        object's, clipped to the chunk's surroundings unless not ``clip``)."""
         mids = self.zmin + self.tops[lo:hi] - self.heights[lo:hi] / 2
         out = {}
         for k, rings in enumerate((self.context if context else self.slicer).rings(mids)):
             rings = drop_collinear(rings)  # a tessellated flat face's vertices: cheap to drop first
             cs = CrossSection(rings, manifold3d.FillRule.Positive).simplify(SIMPLIFY) if rings else CrossSection()
-            out[lo + k] = cs ^ self.clip if context and not cs.is_empty() else cs
+            out[lo + k] = cs ^ self.clip if context and clip and not cs.is_empty() else cs
         return out
 
     def flows(self, i: int) -> _Flows:
@@ -760,10 +760,13 @@ class _Job:
             if self._around is None:
                 below = surf[i - 1].islands if i - 1 in surf else []
                 anchors = _union([isl.cs for isl in below])
-            else:  # a chunk: the object's bridge, anchored on the object's layer below
-                anchors, whole = self._objects[i - 1], self._around[i][1].decompose()
+            else:  # a chunk: the object's whole bridge (not clipped: it may be long), anchored on the
+                # object's layer below
+                obj = self.sections(i - 1, i + 1, context=True, clip=False)
+                obj = {k: _union(_islands(cs, s.min_area)) for k, cs in obj.items()}
+                anchors, whole = obj[i - 1], _opening(obj[i] - obj[i - 1], self.flows(i).ext / 10).decompose()
                 f = self.flows(i)  # the object's fill area, about: inside its perimeters
-                inner = self._objects[i].offset(-(f.ext + max(s.perimeters - 1, 0) * f.spacing(f.per)), _MITER)
+                inner = obj[i].offset(-(f.ext + max(s.perimeters - 1, 0) * f.spacing(f.per)), _MITER)
             for group in me.bridge_g.decompose():
                 angle = s.bridge_angle_deg
                 if angle is None:
