@@ -461,9 +461,9 @@ def _nonempty(cs: CrossSection | None) -> bool:
     return cs is not None and not cs.is_empty()
 
 
-#: A chunk's context (the object's sections) is clipped to the chunk's footprint grown by this
-#: much, mm: enough for the bridges that cross its cuts and their anchors, and the margins of the
-#: neighbours' surfaces, while the booleans on a big object's layers stay local.
+#: A chunk's context (the object's sections, for its tops, bottoms and shells) is clipped to the
+#: chunk's footprint grown by this much, mm, so that the booleans on a big object's layers stay
+#: local (a chunk's bridges look at the whole object's layers: a bridge may be long).
 CONTEXT_MARGIN = 25.0
 
 
@@ -718,7 +718,6 @@ class _Job:
             around = {i: _union(_islands(cs, s.min_area))
                       for i, cs in self.sections(max(0, c_lo - 1), min(n, c_hi + 1), context=True).items()}
             self._around = {i: self.exposed(i, around[i], around) for i in range(c_lo, c_hi)}
-        self._kept, self._objects = kept, around
         surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi, around) for i in range(c_lo, c_hi)}
         self._sources: dict[tuple[int, bool], CrossSection] = {}
         final = {j: self.solid_sparse(j, surf) for j in range(f_lo, hi)}
@@ -743,7 +742,7 @@ class _Job:
                 isl = remaining.pop(k)
                 here = self.island_paths(isl, i, over, fills, len(surf[i].islands) == 1, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
-        del self._sources, self._around, self._kept, self._objects
+        del self._sources, self._around
         return out
 
     def fill_regions(self, i: int, surf: dict[int, _Surfaces], final: dict) -> list[tuple[CrossSection, int, float | None]]:
