@@ -517,7 +517,7 @@ def coop_job(mesh: str | Path | Solid, settings: JobSettings | None = None, robo
     ends: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     solids = {c.id: c.as_solid() for c in chunked.chunks.chunks}
     slice_progress = (lambda d, t: progress("slice", d, t)) if progress else None
-    for cid, chunk_layers in slice_chunks(solids, s, base, slice_progress, executor):
+    for cid, chunk_layers in slice_chunks(solids, s, base, slice_progress, executor, context=chunked.solid):
         # what the later stages need of a chunk, while its layers are here: its work and ends
         # (the schedule again), its commands (the store) and their summary
         canon = store.put(cid, chunk_layers)

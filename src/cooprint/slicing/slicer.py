@@ -197,8 +197,8 @@ def iter_layers(solid: Solid, settings: SlicingSettings, progress: Callable[[int
 
 
 def slice_chunks(solids: Mapping[str, Solid], settings: SlicingSettings, base: float,
-                 progress: Callable[[int, int], None] | None = None, executor: Executor | None = None
-                 ) -> Iterator[tuple[str, list[tuple[int, LayerPaths]]]]:
+                 progress: Callable[[int, int], None] | None = None, executor: Executor | None = None,
+                 context: Solid | None = None) -> Iterator[tuple[str, list[tuple[int, LayerPaths]]]]:
     """Each chunk's layers in the object's layer grid (``base``: the object's bottom), chunk after
     chunk in the order of ``solids``: ``(chunk id, [(layer index, LayerPaths), ...])``, a chunk
     as soon as all its layers are sliced, so that a consumer that writes each one out and lets
@@ -212,12 +212,22 @@ def slice_chunks(solids: Mapping[str, Solid], settings: SlicingSettings, base: f
     comes back as a few flat arrays (:class:`PackedLayers`). The layers are the same whatever
     the executor: the blocks are fixed, and each depends on its chunk and its layers alone.
 
+    ``context``: the object the chunks were cut from (issue 17: the same findings sliced alone
+    and planned). A chunk's surfaces then come from the object's sections, as ``cooprint
+    slice`` of the whole part sees them: what is top or bottom, which bottom is a bridge and
+    where it is anchored (the bridge area and its anchors across the cut), which perimeters
+    overhang, and which layers the horizontal shells make solid; the chunk's own section still
+    gives its islands, perimeters and fill area, so that everything it prints stays inside it.
+    Without it, each chunk is sliced as a part of its own.
+
     ``progress(layers done, layers in all)`` after every block."""
     ranges = {cid: layer_range(sol, settings, base) for cid, sol in solids.items()}
     blocks = {cid: layer_blocks(first, end) for cid, (first, end) in ranges.items()}
     total = sum(end - first for first, end in ranges.values())
     shared = _Chunks(uuid.uuid4().hex, {cid: (sol.vertices, sol.faces, np.asarray(sol.bounds, dtype=np.float64))
-                                        for cid, sol in solids.items()}, settings, base)
+                                        for cid, sol in solids.items()}, settings, base,
+                     None if context is None else (context.vertices, context.faces,
+                                                   np.asarray(context.bounds, dtype=np.float64)))
     tasks = [(cid, lo, hi) for cid, bs in blocks.items() for lo, hi in bs]
     own = executor is None
     ex = ProcessExecutor() if own else executor
@@ -292,13 +302,14 @@ def unpack_layers(p: PackedLayers) -> list[LayerPaths]:
 @dataclass(frozen=True)
 class _Chunks:
     """What every task of :func:`slice_chunks` shares: the chunk meshes ``{id: (vertices,
-    faces, bounds)}``, the settings and the layer grid's base; ``token`` names the job in the
-    workers' caches."""
+    faces, bounds)}``, the settings, the layer grid's base and the object's mesh (``context``,
+    or None); ``token`` names the job in the workers' caches."""
 
     token: str
     meshes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
     settings: SlicingSettings
     base: float
+    context: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
 #: Chunks prepared for slicing in this process (a worker's cache): ``(token, chunk id) -> _Job``,
@@ -308,6 +319,9 @@ class _Chunks:
 _PREPARED: OrderedDict[tuple[str, str], "_Job"] = OrderedDict()
 _PREPARED_MAX = 4
 _PREPARED_LOCK = threading.Lock()
+#: The object's mesh prepared for slicing in this process, for the chunks' surfaces: ``(token,
+#: LayerSlicer)`` of the last job (one object per job).
+_CONTEXT: list = [None, None]
 
 
 def _prepared(chunks: _Chunks, cid: str) -> "_Job":
@@ -319,7 +333,12 @@ def _prepared(chunks: _Chunks, cid: str) -> "_Job":
             _PREPARED.move_to_end(key)
             return job
         vertices, faces, bounds = chunks.meshes[cid]
-        job = _Job(vertices, faces, bounds, chunks.settings, chunks.base)
+        context = None
+        if chunks.context is not None:
+            if _CONTEXT[0] != chunks.token:
+                _CONTEXT[:] = [chunks.token, LayerSlicer(chunks.context[0], chunks.context[1])]
+            context = (_CONTEXT[1], chunks.context[2])
+        job = _Job(vertices, faces, bounds, chunks.settings, chunks.base, context)
         _PREPARED[key] = job
         while len(_PREPARED) > _PREPARED_MAX:
             _PREPARED.popitem(last=False)
@@ -331,6 +350,8 @@ def _forget(token: str) -> None:
     with _PREPARED_LOCK:
         for key in [k for k in _PREPARED if k[0] == token]:
             del _PREPARED[key]
+        if _CONTEXT[0] == token:
+            _CONTEXT[:] = [None, None]
 
 
 def _chunk_block(chunks: _Chunks, task: tuple[str, int, int]) -> PackedLayers:
@@ -440,16 +461,33 @@ def _nonempty(cs: CrossSection | None) -> bool:
     return cs is not None and not cs.is_empty()
 
 
+#: A chunk's context (the object's sections, for its tops, bottoms and shells) is clipped to the
+#: chunk's footprint grown by this much, mm, so that the booleans on a big object's layers stay
+#: local (a chunk's bridges look at the whole object's layers: a bridge may be long).
+CONTEXT_MARGIN = 25.0
+
+
 class _Job:
-    """Everything a block of layers needs: the mesh prepared for slicing, the layer planes."""
+    """Everything a block of layers needs: the mesh prepared for slicing, the layer planes, and
+    for a chunk of an object, the object's mesh (``context``: its LayerSlicer and bounds), whose
+    sections give the chunk's surfaces (:func:`slice_chunks`); its layer planes are then the
+    object's."""
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray, bounds: np.ndarray, settings: SlicingSettings,
-                 base: float | None = None):
+                 base: float | None = None, context: tuple[LayerSlicer, np.ndarray] | None = None):
         self.s = settings
         self.slicer = LayerSlicer(vertices, faces)
         lo, hi = bounds
         self.zmin = float(lo[2]) if base is None else min(base, float(lo[2]))
-        self.tops = layer_tops(float(hi[2]) - self.zmin, settings)
+        self.context = None if context is None else context[0]
+        self.clip = None
+        z_top = float(hi[2])
+        if context is not None:  # the object's layers: a chunk's surfaces look at its neighbours
+            z_top = max(z_top, float(context[1][1][2]))
+            m = CONTEXT_MARGIN
+            self.clip = CrossSection.square((float(hi[0] - lo[0]) + 2 * m, float(hi[1] - lo[1]) + 2 * m)
+                                            ).translate((float(lo[0]) - m, float(lo[1]) - m))
+        self.tops = layer_tops(z_top - self.zmin, settings)
         self.heights = np.where(np.arange(len(self.tops)) == 0, settings.first_layer_height,
                                 settings.layer_height)
         self.start = np.array([lo[0], lo[1]])
@@ -458,14 +496,15 @@ class _Job:
         self.bridge_w = s.nozzle_diameter * math.sqrt(s.bridge_flow_ratio)
         self.sparse_spacing = extrusion_spacing(s.role_width("infill"), s.layer_height)
 
-    def sections(self, lo: int, hi: int) -> dict[int, CrossSection]:
-        """Sections of layers ``lo .. hi - 1`` at their mid-heights, simplified."""
+    def sections(self, lo: int, hi: int, context: bool = False, clip: bool = True) -> dict[int, CrossSection]:
+        """Sections of layers ``lo .. hi - 1`` at their mid-heights, simplified (``context``: the
+        object's, clipped to the chunk's surroundings unless not ``clip``)."""
         mids = self.zmin + self.tops[lo:hi] - self.heights[lo:hi] / 2
         out = {}
-        for k, rings in enumerate(self.slicer.rings(mids)):
+        for k, rings in enumerate((self.context if context else self.slicer).rings(mids)):
             rings = drop_collinear(rings)  # a tessellated flat face's vertices: cheap to drop first
-            out[lo + k] = CrossSection(rings, manifold3d.FillRule.Positive).simplify(SIMPLIFY) if rings \
-                else CrossSection()
+            cs = CrossSection(rings, manifold3d.FillRule.Positive).simplify(SIMPLIFY) if rings else CrossSection()
+            out[lo + k] = cs ^ self.clip if context and clip and not cs.is_empty() else cs
         return out
 
     def flows(self, i: int) -> _Flows:
@@ -541,19 +580,27 @@ class _Job:
             out.fill = last.offset(-(inset + r), _MITER).offset(r, _MITER)
         return out
 
-    def surfaces(self, i: int, kept: dict[int, CrossSection], islands: list[CrossSection],
-                 printed: bool) -> _Surfaces:
-        """Layer ``i``'s typed surfaces (:class:`_Surfaces`), from its section and its
-        neighbours' (``kept``: the sections without their too small islands)."""
-        s, n = self.s, len(self.tops)
-        shells = [self.shells(isl, i, printed) for isl in islands]
-        fill = _union([sh.fill for sh in shells if not sh.fill.is_empty()])
-        here = kept[i]
-        sliver = s.role_width("external_perimeter", i == 0) / 10
-        top = _opening(here - kept[i + 1], sliver) if i + 1 < n else here
-        bottom = _opening(here - kept[i - 1], sliver) if i > 0 else here
+    def exposed(self, i: int, here: CrossSection, around: dict[int, CrossSection]) -> tuple[CrossSection, CrossSection]:
+        """The top and bottom of section ``here`` on layer ``i``: its parts not covered by the
+        next / previous section of ``around`` (slivers narrower than a tenth of the external
+        width dropped); a membrane (both) is a bottom."""
+        n = len(self.tops)
+        sliver = self.s.role_width("external_perimeter", i == 0) / 10
+        top = _opening(here - around[i + 1], sliver) if i + 1 < n else here
+        bottom = _opening(here - around[i - 1], sliver) if i > 0 else here
         if _nonempty(top) and _nonempty(bottom):
             top = top - bottom  # a membrane: bottom (bridged)
+        return top, bottom
+
+    def surfaces(self, i: int, kept: dict[int, CrossSection], islands: list[CrossSection],
+                 printed: bool, around: dict[int, CrossSection] | None = None) -> _Surfaces:
+        """Layer ``i``'s typed surfaces (:class:`_Surfaces`), from its section and its
+        neighbours' (``kept``: the sections without their too small islands; ``around``: the
+        object's, for a chunk: what covers it and what it stands on)."""
+        s = self.s
+        shells = [self.shells(isl, i, printed) for isl in islands]
+        fill = _union([sh.fill for sh in shells if not sh.fill.is_empty()])
+        top, bottom = self.exposed(i, kept[i], kept if around is None else around)
         empty = CrossSection()
         top_f = top ^ fill if _nonempty(top) else empty
         bottom_f = bottom ^ fill if _nonempty(bottom) else empty
@@ -641,10 +688,17 @@ class _Job:
         return solid, internal - solid
 
     def _source(self, surf: dict[int, _Surfaces], k: int, top: bool) -> CrossSection:
+        """Layer ``k``'s :meth:`_Surfaces.source`; for a chunk, with the object's top or bottom
+        there (a neighbour's surface over or under this chunk's layers makes them solid too)."""
         key = (k, top)
         got = self._sources.get(key)
         if got is None:
-            got = self._sources[key] = surf[k].source(top)
+            got = surf[k].source(top)
+            if self._around is not None:
+                obj = self._around[k][0 if top else 1]
+                if not obj.is_empty():
+                    got = _union([got, obj]) if not got.is_empty() else obj
+            self._sources[key] = got
         return got
 
     def block(self, lo: int, hi: int) -> list[LayerPaths]:
@@ -658,7 +712,13 @@ class _Job:
         sections = self.sections(max(0, c_lo - 1), min(n, c_hi + 1))
         islands = {i: _islands(cs, s.min_area) for i, cs in sections.items()}
         kept = {i: _union(isl) for i, isl in islands.items()}
-        surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi) for i in range(c_lo, c_hi)}
+        around = None  # a chunk: the object's sections, and its top and bottom on every layer
+        self._around: dict[int, tuple[CrossSection, CrossSection]] | None = None
+        if self.context is not None:
+            around = {i: _union(_islands(cs, s.min_area))
+                      for i, cs in self.sections(max(0, c_lo - 1), min(n, c_hi + 1), context=True).items()}
+            self._around = {i: self.exposed(i, around[i], around) for i in range(c_lo, c_hi)}
+        surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi, around) for i in range(c_lo, c_hi)}
         self._sources: dict[tuple[int, bool], CrossSection] = {}
         final = {j: self.solid_sparse(j, surf) for j in range(f_lo, hi)}
         here = self.start
@@ -682,7 +742,7 @@ class _Job:
                 isl = remaining.pop(k)
                 here = self.island_paths(isl, i, over, fills, len(surf[i].islands) == 1, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
-        del self._sources
+        del self._sources, self._around
         return out
 
     def fill_regions(self, i: int, surf: dict[int, _Surfaces], final: dict) -> list[tuple[CrossSection, int, float | None]]:
@@ -696,12 +756,27 @@ class _Job:
         out: list[tuple[CrossSection, int, float | None]] = []
         taken: list[CrossSection] = []
         if not me.bridge_g.is_empty():
-            below = surf[i - 1].islands if i - 1 in surf else []
-            anchors = _union([isl.cs for isl in below])
+            if self._around is None:
+                below = surf[i - 1].islands if i - 1 in surf else []
+                anchors = _union([isl.cs for isl in below])
+            else:  # a chunk: the object's whole bridge (not clipped: it may be long), anchored on the
+                # object's layer below
+                obj = self.sections(i - 1, i + 1, context=True, clip=False)
+                obj = {k: _union(_islands(cs, s.min_area)) for k, cs in obj.items()}
+                anchors, whole = obj[i - 1], _opening(obj[i] - obj[i - 1], self.flows(i).ext / 10).decompose()
+                f = self.flows(i)  # the object's fill area, about: inside its perimeters
+                inner = obj[i].offset(-(f.ext + max(s.perimeters - 1, 0) * f.spacing(f.per)), _MITER)
             for group in me.bridge_g.decompose():
                 angle = s.bridge_angle_deg
                 if angle is None:
-                    angle = bridge_angle(group ^ me.bridge_seed, anchors, self.bridge_w + BRIDGE_GAP)
+                    area = group ^ me.bridge_seed
+                    if self._around is not None and not area.is_empty():
+                        # the whole bridge this one is part of, across the cuts (not the chunks'
+                        # perimeters along them), inside the object's perimeters
+                        parts = [p for p in whole if not (p ^ area).is_empty()]
+                        if parts:
+                            area = _union([_union(parts) ^ inner, area])
+                    angle = bridge_angle(area, anchors, self.bridge_w + BRIDGE_GAP)
                 out.append((group, BRIDGE, angle))
             taken.append(me.bridge_g)
         for region, role in ((me.top_g, TOP_SKIN), (me.bottom_g, SKIN)):
