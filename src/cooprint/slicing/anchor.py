@@ -5,7 +5,7 @@ CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
 
 ``anchor_infill(lines, rings, anchor, anchor_max)`` -> list of (k, 2) polylines.
   ``lines``: the sparse infill lines of one region in print order (a list of (k, 2) polylines,
-  each with both ends on the region's boundary, as :func:`~cooprint.slicing.infill.hatch` and
+  each with both ends on the region's boundary (within ``tol``), as :func:`~cooprint.slicing.infill.hatch` and
   :func:`~cooprint.slicing.patterns.gyroid` give them); ``rings``: the region's boundary (closed
   rings, outlines and holes). Consecutive lines whose ends lie on the same ring at most
   ``anchor_max`` apart along it are joined by that stretch of the ring into one polyline
@@ -46,7 +46,7 @@ LINE_WIDTH = 0.45
 
 
 def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float,
-                  width: float = LINE_WIDTH) -> list[np.ndarray]:
+                  width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
     """``lines`` joined and anchored along ``rings`` (module docstring).
 
     Parameters
@@ -61,6 +61,11 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
         Longest stretch of ring that joins two lines, mm (infill_anchor_max); 0: no joins.
     width : float
         Line width, mm: an anchor stops half of it short of a neighbouring line's end.
+    tol : float
+        A line end within this distance of a ring is on it, mm: the lines may end a little
+        outside the rings (PrusaSlicer ends its lines 0.4 spacing inside the fill region and
+        connects them along the region shrunk by 0.5 spacing); the join or anchor starts at the
+        end's nearest point on the ring.
 
     Returns
     -------
@@ -79,7 +84,7 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     ends = np.empty((2 * n, 2))
     ends[0::2] = pts[lo[:-1]]
     ends[1::2] = pts[lo[1:] - 1]
-    edge, t, _ = rs.nearest(ends, END_TOL)
+    edge, t, _ = rs.nearest(ends, max(tol, END_TOL))
     on = edge >= 0
     ring = np.where(on, rs.ring_of[np.maximum(edge, 0)], -1)
     param = np.where(on, rs.param[np.maximum(edge, 0)] + t * rs.seg_len[np.maximum(edge, 0)], 0.0)

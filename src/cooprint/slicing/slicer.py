@@ -816,8 +816,8 @@ class _Job:
         s = self.s
         if s.infill_density <= 0:
             return
-        rings = _rings(region)
         sp = self.sparse_spacing
+        rings, contour = _line_rings(region, sp)
         w = s.role_width("infill", layer == 0)
         if s.infill_pattern == "gyroid":
             lines = gyroid(rings, sp / s.infill_density, self.zmin + float(self.tops[layer]),
@@ -831,11 +831,25 @@ class _Job:
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
             lines = [seg for ang, spacing in dirs for seg in hatch(rings, spacing, ang)]
-        lines = anchor_infill(lines, rings, s.infill_anchor, s.infill_anchor_max)
+        lines = anchor_infill(lines, contour, s.infill_anchor, s.infill_anchor_max, w, 2 * JOIN_TOL * sp)
         if lines and all(len(line) == 2 for line in lines):
             paths.append((np.stack(lines), INFILL, w))  # a batch of segments
         else:
             paths.extend((line, INFILL, w) for line in lines)
+
+
+#: Infill lines end this many spacings inside their region; joins and anchors follow the region
+#: shrunk by ``LINE_END + JOIN_TOL`` spacings (PrusaSlicer 2.5's FillRectilinear: 0.4 and 0.5),
+#: so they lie beside the inner perimeter rather than on it.
+LINE_END = 0.4
+JOIN_TOL = 0.1
+
+
+def _line_rings(region: CrossSection, spacing: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The rings the infill lines of ``region`` are clipped to, and the rings along which they
+    are joined and anchored (``LINE_END``)."""
+    return (_rings(region.offset(-LINE_END * spacing, _MITER)),
+            _rings(region.offset(-(LINE_END + JOIN_TOL) * spacing, _MITER)))
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
