@@ -46,7 +46,7 @@ LINE_WIDTH = 0.45
 
 
 def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float,
-                  width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
+                  width: float = LINE_WIDTH, tol: float = END_TOL, snake: bool = False) -> list[np.ndarray]:
     """``lines`` joined and anchored along ``rings`` (module docstring).
 
     Parameters
@@ -66,6 +66,10 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
         outside the rings (PrusaSlicer ends its lines 0.4 spacing inside the fill region and
         connects them along the region shrunk by 0.5 spacing); the join or anchor starts at the
         end's nearest point on the ring.
+    snake : bool
+        Join as PrusaSlicer's rectilinear solid fill does: from each line's far end to the
+        nearer free neighbour along the ring, chain after chain in print order (long snakes over
+        a solid area), rather than shortest stretches first; no anchors.
 
     Returns
     -------
@@ -105,8 +109,11 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     arc = np.where(on, np.mod(param[np.maximum(nxt, 0)] - param, np.where(on, ring_len, 1.0)), 0.0)
     arc = np.where(on & (nxt == np.arange(2 * n)), ring_len, arc)
     nt_next, nt_prev = _free_along(pts, lo, rs, on, ring, param, prv, arc, float(width))
-    join, hook = _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, float(anchor), float(anchor_max),
-                          0.5 * float(width))
+    if snake:
+        join, hook = _snake(nxt, prv, arc, nt_next, nt_prev, float(anchor_max)), np.zeros(2 * n)
+    else:
+        join, hook = _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, float(anchor), float(anchor_max),
+                              0.5 * float(width))
     return _assemble(pts, lo, rs, ring, param, join, hook)
 
 
@@ -302,6 +309,38 @@ def _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, anchor, anchor_max, hw):
             side = -1 if nt_prev[e] > nt_next[e] else 1
             _hook(e, side, nxt, prv, arc, ring_len, anchor, hw, consumed, nt_next, nt_prev, trim_next, trim_prev, hook)
     return code, hook
+
+
+@numba.njit(cache=True)
+def _snake(nxt, prv, arc, nt_next, nt_prev, anchor_max):
+    """Joins (``_connect``'s code) made by walking from each unvisited line's ends, in print
+    order, to the nearer free neighbouring end along the ring within ``anchor_max`` whose
+    stretch no infill line runs along, and on from that line's other end."""
+    m = nxt.shape[0]
+    parent = np.arange(m // 2)
+    code = np.full(m, -1, np.int64)
+    used = nxt < 0
+    for st in range(m):
+        e = st
+        while not used[e]:
+            best, fwd, length = -1, False, anchor_max
+            f = nxt[e]
+            if f != e and not used[f] and nt_next[e] == np.inf and arc[e] <= length:
+                best, fwd, length = f, True, arc[e]
+            b = prv[e]
+            if b != e and not used[b] and nt_prev[e] == np.inf and arc[b] <= length:
+                best, fwd, length = b, False, arc[b]
+            if best < 0:
+                break
+            g1, g2 = _find(parent, e // 2), _find(parent, best // 2)
+            if g1 == g2:
+                break
+            code[e] = 2 * best + 1 if fwd else 2 * best
+            code[best] = 2 * e if fwd else 2 * e + 1
+            used[e] = used[best] = True
+            parent[max(g1, g2)] = min(g1, g2)
+            e = best ^ 1
+    return code
 
 
 @numba.njit(cache=True)

@@ -51,7 +51,7 @@ from cooprint.slicing.gapfill import medial_lines
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
                                     TOP_SKIN, TRAVEL, LayerPaths, extrusion_spacing)
-from cooprint.slicing.patterns import CORRECTION_DEG, gyroid
+from cooprint.slicing.patterns import CORRECTION_DEG, clip_polylines, gyroid
 from cooprint.slicing import polysplit
 from cooprint.slicing.polysplit import split_by_region
 from cooprint.slicing.rings import drop_collinear
@@ -778,9 +778,10 @@ class _Job:
         volume per area stays one layer height; PrusaSlicer's adjusted solid spacing). A bridge
         (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads."""
         bridge = role == BRIDGE
-        rings = [r for piece in region.decompose() for r in [_rings(piece)] if r]
-        if not rings:
+        pieces = [(piece, r) for piece in region.decompose() for r in [_rings(piece)] if r]
+        if not pieces:
             return
+        rings = [r for _, r in pieces]
         a = math.radians(angle)
         rot = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])  # world -> (along, across)
         flat = [r for rs in rings for r in rs]
@@ -807,7 +808,18 @@ class _Job:
         k = seg[:, 0, 1]
         p = np.searchsorted(band, k + 0.25, side="right") - 1
         seg[:, :, 1] = ((k - band[p] + 0.5) * new[p] + lo_[p])[:, None]
-        paths.append((seg @ rot, role, line_w[p]))
+        seg = seg @ rot
+        if bridge or self.s.infill_anchor_max <= 0:
+            paths.append((seg, role, line_w[p]))
+            return
+        # the lines of each piece joined along its boundary, as PrusaSlicer's rectilinear fill
+        # does (no anchors): far fewer travels on ring-shaped solid areas
+        for q in np.unique(p):
+            inner, contour = _line_rings(pieces[q][0], spacing)
+            lines = clip_polylines(list(seg[p == q]), inner)
+            lines = anchor_infill(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]),
+                                  2 * JOIN_TOL * spacing, snake=True)
+            paths.extend((line, role, float(line_w[q])) for line in lines)
 
     def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
         """Sparse infill of ``region`` in ``infill_pattern`` at ``infill_density`` (line
