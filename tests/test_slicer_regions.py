@@ -46,6 +46,23 @@ def test_a_cube_has_bottom_layers_solid_at_the_bottom_top_layers_at_the_top_and_
     assert min(top_widths) >= 0.4 - 1e-9 and max(top_widths) <= 0.4 * 1.2
 
 
+def test_infill_joins_lie_beside_the_inner_perimeter_and_solid_lines_are_one_snake():
+    def points(layer, role):
+        idx = np.flatnonzero(layer.role == role)
+        return np.concatenate([layer.points[layer.offsets[k]:layer.offsets[k + 1]] for k in idx])
+
+    mid = slice_solid(solid(box(20, 20, 6)), SlicingSettings()).layers[15]
+    inner, infill = points(mid, PERIMETER_INNER), points(mid, INFILL)
+    # PrusaSlicer: line ends 0.4 spacing and joins 0.5 spacing inside the fill region (whose edge
+    # is 0.1 mm inside the inner perimeter's centre), not on the perimeter
+    gap = np.abs(inner).max() - np.abs(infill).max(axis=1).max()
+    assert 0.25 < gap < 0.35
+    # a flat plate: every layer's solid lines joined into one polyline (PrusaSlicer: one per layer)
+    for layer in slice_solid(solid(box(40, 40, 1.2)), SlicingSettings()).layers:
+        fills = [k for k, r in enumerate(layer.role) if r in (SKIN, TOP_SKIN)]
+        assert len(fills) == 1 and (layer.role == TRAVEL).sum() <= 2
+
+
 def towers():
     """Two 8 x 8 mm towers 10 mm high, 16 mm apart, joined by a 2 mm slab on top."""
     left = m3d.Manifold.cube([8, 8, 10]).translate([0, 0, 0])

@@ -324,17 +324,18 @@ def _snake(nxt, prv, arc, nt_next, nt_prev, anchor_max):
         e = st
         while not used[e]:
             best, fwd, length = -1, False, anchor_max
+            g1 = _find(parent, e // 2)
             f = nxt[e]
-            if f != e and not used[f] and nt_next[e] == np.inf and arc[e] <= length:
+            if (f != e and not used[f] and nt_next[e] == np.inf and arc[e] <= length
+                    and _find(parent, f // 2) != g1):
                 best, fwd, length = f, True, arc[e]
             b = prv[e]
-            if b != e and not used[b] and nt_prev[e] == np.inf and arc[b] <= length:
+            if (b != e and not used[b] and nt_prev[e] == np.inf and arc[b] <= length
+                    and _find(parent, b // 2) != g1):
                 best, fwd, length = b, False, arc[b]
             if best < 0:
                 break
-            g1, g2 = _find(parent, e // 2), _find(parent, best // 2)
-            if g1 == g2:
-                break
+            g2 = _find(parent, best // 2)
             code[e] = 2 * best + 1 if fwd else 2 * best
             code[best] = 2 * e if fwd else 2 * e + 1
             used[e] = used[best] = True
@@ -363,10 +364,19 @@ def _push(buf, m, x, y):
 
 @numba.njit(cache=True)
 def _walk(buf, m, a, b, rparam, seg_len, s, k, total, p0, p1, forward):
-    """Append the vertices of the ring (edges s .. s + k) strictly between arc lengths ``p0``
-    and ``p1``, going forward (increasing arc length) or backward, then the point at ``p1``."""
+    """Append the point of the ring (edges s .. s + k) at arc length ``p0`` unless the last
+    point is there already (a line end off the ring steps onto it), the ring's vertices strictly
+    between ``p0`` and ``p1``, going forward (increasing arc length) or backward, then the point
+    at ``p1``."""
     eps = 1e-12
     p0m, p1m = p0 % total, p1 % total
+    j0 = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
+    sl0 = seg_len[s + j0]
+    t0 = (p0m - rparam[s + j0]) / sl0 if sl0 > 0 else 0.0
+    x0 = a[s + j0, 0] + t0 * (b[s + j0, 0] - a[s + j0, 0])
+    y0 = a[s + j0, 1] + t0 * (b[s + j0, 1] - a[s + j0, 1])
+    if m == 0 or abs(buf[m - 1, 0] - x0) + abs(buf[m - 1, 1] - y0) > 1e-9:
+        buf, m = _push(buf, m, x0, y0)
     span = (p1 - p0) % total if forward else (p0 - p1) % total
     j = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
     if forward:
@@ -416,6 +426,10 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
                            param[st], param[st] + hook[st], hook[st] > 0)
             buf[t0:m] = buf[t0:m][::-1].copy()
+            li = st // 2
+            fp = lo[li] if st % 2 == 0 else lo[li + 1] - 1  # the line's first point
+            if abs(buf[m - 1, 0] - pts[fp, 0]) + abs(buf[m - 1, 1] - pts[fp, 1]) <= 1e-9:
+                m -= 1
         e = st
         while True:
             li = e // 2
@@ -440,7 +454,9 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             s = ring_start[r]
             buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
                            param[other], param[to], c % 2 == 1)
-            m -= 1  # the stretch's last point is the next line's first
+            nl = lo[to // 2] if to % 2 == 0 else lo[to // 2 + 1] - 1  # the next line's first point
+            if abs(buf[m - 1, 0] - pts[nl, 0]) + abs(buf[m - 1, 1] - pts[nl, 1]) <= 1e-9:
+                m -= 1  # the stretch ends on it
             e = to
         nc += 1
     off[nc] = m
