@@ -23,6 +23,12 @@ width short of the neighbouring end and of the neighbour's own anchor, so no str
 printed twice (PrusaSlicer lets the second anchor run up to the first). Ends farther than ``END_TOL`` from every ring stay as they
 are. As PrusaSlicer, the ring is masked where an infill line runs along it (within
 ``COLLIDE`` widths, away from the line's ends): no join over it, anchors stop before it.
+
+The slicer passes the fill region shrunk by half a spacing as ``rings`` and ends the lines 0.1
+spacing outside it (``tol``), as PrusaSlicer 2.5 does, so joins and anchors lie beside the inner
+perimeter instead of on it. ``snake=True`` (solid infill) joins as PrusaSlicer's rectilinear solid
+fill does: a walk from line to line in print order, each time to the nearer free neighbouring
+end, which makes one polyline of a convex area where shortest-first leaves several.
 """
 
 from __future__ import annotations

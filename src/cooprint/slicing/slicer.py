@@ -776,7 +776,9 @@ class _Job:
         """Solid lines over ``region`` at ``angle``: each connected piece gets a whole number of
         lines, the spacing widened by at most ``SOLID_SPACING_MAX`` and the width with it (the
         volume per area stays one layer height; PrusaSlicer's adjusted solid spacing). A bridge
-        (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads."""
+        (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads.
+        Solid and top lines (not bridges) end ``LINE_END`` spacings inside their piece and are
+        joined along it (:func:`~cooprint.slicing.anchor.anchor_infill`, ``snake``, no anchors)."""
         bridge = role == BRIDGE
         pieces = [(piece, r) for piece in region.decompose() for r in [_rings(piece)] if r]
         if not pieces:
