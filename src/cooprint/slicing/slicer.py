@@ -811,7 +811,7 @@ class _Job:
         p = np.searchsorted(band, k + 0.25, side="right") - 1
         seg[:, :, 1] = ((k - band[p] + 0.5) * new[p] + lo_[p])[:, None]
         seg = seg @ rot
-        if bridge or self.s.infill_anchor_max <= 0:
+        if self.s.infill_anchor_max <= 0:
             paths.append((seg, role, line_w[p]))
             return
         # the lines of each piece joined along its boundary, as PrusaSlicer's rectilinear fill
@@ -819,8 +819,7 @@ class _Job:
         for q in np.unique(p):
             inner, contour = _line_rings(pieces[q][0], spacing)
             lines = clip_polylines(list(seg[p == q]), inner)
-            lines = anchor_infill(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]),
-                                  2 * JOIN_TOL * spacing, snake=True)
+            lines = _joined(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]), spacing)
             paths.extend((line, role, float(line_w[q])) for line in lines)
 
     def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
@@ -845,7 +844,7 @@ class _Job:
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
             lines = [seg for ang, spacing in dirs for seg in hatch(rings, spacing, ang)]
-        lines = anchor_infill(lines, contour, s.infill_anchor, s.infill_anchor_max, w, 2 * JOIN_TOL * sp)
+        lines = _joined(lines, contour, s.infill_anchor, s.infill_anchor_max, w, sp)
         if lines and all(len(line) == 2 for line in lines):
             paths.append((np.stack(lines), INFILL, w))  # a batch of segments
         else:
@@ -864,6 +863,16 @@ def _line_rings(region: CrossSection, spacing: float) -> tuple[list[np.ndarray],
     are joined and anchored (``LINE_END``)."""
     return (_rings(region.offset(-LINE_END * spacing, _MITER)),
             _rings(region.offset(-(LINE_END + JOIN_TOL) * spacing, _MITER)))
+
+
+def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, anchor_max: float,
+            width: float, spacing: float) -> list[np.ndarray]:
+    """``lines`` (ending ``JOIN_TOL`` spacings off ``contour``) joined along ``contour`` as
+    PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
+    the chains' ends shortest stretch first, with anchors (its connect_infill)."""
+    tol = 2 * JOIN_TOL * spacing
+    chains = anchor_infill(lines, contour, 0.0, anchor_max, width, tol, snake=True)
+    return anchor_infill(chains, contour, anchor, anchor_max, width, tol)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
