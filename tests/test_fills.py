@@ -287,6 +287,29 @@ def test_anchor_joins_hatch_into_a_zigzag():
     assert len(joins) == len(lines) - 1 and all(j == pytest.approx(2.0) for j in joins)
 
 
+def test_anchor_snake_joins_solid_lines_along_the_shrunk_boundary_into_one_polyline():
+    # PrusaSlicer's rectilinear solid fill: lines end 0.4 spacing inside the region and are
+    # joined along the region shrunk by 0.5 spacing; the ends lie 0.1 spacing off that ring
+    sp = 0.41
+    lines = list(hatch([box(0.4 * sp, 0.4 * sp, 40 - 0.4 * sp, 40 - 0.4 * sp)], sp, 45))
+    contour = [box(0.5 * sp, 0.5 * sp, 40 - 0.5 * sp, 40 - 0.5 * sp)]
+    out = anchor_infill(lines, contour, 0.0, 50.0, 0.45, 0.2 * sp, snake=True)
+    assert len(out) == 1
+    pts = out[0]
+    line_ends = np.array([e for p in lines for e in (p[0], p[-1])])
+    added = pts[np.linalg.norm(pts[:, None] - line_ends[None], axis=-1).min(axis=1) > 1e-9]
+    # every added point is on the shrunk ring, so no join lies on the perimeter
+    assert len(added) > 0 and np.abs(np.minimum(added, 40 - added).min(axis=1) - 0.5 * sp).max() < 1e-9
+    # each join: a step of 0.1 spacing onto the ring, the ring, a step back to the next line
+    steps = np.hypot(*np.diff(pts, axis=0).T)
+    assert steps.sum() == pytest.approx(total_length(lines) + (len(lines) - 1) * (sp * math.sqrt(2) + 0.1 * sp),
+                                        rel=0.02)
+    # shortest stretches first (sparse infill) leaves this square in many pieces
+    assert len(anchor_infill(lines, contour, 0.0, 50.0, 0.45, 0.2 * sp)) > 1
+    # without the tolerance the ends are on no ring: nothing is joined
+    assert len(anchor_infill(lines, contour, 0.0, 50.0, 0.45, snake=True)) == len(lines)
+
+
 @settings(max_examples=40, deadline=None)
 @given(boxes, st.floats(0.6, 5.0), st.floats(0, 180), st.floats(0, 8), st.floats(0, 60),
        st.booleans(), st.floats(0.2, 10))

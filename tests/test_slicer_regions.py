@@ -46,12 +46,38 @@ def test_a_cube_has_bottom_layers_solid_at_the_bottom_top_layers_at_the_top_and_
     assert min(top_widths) >= 0.4 - 1e-9 and max(top_widths) <= 0.4 * 1.2
 
 
+def test_infill_joins_lie_beside_the_inner_perimeter_and_solid_lines_are_one_snake():
+    def points(layer, role):
+        idx = np.flatnonzero(layer.role == role)
+        return np.concatenate([layer.points[layer.offsets[k]:layer.offsets[k + 1]] for k in idx])
+
+    mid = slice_solid(solid(box(20, 20, 6)), SlicingSettings()).layers[15]
+    inner, infill = points(mid, PERIMETER_INNER), points(mid, INFILL)
+    # PrusaSlicer: line ends 0.4 spacing and joins 0.5 spacing inside the fill region (whose edge
+    # is 0.1 mm inside the inner perimeter's centre), not on the perimeter
+    gap = np.abs(inner).max() - np.abs(infill).max(axis=1).max()
+    assert 0.25 < gap < 0.35
+    # a flat plate: every layer's solid lines joined into one polyline (PrusaSlicer: one per layer)
+    for layer in slice_solid(solid(box(40, 40, 1.2)), SlicingSettings()).layers:
+        fills = [k for k, r in enumerate(layer.role) if r in (SKIN, TOP_SKIN)]
+        assert len(fills) == 1 and (layer.role == TRAVEL).sum() <= 2
+
+
 def towers():
     """Two 8 x 8 mm towers 10 mm high, 16 mm apart, joined by a 2 mm slab on top."""
     left = m3d.Manifold.cube([8, 8, 10]).translate([0, 0, 0])
     right = m3d.Manifold.cube([8, 8, 10]).translate([24, 0, 0])
     slab = m3d.Manifold.cube([32, 8, 2]).translate([0, 0, 10])
     return (left + right + slab).translate([-16, -4, 0])
+
+
+def threads_of(layer, k, longer=6.0):
+    """The segments of paths ``k`` longer than ``longer`` mm, as (2, 2) arrays."""
+    out = []
+    for j in k:
+        p = layer.path(j)
+        out += [p[i:i + 2] for i in np.flatnonzero(np.hypot(*np.diff(p, axis=0).T) > longer)]
+    return out
 
 
 def test_a_bridge_between_two_towers_is_printed_across_the_gap_with_a_round_thread():
@@ -61,12 +87,11 @@ def test_a_bridge_between_two_towers_is_printed_across_the_gap_with_a_round_thre
     layer = layers[first]
     k = np.flatnonzero(layer.role == BRIDGE)
     assert len(k), "no bridge over the gap"
-    mids = np.array([layer.path(j).mean(axis=0) for j in k])
-    over_gap = np.abs(mids[:, 0]) < 8 - 0.5
-    assert over_gap.sum() >= (8 - 1.5) / 0.49  # side by side across the slab's fill area (8 mm wide)
-    for j in k[over_gap]:
-        p = layer.path(j)
-        d = p[-1] - p[0]
+    # the threads: the bridge paths' long segments (the short ones join them along the towers)
+    threads = threads_of(layer, k)
+    assert len(threads) >= (8 - 1.5) / 0.49  # side by side across the slab's fill area (8 mm wide)
+    for p in threads:
+        d = p[1] - p[0]
         assert abs(d[1]) < 0.05 * abs(d[0])  # along x: from tower to tower
         assert p[:, 0].min() < -8 + 0.5 and p[:, 0].max() > 8 - 0.5  # resting on both towers
     # a round thread of the nozzle's diameter (bridge_flow_ratio 1), spacing widened by <= 20%
@@ -88,9 +113,9 @@ def test_the_bridge_direction_setting_wins():
     s = SlicingSettings(bridge_angle_deg=90.0)
     layers = slice_solid(solid(towers()), s).layers
     layer = next(L for L in layers if L.z > 10.0 + 1e-6)
-    k = np.flatnonzero(layer.role == BRIDGE)
-    d = np.array([layer.path(j)[-1] - layer.path(j)[0] for j in k])
-    assert np.all(np.abs(d[:, 0]) < 0.05 * np.abs(d[:, 1]) + 1e-9)
+    threads = threads_of(layer, np.flatnonzero(layer.role == BRIDGE))
+    d = np.array([p[1] - p[0] for p in threads])
+    assert len(d) and np.all(np.abs(d[:, 0]) < 0.05 * np.abs(d[:, 1]) + 1e-9)
 
 
 def test_a_wall_too_narrow_for_a_third_loop_gets_gap_fill_along_its_middle():

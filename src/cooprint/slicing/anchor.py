@@ -5,7 +5,7 @@ CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
 
 ``anchor_infill(lines, rings, anchor, anchor_max)`` -> list of (k, 2) polylines.
   ``lines``: the sparse infill lines of one region in print order (a list of (k, 2) polylines,
-  each with both ends on the region's boundary, as :func:`~cooprint.slicing.infill.hatch` and
+  each with both ends on the region's boundary (within ``tol``), as :func:`~cooprint.slicing.infill.hatch` and
   :func:`~cooprint.slicing.patterns.gyroid` give them); ``rings``: the region's boundary (closed
   rings, outlines and holes). Consecutive lines whose ends lie on the same ring at most
   ``anchor_max`` apart along it are joined by that stretch of the ring into one polyline
@@ -23,6 +23,12 @@ width short of the neighbouring end and of the neighbour's own anchor, so no str
 printed twice (PrusaSlicer lets the second anchor run up to the first). Ends farther than ``END_TOL`` from every ring stay as they
 are. As PrusaSlicer, the ring is masked where an infill line runs along it (within
 ``COLLIDE`` widths, away from the line's ends): no join over it, anchors stop before it.
+
+The slicer passes the fill region shrunk by half a spacing as ``rings`` and ends the lines 0.1
+spacing outside it (``tol``), as PrusaSlicer 2.5 does, so joins and anchors lie beside the inner
+perimeter instead of on it. ``snake=True`` (solid infill) joins as PrusaSlicer's rectilinear solid
+fill does: a walk from line to line in print order, each time to the nearer free neighbouring
+end, which makes one polyline of a convex area where shortest-first leaves several.
 """
 
 from __future__ import annotations
@@ -46,7 +52,7 @@ LINE_WIDTH = 0.45
 
 
 def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float,
-                  width: float = LINE_WIDTH) -> list[np.ndarray]:
+                  width: float = LINE_WIDTH, tol: float = END_TOL, snake: bool = False) -> list[np.ndarray]:
     """``lines`` joined and anchored along ``rings`` (module docstring).
 
     Parameters
@@ -61,6 +67,15 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
         Longest stretch of ring that joins two lines, mm (infill_anchor_max); 0: no joins.
     width : float
         Line width, mm: an anchor stops half of it short of a neighbouring line's end.
+    tol : float
+        A line end within this distance of a ring is on it, mm: the lines may end a little
+        outside the rings (PrusaSlicer ends its lines 0.4 spacing inside the fill region and
+        connects them along the region shrunk by 0.5 spacing); the join or anchor starts at the
+        end's nearest point on the ring.
+    snake : bool
+        Join as PrusaSlicer's rectilinear solid fill does: from each line's far end to the
+        nearer free neighbour along the ring, chain after chain in print order (long snakes over
+        a solid area), rather than shortest stretches first; no anchors.
 
     Returns
     -------
@@ -79,7 +94,7 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     ends = np.empty((2 * n, 2))
     ends[0::2] = pts[lo[:-1]]
     ends[1::2] = pts[lo[1:] - 1]
-    edge, t, _ = rs.nearest(ends, END_TOL)
+    edge, t, _ = rs.nearest(ends, max(tol, END_TOL))
     on = edge >= 0
     ring = np.where(on, rs.ring_of[np.maximum(edge, 0)], -1)
     param = np.where(on, rs.param[np.maximum(edge, 0)] + t * rs.seg_len[np.maximum(edge, 0)], 0.0)
@@ -100,8 +115,11 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     arc = np.where(on, np.mod(param[np.maximum(nxt, 0)] - param, np.where(on, ring_len, 1.0)), 0.0)
     arc = np.where(on & (nxt == np.arange(2 * n)), ring_len, arc)
     nt_next, nt_prev = _free_along(pts, lo, rs, on, ring, param, prv, arc, float(width))
-    join, hook = _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, float(anchor), float(anchor_max),
-                          0.5 * float(width))
+    if snake:
+        join, hook = _snake(nxt, prv, arc, nt_next, nt_prev, float(anchor_max)), np.zeros(2 * n)
+    else:
+        join, hook = _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, float(anchor), float(anchor_max),
+                              0.5 * float(width))
     return _assemble(pts, lo, rs, ring, param, join, hook)
 
 
@@ -300,6 +318,39 @@ def _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, anchor, anchor_max, hw):
 
 
 @numba.njit(cache=True)
+def _snake(nxt, prv, arc, nt_next, nt_prev, anchor_max):
+    """Joins (``_connect``'s code) made by walking from each unvisited line's ends, in print
+    order, to the nearer free neighbouring end along the ring within ``anchor_max`` whose
+    stretch no infill line runs along, and on from that line's other end."""
+    m = nxt.shape[0]
+    parent = np.arange(m // 2)
+    code = np.full(m, -1, np.int64)
+    used = nxt < 0
+    for st in range(m):
+        e = st
+        while not used[e]:
+            best, fwd, length = -1, False, anchor_max
+            g1 = _find(parent, e // 2)
+            f = nxt[e]
+            if (f != e and not used[f] and nt_next[e] == np.inf and arc[e] <= length
+                    and _find(parent, f // 2) != g1):
+                best, fwd, length = f, True, arc[e]
+            b = prv[e]
+            if (b != e and not used[b] and nt_prev[e] == np.inf and arc[b] <= length
+                    and _find(parent, b // 2) != g1):
+                best, fwd, length = b, False, arc[b]
+            if best < 0:
+                break
+            g2 = _find(parent, best // 2)
+            code[e] = 2 * best + 1 if fwd else 2 * best
+            code[best] = 2 * e if fwd else 2 * e + 1
+            used[e] = used[best] = True
+            parent[max(g1, g2)] = min(g1, g2)
+            e = best ^ 1
+    return code
+
+
+@numba.njit(cache=True)
 def _reserve(buf, m, extra):
     """``buf`` with room for ``extra`` more points after the first ``m``."""
     if m + extra <= buf.shape[0]:
@@ -319,10 +370,19 @@ def _push(buf, m, x, y):
 
 @numba.njit(cache=True)
 def _walk(buf, m, a, b, rparam, seg_len, s, k, total, p0, p1, forward):
-    """Append the vertices of the ring (edges s .. s + k) strictly between arc lengths ``p0``
-    and ``p1``, going forward (increasing arc length) or backward, then the point at ``p1``."""
+    """Append the point of the ring (edges s .. s + k) at arc length ``p0`` unless the last
+    point is there already (a line end off the ring steps onto it), the ring's vertices strictly
+    between ``p0`` and ``p1``, going forward (increasing arc length) or backward, then the point
+    at ``p1``."""
     eps = 1e-12
     p0m, p1m = p0 % total, p1 % total
+    j0 = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
+    sl0 = seg_len[s + j0]
+    t0 = (p0m - rparam[s + j0]) / sl0 if sl0 > 0 else 0.0
+    x0 = a[s + j0, 0] + t0 * (b[s + j0, 0] - a[s + j0, 0])
+    y0 = a[s + j0, 1] + t0 * (b[s + j0, 1] - a[s + j0, 1])
+    if m == 0 or abs(buf[m - 1, 0] - x0) + abs(buf[m - 1, 1] - y0) > 1e-9:
+        buf, m = _push(buf, m, x0, y0)
     span = (p1 - p0) % total if forward else (p0 - p1) % total
     j = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
     if forward:
@@ -372,6 +432,10 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
                            param[st], param[st] + hook[st], hook[st] > 0)
             buf[t0:m] = buf[t0:m][::-1].copy()
+            li = st // 2
+            fp = lo[li] if st % 2 == 0 else lo[li + 1] - 1  # the line's first point
+            if abs(buf[m - 1, 0] - pts[fp, 0]) + abs(buf[m - 1, 1] - pts[fp, 1]) <= 1e-9:
+                m -= 1
         e = st
         while True:
             li = e // 2
@@ -396,7 +460,9 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             s = ring_start[r]
             buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
                            param[other], param[to], c % 2 == 1)
-            m -= 1  # the stretch's last point is the next line's first
+            nl = lo[to // 2] if to % 2 == 0 else lo[to // 2 + 1] - 1  # the next line's first point
+            if abs(buf[m - 1, 0] - pts[nl, 0]) + abs(buf[m - 1, 1] - pts[nl, 1]) <= 1e-9:
+                m -= 1  # the stretch ends on it
             e = to
         nc += 1
     off[nc] = m

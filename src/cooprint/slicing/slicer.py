@@ -51,7 +51,7 @@ from cooprint.slicing.gapfill import medial_lines
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
                                     TOP_SKIN, TRAVEL, LayerPaths, extrusion_spacing)
-from cooprint.slicing.patterns import CORRECTION_DEG, gyroid
+from cooprint.slicing.patterns import CORRECTION_DEG, clip_polylines, gyroid
 from cooprint.slicing import polysplit
 from cooprint.slicing.polysplit import split_by_region
 from cooprint.slicing.rings import drop_collinear
@@ -855,11 +855,14 @@ class _Job:
         """Solid lines over ``region`` at ``angle``: each connected piece gets a whole number of
         lines, the spacing widened by at most ``SOLID_SPACING_MAX`` and the width with it (the
         volume per area stays one layer height; PrusaSlicer's adjusted solid spacing). A bridge
-        (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads."""
+        (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads.
+        Solid and top lines (not bridges) end ``LINE_END`` spacings inside their piece and are
+        joined along it (:func:`~cooprint.slicing.anchor.anchor_infill`, ``snake``, no anchors)."""
         bridge = role == BRIDGE
-        rings = [r for piece in region.decompose() for r in [_rings(piece)] if r]
-        if not rings:
+        pieces = [(piece, r) for piece in region.decompose() for r in [_rings(piece)] if r]
+        if not pieces:
             return
+        rings = [r for _, r in pieces]
         a = math.radians(angle)
         rot = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])  # world -> (along, across)
         flat = [r for rs in rings for r in rs]
@@ -886,7 +889,17 @@ class _Job:
         k = seg[:, 0, 1]
         p = np.searchsorted(band, k + 0.25, side="right") - 1
         seg[:, :, 1] = ((k - band[p] + 0.5) * new[p] + lo_[p])[:, None]
-        paths.append((seg @ rot, role, line_w[p]))
+        seg = seg @ rot
+        if self.s.infill_anchor_max <= 0:
+            paths.append((seg, role, line_w[p]))
+            return
+        # the lines of each piece joined along its boundary, as PrusaSlicer's rectilinear fill
+        # does (no anchors): far fewer travels on ring-shaped solid areas
+        for q in np.unique(p):
+            inner, contour = _line_rings(pieces[q][0], spacing)
+            lines = clip_polylines(list(seg[p == q]), inner)
+            lines = _joined(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]), spacing)
+            paths.extend((line, role, float(line_w[q])) for line in lines)
 
     def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
         """Sparse infill of ``region`` in ``infill_pattern`` at ``infill_density`` (line
@@ -895,8 +908,8 @@ class _Job:
         s = self.s
         if s.infill_density <= 0:
             return
-        rings = _rings(region)
         sp = self.sparse_spacing
+        rings, contour = _line_rings(region, sp)
         w = s.role_width("infill", layer == 0)
         if s.infill_pattern == "gyroid":
             lines = gyroid(rings, sp / s.infill_density, self.zmin + float(self.tops[layer]),
@@ -910,11 +923,35 @@ class _Job:
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
             lines = [seg for ang, spacing in dirs for seg in hatch(rings, spacing, ang)]
-        lines = anchor_infill(lines, rings, s.infill_anchor, s.infill_anchor_max)
+        lines = _joined(lines, contour, s.infill_anchor, s.infill_anchor_max, w, sp)
         if lines and all(len(line) == 2 for line in lines):
             paths.append((np.stack(lines), INFILL, w))  # a batch of segments
         else:
             paths.extend((line, INFILL, w) for line in lines)
+
+
+#: Infill lines end this many spacings inside their region; joins and anchors follow the region
+#: shrunk by ``LINE_END + JOIN_TOL`` spacings (PrusaSlicer 2.5's FillRectilinear: 0.4 and 0.5),
+#: so they lie beside the inner perimeter rather than on it.
+LINE_END = 0.4
+JOIN_TOL = 0.1
+
+
+def _line_rings(region: CrossSection, spacing: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The rings the infill lines of ``region`` are clipped to, and the rings along which they
+    are joined and anchored (``LINE_END``)."""
+    return (_rings(region.offset(-LINE_END * spacing, _MITER)),
+            _rings(region.offset(-(LINE_END + JOIN_TOL) * spacing, _MITER)))
+
+
+def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, anchor_max: float,
+            width: float, spacing: float) -> list[np.ndarray]:
+    """``lines`` (ending ``JOIN_TOL`` spacings off ``contour``) joined along ``contour`` as
+    PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
+    the chains' ends shortest stretch first, with anchors (its connect_infill)."""
+    tol = 2 * JOIN_TOL * spacing
+    chains = anchor_infill(lines, contour, 0.0, anchor_max, width, tol, snake=True)
+    return anchor_infill(chains, contour, anchor, anchor_max, width, tol)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
