@@ -99,15 +99,16 @@ class Calibration:
 #: revision (``--check``: 47.4 M commands, 2.44 GB, 8 min 59 s, 10.2 GB peak): commands +5%,
 #: bytes +1%. Fitted again for issue 17's slicer (main 2026-12-02 after the regions merge: sparse
 #: lines joined along the perimeters, so fewer and longer; solid spacing fitted per region; gap
-#: fill, bridges), the same seven parts on the same loaded machine: commands per robot within
-#: -10.7% .. +7.0% (the hollow box again the worst), bytes -13% .. +4%, peak memory rms 3.7%
-#: (chunks in flight); slicing now 7.6 µs a command.
+#: fill, bridges), the same seven parts on the same loaded machine, then again once solid lines
+#: were joined along their boundaries too (more commands per line on curved parts: the car's were
+#: 1.55x the estimate): commands per robot within -11.7% .. +4.7% (the hollow box again the
+#: worst), bytes -13% .. +6%, peak memory rms 4.0% (chunks in flight).
 CALIBRATION = Calibration(
-    vertex=0.495, loop=0.0, line=2.353, layer=0.0,
-    coop_bytes=26.21, gcode_bytes=29.87,
-    start_s=0.35, slice_layer_s=0.0, slice_command_s=7.6e-06, program_command_s=3.69e-09,
-    write_command_s=1.51e-06, slice_cores=2,
-    memory_base=190e6, memory_job_command=0.0, memory_chunk_command=87.4,
+    vertex=0.418, loop=0.0, line=3.301, layer=0.0,
+    coop_bytes=29.99, gcode_bytes=30.01,
+    start_s=0.25, slice_layer_s=0.000943, slice_command_s=2.45e-06, program_command_s=2.36e-09,
+    write_command_s=1.2e-06, slice_cores=2,
+    memory_base=193e6, memory_job_command=0.0, memory_chunk_command=75.8,
 )
 
 #: Bytes of ``job.json`` per chunk (its row: bbox, planes, deps, times) and fixed (settings,

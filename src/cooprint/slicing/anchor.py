@@ -1,8 +1,6 @@
 """Infill lines anchored along the perimeters (issue 17, PrusaSlicer's ``infill_anchor`` and
 ``infill_anchor_max``).
 
-CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
-
 ``anchor_infill(lines, rings, anchor, anchor_max)`` -> list of (k, 2) polylines.
   ``lines``: the sparse infill lines of one region in print order (a list of (k, 2) polylines,
   each with both ends on the region's boundary (within ``tol``), as :func:`~cooprint.slicing.infill.hatch` and

@@ -1,8 +1,6 @@
 """Bridge direction (issue 17): the angle at which a bridge's lines are best anchored, as
 PrusaSlicer's BridgeDetector chooses it.
 
-CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
-
 ``bridge_angle(area, anchors, spacing)`` -> degrees or ``None``.
   ``area``: the bridge region (a CrossSection, mm); ``anchors``: where its lines may rest (the
   lower layer's material under and around it, a CrossSection); ``spacing``: line spacing, mm.

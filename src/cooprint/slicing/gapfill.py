@@ -1,7 +1,5 @@
 """Lines along the middle of thin regions (issue 17): gap fill between perimeters and thin walls.
 
-CONTRACT (lead, issue 17; the helper that owns this module replaces the body):
-
 ``medial_lines(region, min_width, max_width)`` -> list of ``(points (k, 2), width)``.
   ``region``: a CrossSection (mm) of thin parts (what is left between perimeters, or a wall too
   thin for a loop); the result follows its medial axis (the centres of its largest inscribed

@@ -1,7 +1,5 @@
 """Curved infill patterns and polyline clipping (issue 17).
 
-CONTRACT (lead, issue 17; the helper that owns this module replaces the bodies):
-
 ``clip_polylines(polylines, rings)`` -> list of (k, 2) arrays: the parts of open polylines
   inside the region of closed ``rings`` (even-odd, as :func:`cooprint.slicing.infill.hatch`),
   each part a polyline with its ends on the boundary; whole-array work (numba or numpy), no
