@@ -763,8 +763,9 @@ class _Job:
                 # object's layer below
                 obj = self.sections(i - 1, i + 1, context=True, clip=False)
                 obj = {k: _union(_islands(cs, s.min_area)) for k, cs in obj.items()}
-                anchors, whole = obj[i - 1], _opening(obj[i] - obj[i - 1], self.flows(i).ext / 10).decompose()
-                f = self.flows(i)  # the object's fill area, about: inside its perimeters
+                f = self.flows(i)
+                anchors, whole = obj[i - 1], _opening(obj[i] - obj[i - 1], f.ext / 10).decompose()
+                # the object's fill area, about: inside its perimeters
                 inner = obj[i].offset(-(f.ext + max(s.perimeters - 1, 0) * f.spacing(f.per)), _MITER)
             for group in me.bridge_g.decompose():
                 angle = s.bridge_angle_deg
