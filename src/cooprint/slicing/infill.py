@@ -27,10 +27,23 @@ def hatch(polygons: list[np.ndarray], spacing: float, angle_deg: float) -> np.nd
     """
     if not polygons or spacing <= 0:
         return np.zeros((0, 2, 2))
+    pts = np.concatenate([np.asarray(p, dtype=np.float64) for p in polygons])
+    return hatch_flat(pts, np.array([len(p) for p in polygons], dtype=np.int64), spacing, angle_deg)
+
+
+def hatch_flat(pts: np.ndarray, sizes: np.ndarray, spacing: float, angle_deg: float) -> np.ndarray:
+    """:func:`hatch` of the rings ``pts[0:sizes[0]]``, the next ``sizes[1]`` points, ... (all
+    rings' points in one array: no list of arrays to make)."""
+    if not len(pts) or spacing <= 0:
+        return np.zeros((0, 2, 2))
     a = math.radians(angle_deg)
     rot = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])  # world -> hatch frame
-    p0 = np.concatenate([np.asarray(p, dtype=np.float64) for p in polygons]) @ rot.T
-    p1 = np.concatenate([np.roll(np.asarray(p, dtype=np.float64), -1, axis=0) for p in polygons]) @ rot.T
+    # each point's successor along its ring (the last one's: the ring's first)
+    nxt = np.arange(1, len(pts) + 1)
+    ends = np.cumsum(sizes)
+    nxt[ends[sizes > 0] - 1] = (ends - sizes)[sizes > 0]
+    p0 = pts @ rot.T
+    p1 = pts[nxt] @ rot.T
     y0, y1 = p0[:, 1], p1[:, 1]
     lo, hi = np.minimum(y0, y1), np.maximum(y0, y1)
     first = np.ceil(lo / spacing).astype(np.int64)  # scanline k sits at y = k * spacing
@@ -46,8 +59,10 @@ def hatch(polygons: list[np.ndarray], spacing: float, angle_deg: float) -> np.nd
     order = np.lexsort((x, line))
     line, x = line[order], x[order]
     # pair crossings per scanline: 1st-2nd, 3rd-4th, ...
-    starts = np.flatnonzero(np.r_[True, line[1:] != line[:-1]])
-    rank = np.arange(len(line)) - np.repeat(starts, np.diff(np.r_[starts, len(line)]))
+    new = np.ones(len(line), dtype=bool)
+    new[1:] = line[1:] != line[:-1]
+    starts = np.flatnonzero(new)
+    rank = np.arange(len(line)) - np.repeat(starts, np.diff(np.append(starts, len(line))))
     is_start = rank % 2 == 0
     valid = is_start[:-1] & (line[1:] == line[:-1])
     i = np.flatnonzero(valid)

@@ -44,8 +44,9 @@ def clip_polylines(polylines: list[np.ndarray], rings: list[np.ndarray]) -> list
 
     Parameters
     ----------
-    polylines : list of (k, 2) float
-        Open polylines (k >= 2).
+    polylines : list of (k, 2) float, or (m, k, 2) float
+        Open polylines (k >= 2); an array: m polylines of k points each (a batch of hatch
+        segments: no Python work per polyline on the way in).
     rings : list of (m, 2) float
         The region's closed rings (outlines and holes, any orientation; even-odd rule).
 
@@ -55,22 +56,34 @@ def clip_polylines(polylines: list[np.ndarray], rings: list[np.ndarray]) -> list
         Every maximal inside part, in the order of the input (polyline by polyline, along each);
         a part's ends are the input's ends or crossings with the boundary.
     """
-    polylines = [np.asarray(p, dtype=np.float64)[:, :2] for p in polylines if len(p) >= 2]
+    if isinstance(polylines, np.ndarray):
+        polylines = np.asarray(polylines, dtype=np.float64)[:, :, :2] if polylines.shape[1] >= 2 else []
+    else:
+        polylines = [np.asarray(p, dtype=np.float64)[:, :2] for p in polylines if len(p) >= 2]
     rs = RingSet(rings)
-    if not polylines or not len(rs):
+    if not len(polylines) or not len(rs):
         return []
     pts, off = _clip(polylines, rs)
-    return np.split(pts, off[1:-1]) if len(off) > 1 else []
+    bounds = off.tolist()  # views of the flat result (np.split's per-part overhead is 3x this)
+    return [pts[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def _clip(polylines: list[np.ndarray], rs: RingSet) -> tuple[np.ndarray, np.ndarray]:
+def _clip(polylines: list[np.ndarray] | np.ndarray, rs: RingSet) -> tuple[np.ndarray, np.ndarray]:
     """Flat clipping: (points (n, 2), offsets (p + 1,)) of the inside parts."""
-    sizes = np.array([len(p) for p in polylines], dtype=np.int64)
     # one NaN row between polylines: the crossing search skips the segments touching it
-    flat = np.full((int(sizes.sum()) + len(sizes), 2), np.nan)
-    first = np.r_[0, np.cumsum(sizes + 1)[:-1]].astype(np.int64)
-    idx = np.repeat(first, sizes) + (np.arange(sizes.sum()) - np.repeat(np.r_[0, np.cumsum(sizes)[:-1]], sizes))
-    flat[idx] = np.concatenate(polylines)
+    if isinstance(polylines, np.ndarray):  # m polylines of k points
+        m, k = polylines.shape[:2]
+        sizes = np.full(m, k, dtype=np.int64)
+        flat = np.full((m, k + 1, 2), np.nan)
+        flat[:, :k] = polylines
+        flat = flat.reshape(-1, 2)
+        first = np.arange(m, dtype=np.int64) * (k + 1)
+    else:
+        sizes = np.array([len(p) for p in polylines], dtype=np.int64)
+        flat = np.full((int(sizes.sum()) + len(sizes), 2), np.nan)
+        first = np.concatenate([[0], np.cumsum(sizes + 1)[:-1]]).astype(np.int64)
+        idx = np.repeat(first, sizes) + (np.arange(sizes.sum()) - np.repeat(first - np.arange(len(sizes)), sizes))
+        flat[idx] = np.concatenate(polylines)
     x0, y0, cell, nx, ny, start, ids = rs.grid
     seg, t = crossings(flat, rs.a, rs.b, x0, y0, cell, nx, ny, start, ids)
     cuts = np.sort(seg + t)

@@ -48,7 +48,7 @@ from cooprint.io.mesh import Solid
 from cooprint.slicing.anchor import anchor_infill
 from cooprint.slicing.bridge import bridge_angle
 from cooprint.slicing.gapfill import medial_lines
-from cooprint.slicing.infill import hatch
+from cooprint.slicing.infill import hatch, hatch_flat
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
                                     TOP_SKIN, TRAVEL, LayerPaths, extrusion_spacing)
 from cooprint.slicing.patterns import CORRECTION_DEG, clip_polylines, gyroid
@@ -496,15 +496,17 @@ class _Job:
         self.bridge_w = s.nozzle_diameter * math.sqrt(s.bridge_flow_ratio)
         self.sparse_spacing = extrusion_spacing(s.role_width("infill"), s.layer_height)
 
-    def sections(self, lo: int, hi: int, context: bool = False, clip: bool = True) -> dict[int, CrossSection]:
-        """Sections of layers ``lo .. hi - 1`` at their mid-heights, simplified (``context``: the
-        object's, clipped to the chunk's surroundings unless not ``clip``)."""
-        mids = self.zmin + self.tops[lo:hi] - self.heights[lo:hi] / 2
+    def sections(self, layers: range | list[int], context: bool = False, clip: bool = True) -> dict[int, CrossSection]:
+        """Sections of ``layers`` (ascending) at their mid-heights, simplified (``context``: the
+        object's, clipped to the chunk's surroundings unless not ``clip``). Each layer's section
+        depends on that layer alone, whichever others are sliced with it."""
+        idx = np.asarray(layers, dtype=np.int64)
+        mids = self.zmin + self.tops[idx] - self.heights[idx] / 2
         out = {}
-        for k, rings in enumerate((self.context if context else self.slicer).rings(mids)):
+        for i, rings in zip(idx.tolist(), (self.context if context else self.slicer).rings(mids)):
             rings = drop_collinear(rings)  # a tessellated flat face's vertices: cheap to drop first
             cs = CrossSection(rings, manifold3d.FillRule.Positive).simplify(SIMPLIFY) if rings else CrossSection()
-            out[lo + k] = cs ^ self.clip if context and clip and not cs.is_empty() else cs
+            out[i] = cs ^ self.clip if context and clip and not cs.is_empty() else cs
         return out
 
     def flows(self, i: int) -> _Flows:
@@ -709,18 +711,24 @@ class _Job:
         s, n = self.s, len(self.tops)
         f_lo = max(0, lo - 2)
         c_lo, c_hi = max(0, f_lo - max(s.bottom_layers - 1, 0)), min(n, hi + max(s.top_layers - 1, 0))
-        sections = self.sections(max(0, c_lo - 1), min(n, c_hi + 1))
+        sections = self.sections(range(max(0, c_lo - 1), min(n, c_hi + 1)))
         islands = {i: _islands(cs, s.min_area) for i, cs in sections.items()}
         kept = {i: _union(isl) for i, isl in islands.items()}
         around = None  # a chunk: the object's sections, and its top and bottom on every layer
         self._around: dict[int, tuple[CrossSection, CrossSection]] | None = None
         if self.context is not None:
             around = {i: _union(_islands(cs, s.min_area))
-                      for i, cs in self.sections(max(0, c_lo - 1), min(n, c_hi + 1), context=True).items()}
+                      for i, cs in self.sections(range(max(0, c_lo - 1), min(n, c_hi + 1)), context=True).items()}
             self._around = {i: self.exposed(i, around[i], around) for i in range(c_lo, c_hi)}
         surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi, around) for i in range(c_lo, c_hi)}
         self._sources: dict[tuple[int, bool], CrossSection] = {}
         final = {j: self.solid_sparse(j, surf) for j in range(f_lo, hi)}
+        self._whole: dict[int, CrossSection] = {}
+        if self.context is not None:  # a chunk's bridges look at the object's whole layers (not
+            # clipped: a bridge may be long) on and under them: sliced once, only where needed
+            need = sorted({j for i in range(max(lo, 1), hi) if not surf[i].bridge_g.is_empty() for j in (i - 1, i)})
+            self._whole = {k: _union(_islands(cs, s.min_area))
+                           for k, cs in self.sections(need, context=True, clip=False).items()}
         here = self.start
         out = []
         for i in range(lo, hi):
@@ -742,7 +750,7 @@ class _Job:
                 isl = remaining.pop(k)
                 here = self.island_paths(isl, i, over, fills, len(surf[i].islands) == 1, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
-        del self._sources, self._around
+        del self._sources, self._around, self._whole
         return out
 
     def fill_regions(self, i: int, surf: dict[int, _Surfaces], final: dict) -> list[tuple[CrossSection, int, float | None]]:
@@ -761,8 +769,7 @@ class _Job:
                 anchors = _union([isl.cs for isl in below])
             else:  # a chunk: the object's whole bridge (not clipped: it may be long), anchored on the
                 # object's layer below
-                obj = self.sections(i - 1, i + 1, context=True, clip=False)
-                obj = {k: _union(_islands(cs, s.min_area)) for k, cs in obj.items()}
+                obj = self._whole
                 f = self.flows(i)
                 anchors, whole = obj[i - 1], _opening(obj[i] - obj[i - 1], f.ext / 10).decompose()
                 # the object's fill area, about: inside its perimeters
@@ -883,8 +890,7 @@ class _Job:
         # half a spacing in) fall on whole numbers: one hatch for all pieces
         band = np.concatenate([[0], np.cumsum(np.ceil(span / new) + 2)])[:-1]
         uv[:, 1] = (uv[:, 1] - lo_[owner]) / new[owner] - 0.5 + band[owner]
-        cuts = np.cumsum(sizes)[:-1]
-        seg = hatch(np.split(uv, cuts), 1.0, 0.0)
+        seg = hatch_flat(uv, sizes, 1.0, 0.0)
         if not len(seg):
             return
         k = seg[:, 0, 1]
@@ -898,7 +904,7 @@ class _Job:
         # does (no anchors): far fewer travels on ring-shaped solid areas
         for q in np.unique(p):
             inner, contour = _line_rings(pieces[q][0], spacing)
-            lines = clip_polylines(list(seg[p == q]), inner)
+            lines = clip_polylines(seg[p == q], inner)
             lines = _joined(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]), spacing)
             paths.extend((line, role, float(line_w[q])) for line in lines)
 
@@ -969,21 +975,17 @@ def _with_travel(z: float, height: float, paths: list[tuple[np.ndarray, int, flo
     inserted wherever one path does not start where the previous one ended."""
     if not paths:
         return LayerPaths.build(z, height, [])
-    blocks, roles, widths, lens = [], [], [], []
-    for pts, role, width in paths:
-        if pts.ndim == 3:
-            m, k = pts.shape[:2]
-            blocks.append(pts.reshape(-1, 2))
-            lens.append(np.full(m, k, dtype=np.int64))
-            roles.append(np.full(m, role, dtype=np.uint8))
-            widths.append(np.broadcast_to(np.asarray(width, dtype=np.float64), (m,)))
-        else:
-            blocks.append(pts)
-            lens.append(np.array([len(pts)], dtype=np.int64))
-            roles.append(np.array([role], dtype=np.uint8))
-            widths.append(np.array([width], dtype=np.float64))
-    pts = np.concatenate(blocks)
-    lens, role, width = np.concatenate(lens), np.concatenate(roles), np.concatenate(widths)
+    # one entry per path: a batch (m, k, 2) counts as m paths of k points, its role and width
+    # repeated (lists first, one array each at the end: a layer has thousands of paths)
+    many = [len(p) if p.ndim == 3 else 1 for p, _, _ in paths]
+    lens = np.repeat([p.shape[1] if p.ndim == 3 else len(p) for p, _, _ in paths], many).astype(np.int64)
+    role = np.repeat(np.array([r for _, r, _ in paths], dtype=np.uint8), many)
+    ws = [w for _, _, w in paths]
+    if all(np.ndim(w) == 0 for w in ws):
+        width = np.repeat(np.array(ws, dtype=np.float64), many)
+    else:  # a batch may have a width per path
+        width = np.concatenate([np.broadcast_to(np.asarray(w, dtype=np.float64), (m,)) for w, m in zip(ws, many)])
+    pts = np.concatenate([p.reshape(-1, 2) if p.ndim == 3 else p for p, _, _ in paths])
     ends = np.cumsum(lens)
     first, last = pts[ends - lens], pts[ends - 1]
     jump = np.r_[False, np.linalg.norm(first[1:] - last[:-1], axis=1) > 1e-9]
