@@ -110,29 +110,34 @@ def link(s_key, e_key):
 
 
 @numba.njit(cache=True, nogil=True)
-def walk(nxt):
-    """The cycles of the permutation ``nxt``: ``order`` lists the elements cycle by cycle,
-    cycles in the order of their smallest member, each from that member along ``nxt``; cycle
-    ``r`` is ``order[ring_at[r]:ring_at[r + 1]]``. (Walking up from element 0, every element
-    not yet seen starts a cycle whose other members are all larger.)"""
+def walk(nxt, start, layer):
+    """The cycles of the permutation ``nxt`` (the segments' links) as rings: ``pts`` lists the
+    segments' start points cycle by cycle, cycles in the order of their smallest member, each
+    from that member along ``nxt``; cycle ``r`` is ``pts[ring_at[r]:ring_at[r + 1]]``, on layer
+    ``ring_layer[r]`` (its segments'). (Walking up from element 0, every element not yet seen
+    starts a cycle whose other members are all larger.) The points are gathered here, as the
+    cycles are walked: a separate ``start[order]`` costs as much as the walk."""
     n = len(nxt)
     seen = np.zeros(n, np.bool_)
-    order = np.empty(n, np.int64)
+    pts = np.empty((n, 2))
     ring_at = np.empty(n + 1, np.int64)
+    ring_layer = np.empty(n, np.int64)
     w = 0
     r = 0
     for i in range(n):
         if seen[i]:
             continue
         ring_at[r] = w
+        ring_layer[r] = layer[i]
         r += 1
         j = i
         while not seen[j]:
             seen[j] = True
-            order[w] = j
+            pts[w, 0] = start[j, 0]
+            pts[w, 1] = start[j, 1]
             w += 1
             j = nxt[j]
         if j != i:
             raise ValueError("the mesh is not closed: a section does not form loops")
     ring_at[r] = w
-    return order, ring_at[:r + 1]
+    return pts, ring_at[:r + 1], ring_layer[:r]

@@ -21,7 +21,7 @@ import numpy as np
 
 from cooprint.geometry import STEP, index_dtype
 
-#: Segments made in one pass (about 100 bytes each: points, keys, links, order, hash table): bounds
+#: Segments made in one pass (about 100 bytes each: points made and walked, keys, links, hash table): bounds
 #: the memory of a block of layers without changing its sections.
 SEGMENTS = 1 << 15
 
@@ -88,11 +88,11 @@ class LayerSlicer:
             return
         start, s_key, e_key, layer = segments(self.vertices, self.number, self.faces, heights,
                                                cand.astype(np.int64), first.astype(np.int64), last.astype(np.int64))
-        order, ring_at = walk(link(s_key, e_key))
+        nxt = link(s_key, e_key)
         del s_key, e_key
-        pts = start[order]
-        del start
-        ring_layer = layer[order[ring_at[:-1]]].tolist()
+        pts, ring_at, ring_layer = walk(nxt, start, layer)
+        del start, nxt
+        ring_layer = ring_layer.tolist()
         for k, (s, e) in enumerate(zip(ring_at[:-1].tolist(), ring_at[1:].tolist())):
             if e - s >= 3:
                 out[ring_layer[k]].append(pts[s:e])

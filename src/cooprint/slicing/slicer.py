@@ -929,7 +929,8 @@ class _Job:
                         (s.infill_angle_deg + 90, 2 * sp / s.infill_density)]
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
-            lines = [seg for ang, spacing in dirs for seg in hatch(rings, spacing, ang)]
+            # the segments as a list of (2, 2) views (list() of the array: no Python step per line)
+            lines = list(np.concatenate([hatch(rings, spacing, ang) for ang, spacing in dirs]))
         lines = _joined(lines, contour, s.infill_anchor, s.infill_anchor_max, w, sp)
         if lines and all(len(line) == 2 for line in lines):
             paths.append((np.stack(lines), INFILL, w))  # a batch of segments
@@ -981,14 +982,14 @@ def _with_travel(z: float, height: float, paths: list[tuple[np.ndarray, int, flo
     lens = np.repeat([p.shape[1] if p.ndim == 3 else len(p) for p, _, _ in paths], many).astype(np.int64)
     role = np.repeat(np.array([r for _, r, _ in paths], dtype=np.uint8), many)
     ws = [w for _, _, w in paths]
-    if all(np.ndim(w) == 0 for w in ws):
+    if not any(isinstance(w, np.ndarray) and w.ndim for w in ws):
         width = np.repeat(np.array(ws, dtype=np.float64), many)
     else:  # a batch may have a width per path
         width = np.concatenate([np.broadcast_to(np.asarray(w, dtype=np.float64), (m,)) for w, m in zip(ws, many)])
     pts = np.concatenate([p.reshape(-1, 2) if p.ndim == 3 else p for p, _, _ in paths])
     ends = np.cumsum(lens)
     first, last = pts[ends - lens], pts[ends - 1]
-    jump = np.r_[False, np.linalg.norm(first[1:] - last[:-1], axis=1) > 1e-9]
+    jump = np.concatenate([[False], np.linalg.norm(first[1:] - last[:-1], axis=1) > 1e-9])
     # output: each path preceded by a 2-point travel where it jumps
     size = lens + 2 * jump
     start = np.cumsum(size) - size
