@@ -120,6 +120,16 @@ def test_clip_keeps_inside_polylines_and_drops_outside_ones():
     assert clip_polylines([], [outer]) == [] and clip_polylines([inside], []) == []
 
 
+def test_clip_takes_a_batch_of_polylines_as_one_array():
+    outer, hole = box(0, 0, 10, 10), box(4, 4, 6, 6)
+    batch = np.array([[[-5.0, 5.0], [15.0, 5.0]], [[1.0, 1.0], [2.0, 9.0]], [[11.0, 1.0], [15.0, 5.0]]])
+    got, want = clip_polylines(batch, [outer, hole]), clip_polylines(list(batch), [outer, hole])
+    assert len(got) == len(want) == 3
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
+    assert clip_polylines(batch[:0], [outer]) == []
+
+
 @settings(max_examples=60, deadline=None)
 @given(boxes, st.lists(st.tuples(st.floats(-10, 90), st.floats(-10, 90)), min_size=2, max_size=12))
 def test_clip_keeps_exactly_the_inside_parts(params, vertices):

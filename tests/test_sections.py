@@ -67,8 +67,13 @@ def test_walk_gives_each_cycle_from_its_smallest_member(lengths, rnd):
         for i, m in enumerate(members):
             nxt[m] = members[(i + 1) % L]
         cycles.append(members)
-    order, ring_at = walk(nxt)
+    # each element's point is (its number, 2 x its number), its layer 3 x its number
+    start = np.stack([np.arange(n), 2 * np.arange(n)], axis=1).astype(np.float64)
+    pts, ring_at, ring_layer = walk(nxt, start, 3 * np.arange(n, dtype=np.int64))
+    assert np.array_equal(pts[:, 1], 2 * pts[:, 0])
+    order = pts[:, 0].astype(np.int64)
     walked = [order[a:b].tolist() for a, b in zip(ring_at[:-1], ring_at[1:])]
+    assert ring_layer.tolist() == [3 * w[0] for w in walked]
     expected = []
     for members in sorted(cycles, key=min):  # cycles by their smallest member, each walked from it
         cur, seen = min(members), []
@@ -88,7 +93,7 @@ def test_link_finds_the_next_segment_and_refuses_open_chains():
     with pytest.raises(ValueError, match="not closed"):
         link(np.array([10, 10], np.int64), np.array([10, 10], np.int64))  # two segments start on one edge
     with pytest.raises(ValueError, match="not closed"):
-        walk(np.array([1, 1], np.int64))  # not a permutation
+        walk(np.array([1, 1], np.int64), np.zeros((2, 2)), np.zeros(2, np.int64))  # not a permutation
 
 
 def test_segment_groups_change_nothing(monkeypatch):

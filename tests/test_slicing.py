@@ -12,7 +12,7 @@ from cooprint.io.mesh import solid_from_arrays
 from cooprint.program.build import layer_pieces
 from cooprint.program.gcode import gcode_text
 from cooprint.slicing import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, layer_tops, slice_solid
-from cooprint.slicing.infill import hatch
+from cooprint.slicing.infill import hatch, hatch_flat
 from cooprint.slicing.paths import BRIDGE, TOP_SKIN, extrusion_spacing, flow_area
 
 from solids import box, to_trimesh, tube
@@ -131,6 +131,8 @@ def test_hatch_square():
     seg = hatch(holed, 1.0, 0.0)
     assert len(seg) == 14  # four lines through the hole are split in two
     assert np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1).sum() == pytest.approx(100 - 4 * 4)
+    # the same rings as one array of points and their sizes
+    np.testing.assert_array_equal(hatch_flat(np.concatenate(holed), np.array([4, 4]), 1.0, 0.0), seg)
 
 
 def read_gcode(text):

@@ -457,6 +457,12 @@ def _opening(cs: CrossSection, r: float) -> CrossSection:
     return core if core.is_empty() else core.offset(r, _MITER)
 
 
+def _apart(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> bool:
+    """Whether bounding boxes ``a`` and ``b`` (xmin, ymin, xmax, ymax) are apart: the
+    cross-sections they bound have nothing in common (a boolean spared)."""
+    return a[0] > b[2] or b[0] > a[2] or a[1] > b[3] or b[1] > a[3]
+
+
 def _nonempty(cs: CrossSection | None) -> bool:
     return cs is not None and not cs.is_empty()
 
@@ -816,7 +822,7 @@ class _Job:
         gap fill, solid fills and sparse infill to ``paths``; return the nozzle position."""
         s, f = self.s, self.flows(layer)
         if over is not None and not alone:
-            over = over ^ isl.cs
+            over = over ^ isl.cs if not _apart(over.bounds(), isl.cs.bounds()) else None
         over_rings = _rings(over) if over is not None and not over.is_empty() else None
         order = isl.loops if s.outer_perimeter_first else isl.loops[::-1]
         for depth, rings in order:
@@ -845,8 +851,11 @@ class _Job:
         if isl.fill.is_empty():
             return _last_point(paths, here)
         angle = s.infill_angle_deg + 90.0 * (layer % 2)
+        box = isl.fill.bounds()
         for region, role, bridge in fills:
             if not alone:
+                if _apart(region.bounds(), box):  # another island's region: nothing in common
+                    continue
                 region = region ^ isl.fill
                 if region.is_empty():
                     continue
