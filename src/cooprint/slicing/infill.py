@@ -1,4 +1,4 @@
-"""Hatching: parallel lines clipped to polygons, as one whole-array scanline pass.
+"""Hatching: parallel lines clipped to polygons, in one compiled scanline pass (numba).
 
 The scanlines of a direction sit on a global grid (multiples of the spacing in the rotated
 frame), so lines of the same direction line up from layer to layer and from chunk to chunk.
