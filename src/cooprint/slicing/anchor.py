@@ -31,12 +31,13 @@ end, which makes one polyline of a convex area where shortest-first leaves sever
 
 from __future__ import annotations
 
+import math
 
 import numba
 import numpy as np
 
 from cooprint.slicing.patterns import chain_order
-from cooprint.slicing.rings import EdgeSet, RingSet
+from cooprint.slicing.rings import RingSet
 
 #: A line end within this distance of a ring is on it, mm.
 END_TOL = 1e-3
@@ -140,14 +141,6 @@ def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
     start = np.maximum(s0, END_CLEAR * width)
     stop = np.minimum(s0 + seg, total - END_CLEAR * width)
     keep = real & (stop > start + 1e-9)
-    # only segments near the rings can block them (a long one always may)
-    short = seg <= 2.0
-    mid = 0.5 * (pts[:-1] + pts[1:])
-    check = keep & short
-    near = np.zeros(len(seg), dtype=bool)
-    if check.any():
-        near[check] = rs.nearest(mid[check], COLLIDE * width + 0.5 * seg[check].max())[0] >= 0
-    keep &= near | ~short
     if not keep.any():
         return fwd, bwd
     i = np.flatnonzero(keep)
@@ -157,14 +150,17 @@ def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
     # samples along the rings every half width: those near an infill line are blocked
     step = 0.5 * width
     counts = np.maximum(np.ceil(rs.ring_len / step).astype(np.int64), 1)
-    r_of = np.repeat(np.arange(len(counts)), counts)
-    k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    sp = k * (rs.ring_len / counts)[r_of]
-    blocked = EdgeSet(a, b).nearest(rs.points_at(r_of, sp), COLLIDE * width)[0] >= 0
-    if not blocked.any():
-        return fwd, bwd
-    br, bp = r_of[blocked], sp[blocked]
+    offset = np.r_[0, np.cumsum(counts)]
     big = float(rs.ring_len.max()) + 1.0
+    key = rs.ring_of.astype(np.float64) * big + rs.param  # rs.points_at's search key
+    x0, y0, cell, nx, ny, gstart, gids = rs.grid
+    blocked = np.flatnonzero(_blocked(a, b, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start,
+                                      rs.ring_len, key, big, counts, offset, x0, y0, cell, nx, ny,
+                                      gstart, gids, COLLIDE * width))
+    if not len(blocked):
+        return fwd, bwd
+    br = np.searchsorted(offset, blocked, side="right") - 1
+    bp = (blocked - offset[br]) * (rs.ring_len / counts)[br]
     key = br * big + bp  # sorted: rings in order, arc length within each
     ring_first = np.searchsorted(br, np.arange(len(counts)), side="left")
     ring_last = np.searchsorted(br, np.arange(len(counts)), side="right") - 1
@@ -480,3 +476,123 @@ def _assemble(pts, lo, rs, ring, param, code, hook) -> list[np.ndarray]:
     order, rev = chain_order(heads, tails, heads[0])
     chosen = by_first[order]
     return [polys[k][::-1].copy() if r else polys[k] for k, r in zip(chosen, rev)]
+
+
+@numba.njit(cache=True)
+def _span(lo, hi, alpha, beta):
+    """The interval of t where lo <= alpha + beta * t <= hi: (t0, t1), empty when t0 > t1."""
+    if abs(beta) < 1e-15:
+        if lo <= alpha <= hi:
+            return -np.inf, np.inf
+        return np.inf, -np.inf
+    t0, t1 = (lo - alpha) / beta, (hi - alpha) / beta
+    return (t0, t1) if t0 <= t1 else (t1, t0)
+
+
+@numba.njit(cache=True)
+def _near_span(ex, ey, ux, uy, length, ax, ay, vx, vy, ls, reach):
+    """The stretch (t0, t1) of the edge ``(ex, ey) + t (ux, uy)``, 0 <= t <= ``length``, within
+    ``reach`` of the segment from ``(ax, ay)`` along the unit ``(vx, vy)`` for ``ls``: the edge's
+    line cut by the segment's capsule (two discs and the rectangle between them); empty when
+    t0 > t1."""
+    t0, t1 = np.inf, -np.inf
+    for k in range(2):
+        px, py = (ax, ay) if k == 0 else (ax + ls * vx, ay + ls * vy)
+        wx, wy = px - ex, py - ey
+        along = wx * ux + wy * uy
+        perp = wx * uy - wy * ux
+        h = reach * reach - perp * perp
+        if h >= 0.0:
+            r = math.sqrt(h)
+            t0, t1 = min(t0, along - r), max(t1, along + r)
+    s0, s1 = _span(0.0, ls, (ex - ax) * vx + (ey - ay) * vy, ux * vx + uy * vy)
+    n0, n1 = _span(-reach, reach, (ex - ax) * -vy + (ey - ay) * vx, ux * -vy + uy * vx)
+    lo, hi = max(s0, n0), min(s1, n1)
+    if lo <= hi:
+        t0, t1 = min(t0, lo), max(t1, hi)
+    return max(t0, 0.0), min(t1, length)
+
+
+@numba.njit(cache=True)
+def _blocked(sa, sb, ra, rb, rparam, rlen, ring_of, ring_start, ring_len, key, big, counts, offset,
+             x0, y0, cell, nx, ny, start, ids, tol):
+    """Which ring samples lie within ``tol`` of a segment ``sa -> sb``: (samples,) bool, ring
+    ``r``'s ``counts[r]`` samples (evenly spaced by arc length from its first vertex) at
+    ``offset[r]:offset[r + 1]``.
+
+    The same points and the same distance test as sampling every ring (``RingSet.points_at``)
+    and asking an :class:`~cooprint.slicing.rings.EdgeSet` of the segments for each sample, but
+    only the samples near a segment are looked at: every segment walks the rings' grid (``x0``
+    .. ``ids``, :attr:`RingSet.grid`) for the edges within reach, and only the samples on the
+    stretch of each such edge near the segment are tested (the infill lines cross the rings far
+    more often than they run along them)."""
+    eps = 1e-6  # the candidate stretches are widened by this much, mm: rounding never drops a sample
+    reach = tol + eps
+    out = np.zeros(offset[-1], np.bool_)
+    seen = np.full(ra.shape[0], -1, np.int64)
+    # an edge within 3/4 of a cell of a point is registered in the point's cell; the segment's
+    # own samples are half a cell apart: look this many cells further
+    more = max(0, int(math.ceil(reach / cell - 0.5)))
+    for s in range(sa.shape[0]):
+        ax, ay = sa[s, 0], sa[s, 1]
+        dx, dy = sb[s, 0] - ax, sb[s, 1] - ay
+        ls = math.sqrt(dx * dx + dy * dy)
+        l2 = dx * dx + dy * dy
+        vx, vy = dx / ls, dy / ls
+        steps = int(ls / (0.5 * cell)) + 1
+        lx, ly = -1 << 40, -1 << 40
+        for j in range(steps + 1):
+            f = j / steps
+            cx = int(math.floor((ax + f * dx - x0) / cell))
+            cy = int(math.floor((ay + f * dy - y0) / cell))
+            if cx == lx and cy == ly:
+                continue
+            lx, ly = cx, cy
+            for oy in range(max(cy - more, 0), min(cy + more + 1, ny)):
+                for ox in range(max(cx - more, 0), min(cx + more + 1, nx)):
+                    c = oy * nx + ox
+                    for jj in range(start[c], start[c + 1]):
+                        i = ids[jj]
+                        if seen[i] == s:
+                            continue
+                        seen[i] = s
+                        le = rlen[i]
+                        ex, ey = ra[i, 0], ra[i, 1]
+                        if le > 0:
+                            t0, t1 = _near_span(ex, ey, (rb[i, 0] - ex) / le, (rb[i, 1] - ey) / le, le,
+                                                ax, ay, vx, vy, ls, reach)
+                        else:
+                            t0, t1 = _near_span(ex, ey, 1.0, 0.0, 0.0, ax, ay, vx, vy, ls, reach)
+                        if t0 > t1:
+                            continue
+                        r = ring_of[i]
+                        L = ring_len[r]
+                        n = counts[r]
+                        st = L / n
+                        k0 = max(int(math.ceil((rparam[i] + t0 - eps) / st)), 0)
+                        k1 = min(int(math.floor((rparam[i] + t1 + eps) / st)), n - 1)
+                        for k in range(k0, k1 + 1):
+                            g = offset[r] + k
+                            if out[g]:
+                                continue
+                            # the sample's point as RingSet.points_at puts it
+                            p = k * st
+                            q = r * big + p
+                            lo, hi = ring_start[r], ring_start[r + 1]
+                            while lo < hi:  # the first edge whose key exceeds q
+                                mid = (lo + hi) // 2
+                                if key[mid] <= q:
+                                    lo = mid + 1
+                                else:
+                                    hi = mid
+                            e = lo - 1
+                            t = (p - rparam[e]) / rlen[e] if rlen[e] > 0 else 0.0
+                            px = ra[e, 0] + t * (rb[e, 0] - ra[e, 0])
+                            py = ra[e, 1] + t * (rb[e, 1] - ra[e, 1])
+                            # the distance as EdgeSet.nearest measures it
+                            u = ((px - ax) * dx + (py - ay) * dy) / l2
+                            u = min(max(u, 0.0), 1.0)
+                            wx, wy = ax + u * dx - px, ay + u * dy - py
+                            if math.sqrt(wx * wx + wy * wy) <= tol:
+                                out[g] = True
+    return out
