@@ -50,7 +50,7 @@ END_CLEAR = 1.7
 LINE_WIDTH = 0.45
 
 
-def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float,
+def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anchor: float, anchor_max: float,
                   width: float = LINE_WIDTH, tol: float = END_TOL, snake: bool = False) -> list[np.ndarray]:
     """``lines`` joined and anchored along ``rings`` (module docstring).
 
@@ -58,8 +58,9 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     ----------
     lines : list of (k, 2) float
         Infill polylines (k >= 2) in print order, ends on the rings.
-    rings : list of (m, 2) float
-        The region's closed rings (outlines and holes).
+    rings : list of (m, 2) float, or RingSet
+        The region's closed rings (outlines and holes); a :class:`~cooprint.slicing.rings.RingSet`
+        of them when several calls share the region (its search structures are built once).
     anchor : float
         Longest anchor, mm (PrusaSlicer's infill_anchor); 0: no anchors.
     anchor_max : float
@@ -84,7 +85,7 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     lines = [np.asarray(p, dtype=np.float64)[:, :2] for p in lines if len(p) >= 2]
     if (anchor <= 0 and anchor_max <= 0) or not lines:
         return list(lines)
-    rs = RingSet(rings)
+    rs = rings if isinstance(rings, RingSet) else RingSet(rings)
     if not len(rs):
         return list(lines)
     n = len(lines)
@@ -556,10 +557,20 @@ def _blocked(sa, sb, ra, rb, rparam, rlen, ring_of, ring_start, ring_len, key, b
                         if seen[i] == s:
                             continue
                         seen[i] = s
-                        le = rlen[i]
                         ex, ey = ra[i, 0], ra[i, 1]
+                        fx, fy = rb[i, 0], rb[i, 1]
+                        # far on one side of the segment's line, or beyond one of its ends
+                        c0 = (ex - ax) * vy - (ey - ay) * vx
+                        c1 = (fx - ax) * vy - (fy - ay) * vx
+                        if (c0 > reach and c1 > reach) or (c0 < -reach and c1 < -reach):
+                            continue
+                        c0 = (ex - ax) * vx + (ey - ay) * vy
+                        c1 = (fx - ax) * vx + (fy - ay) * vy
+                        if (c0 > ls + reach and c1 > ls + reach) or (c0 < -reach and c1 < -reach):
+                            continue
+                        le = rlen[i]
                         if le > 0:
-                            t0, t1 = _near_span(ex, ey, (rb[i, 0] - ex) / le, (rb[i, 1] - ey) / le, le,
+                            t0, t1 = _near_span(ex, ey, (fx - ex) / le, (fy - ey) / le, le,
                                                 ax, ay, vx, vy, ls, reach)
                         else:
                             t0, t1 = _near_span(ex, ey, 1.0, 0.0, 0.0, ax, ay, vx, vy, ls, reach)

@@ -54,7 +54,7 @@ from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETE
 from cooprint.slicing.patterns import CORRECTION_DEG, clip_polylines, gyroid
 from cooprint.slicing import polysplit
 from cooprint.slicing.polysplit import split_by_region
-from cooprint.slicing.rings import drop_collinear
+from cooprint.slicing.rings import RingSet, drop_collinear
 from cooprint.slicing.sections import LayerSlicer
 
 CrossSection = manifold3d.CrossSection
@@ -951,8 +951,9 @@ def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, a
     PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
     the chains' ends shortest stretch first, with anchors (its connect_infill)."""
     tol = 2 * JOIN_TOL * spacing
-    chains = anchor_infill(lines, contour, 0.0, anchor_max, width, tol, snake=True)
-    return anchor_infill(chains, contour, anchor, anchor_max, width, tol)
+    rs = RingSet(contour)  # built once for both passes
+    chains = anchor_infill(lines, rs, 0.0, anchor_max, width, tol, snake=True)
+    return anchor_infill(chains, rs, anchor, anchor_max, width, tol)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
