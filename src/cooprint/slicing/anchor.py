@@ -131,23 +131,9 @@ def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
     that runs along it would print that line twice."""
     m = len(on)
     fwd, bwd = np.full(m, np.inf), np.full(m, np.inf)
-    sizes = np.diff(lo)
-    first = lo[:-1]
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    cum = np.r_[0.0, np.cumsum(seg)]
-    s0 = cum[:-1] - np.repeat(cum[first], sizes)[:-1]  # along its line, at each segment's start
-    total = np.repeat(cum[first + sizes - 1] - cum[first], sizes)[:-1]
-    real = np.ones(len(seg), dtype=bool)
-    real[(first + sizes - 1)[:-1]] = False  # the joints between consecutive lines
-    start = np.maximum(s0, END_CLEAR * width)
-    stop = np.minimum(s0 + seg, total - END_CLEAR * width)
-    keep = real & (stop > start + 1e-9)
-    if not keep.any():
+    a, b = _clear_parts(pts, lo, END_CLEAR * width)
+    if not len(a):
         return fwd, bwd
-    i = np.flatnonzero(keep)
-    d = (pts[i + 1] - pts[i]) / seg[i, None]
-    a = pts[i] + d * (start[i] - s0[i])[:, None]
-    b = pts[i] + d * (stop[i] - s0[i])[:, None]
     # samples along the rings every half width: those near an infill line are blocked
     step = 0.5 * width
     counts = np.maximum(np.ceil(rs.ring_len / step).astype(np.int64), 1)
@@ -607,3 +593,32 @@ def _blocked(sa, sb, ra, rb, rparam, rlen, ring_of, ring_start, ring_len, key, b
                             if math.sqrt(wx * wx + wy * wy) <= tol:
                                 out[g] = True
     return out
+
+
+@numba.njit(cache=True)
+def _clear_parts(pts, lo, clear):
+    """The parts of the lines ``pts[lo[i]:lo[i + 1]]`` farther than ``clear`` (along the line)
+    from both its ends, segment by segment: (start (s, 2), end (s, 2))."""
+    n = pts.shape[0]
+    a = np.empty((max(n - 1, 0), 2))
+    b = np.empty((max(n - 1, 0), 2))
+    cum = np.zeros(n)  # arc length from the first point, over the joints between lines too
+    for j in range(n - 1):
+        cum[j + 1] = cum[j] + math.hypot(pts[j + 1, 0] - pts[j, 0], pts[j + 1, 1] - pts[j, 1])
+    m = 0
+    for li in range(lo.shape[0] - 1):
+        first, last = lo[li], lo[li + 1] - 1
+        total = cum[last] - cum[first]
+        for j in range(first, last):
+            seg = math.hypot(pts[j + 1, 0] - pts[j, 0], pts[j + 1, 1] - pts[j, 1])
+            s0 = cum[j] - cum[first]
+            start = max(s0, clear)
+            stop = min(s0 + seg, total - clear)
+            if not stop > start + 1e-9:
+                continue
+            for k in range(2):
+                d = (pts[j + 1, k] - pts[j, k]) / seg
+                a[m, k] = pts[j, k] + d * (start - s0)
+                b[m, k] = pts[j, k] + d * (stop - s0)
+            m += 1
+    return a[:m], b[:m]
