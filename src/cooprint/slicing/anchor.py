@@ -82,15 +82,50 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, an
     list of (j, 2) float64
         The joined and anchored polylines, in nearest-next order from the first line's start.
     """
-    lines = [np.asarray(p, dtype=np.float64)[:, :2] for p in lines if len(p) >= 2]
-    if (anchor <= 0 and anchor_max <= 0) or not lines:
-        return list(lines)
-    rs = rings if isinstance(rings, RingSet) else RingSet(rings)
-    if not len(rs):
-        return list(lines)
-    n = len(lines)
-    pts = np.concatenate(lines)
-    lo = np.r_[0, np.cumsum([len(p) for p in lines])].astype(np.int64)  # line i: pts[lo[i]:lo[i + 1]]
+    pts, lo = _packed(lines)
+    rs = None if (anchor <= 0 and anchor_max <= 0) or len(lo) < 2 else \
+        rings if isinstance(rings, RingSet) else RingSet(rings)
+    if rs is not None and len(rs):
+        pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
+    return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
+
+
+def join_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anchor: float, anchor_max: float,
+                width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
+    """``lines`` joined as PrusaSlicer joins them: first snake-wise (``anchor_infill`` with
+    ``snake``, no anchors), then the chains' ends shortest stretch first, with anchors; the same
+    as those two calls (parameters as :func:`anchor_infill`'s), without unpacking the chains in
+    between."""
+    pts, lo = _packed(lines)
+    rs = None if (anchor <= 0 and anchor_max <= 0) or len(lo) < 2 else \
+        rings if isinstance(rings, RingSet) else RingSet(rings)
+    if rs is not None and len(rs):
+        if anchor_max > 0:
+            pts, lo = _anchored(pts, lo, rs, 0.0, anchor_max, width, tol, True)
+        pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, False)
+    return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
+
+
+def _packed(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The polylines of two points or more, (x, y) only, concatenated: (points (N, 2) float64,
+    offsets (n + 1,) int64: line i is ``points[offsets[i]:offsets[i + 1]]``)."""
+    sizes = np.fromiter(map(len, lines), np.int64, len(lines))
+    if (sizes < 2).any():
+        lines = [p for p, k in zip(lines, sizes) if k >= 2]
+        sizes = sizes[sizes >= 2]
+    if not len(lines):
+        return np.zeros((0, 2)), np.zeros(1, np.int64)
+    try:
+        pts = np.concatenate(lines)
+    except ValueError:  # rows of different widths
+        pts = np.concatenate([np.asarray(p)[:, :2] for p in lines])
+    return np.ascontiguousarray(pts[:, :2], dtype=np.float64), np.r_[0, np.cumsum(sizes)]
+
+
+def _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake):
+    """:func:`anchor_infill` of the lines ``pts[lo[i]:lo[i + 1]]`` (at least one, each of two
+    points or more) along ``rs``: the resulting polylines packed the same way, (points, offsets)."""
+    n = len(lo) - 1
     ends = np.empty((2 * n, 2))
     ends[0::2] = pts[lo[:-1]]
     ends[1::2] = pts[lo[1:] - 1]
@@ -450,19 +485,36 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
     return buf[:m], off[:nc + 1], first[:nc]
 
 
-def _assemble(pts, lo, rs, ring, param, code, hook) -> list[np.ndarray]:
-    """Chains of lines joined by ring stretches, with their anchors, as polylines in
-    nearest-next order from the first line's chain."""
+def _assemble(pts, lo, rs, ring, param, code, hook) -> tuple[np.ndarray, np.ndarray]:
+    """Chains of lines joined by ring stretches, with their anchors, in nearest-next order from
+    the first line's chain: (points, offsets) as the lines came."""
     pts, off, first = _chains(pts, lo, ring, param, code, hook, rs.a, rs.b, rs.param,
                               rs.seg_len, rs.ring_start, rs.ring_len)
     if len(off) < 2:
-        return []
-    polys = np.split(pts, off[1:-1])
+        return pts, off
     by_first = np.argsort(first, kind="stable")
     heads, tails = pts[off[:-1]][by_first], pts[off[1:] - 1][by_first]
     order, rev = chain_order(heads, tails, heads[0])
-    chosen = by_first[order]
-    return [polys[k][::-1].copy() if r else polys[k] for k, r in zip(chosen, rev)]
+    return _reordered(pts, off, by_first[order], rev)
+
+
+@numba.njit(cache=True)
+def _reordered(pts, off, chosen, rev):
+    """The polylines ``pts[off[k]:off[k + 1]]`` for k in ``chosen``, reversed where ``rev``,
+    packed again: (points, offsets)."""
+    out = np.empty_like(pts)
+    lo = np.zeros(chosen.shape[0] + 1, np.int64)
+    m = 0
+    for j in range(chosen.shape[0]):
+        k = chosen[j]
+        size = off[k + 1] - off[k]
+        for i in range(size):
+            src = off[k + 1] - 1 - i if rev[j] else off[k] + i
+            out[m + i, 0] = pts[src, 0]
+            out[m + i, 1] = pts[src, 1]
+        m += size
+        lo[j + 1] = m
+    return out[:m], lo
 
 
 @numba.njit(cache=True)

@@ -45,7 +45,7 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, default_workers
 from cooprint.io.mesh import Solid
-from cooprint.slicing.anchor import anchor_infill
+from cooprint.slicing.anchor import join_infill
 from cooprint.slicing.bridge import bridge_angle
 from cooprint.slicing.gapfill import medial_lines
 from cooprint.slicing.infill import hatch
@@ -54,7 +54,7 @@ from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETE
 from cooprint.slicing.patterns import CORRECTION_DEG, clip_polylines, gyroid
 from cooprint.slicing import polysplit
 from cooprint.slicing.polysplit import split_by_region
-from cooprint.slicing.rings import RingSet, drop_collinear
+from cooprint.slicing.rings import drop_collinear
 from cooprint.slicing.sections import LayerSlicer
 
 CrossSection = manifold3d.CrossSection
@@ -950,10 +950,7 @@ def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, a
     """``lines`` (ending ``JOIN_TOL`` spacings off ``contour``) joined along ``contour`` as
     PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
     the chains' ends shortest stretch first, with anchors (its connect_infill)."""
-    tol = 2 * JOIN_TOL * spacing
-    rs = RingSet(contour)  # built once for both passes
-    chains = anchor_infill(lines, rs, 0.0, anchor_max, width, tol, snake=True)
-    return anchor_infill(chains, rs, anchor, anchor_max, width, tol)
+    return join_infill(lines, contour, anchor, anchor_max, width, 2 * JOIN_TOL * spacing)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
