@@ -27,6 +27,13 @@ spacing outside it (``tol``), as PrusaSlicer 2.5 does, so joins and anchors lie 
 perimeter instead of on it. ``snake=True`` (solid infill) joins as PrusaSlicer's rectilinear solid
 fill does: a walk from line to line in print order, each time to the nearer free neighbouring
 end, which makes one polyline of a convex area where shortest-first leaves several.
+``join_infill`` (what the slicer calls) is that snake pass followed by ``anchor_infill`` on its
+chains, PrusaSlicer's two passes, on one :class:`~cooprint.slicing.rings.RingSet` and without
+unpacking the chains in between.
+
+The mask samples every ring each half width; only the samples near an infill segment are
+measured (``_blocked``: each segment asks the rings' grid for the edges within reach), which
+costs the segments' crossings with the rings instead of every sample against every line.
 """
 
 from __future__ import annotations
@@ -83,10 +90,10 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, an
         The joined and anchored polylines, in nearest-next order from the first line's start.
     """
     pts, lo = _packed(lines)
-    rs = None if (anchor <= 0 and anchor_max <= 0) or len(lo) < 2 else \
-        rings if isinstance(rings, RingSet) else RingSet(rings)
-    if rs is not None and len(rs):
-        pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
+    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
+        rs = rings if isinstance(rings, RingSet) else RingSet(rings)
+        if len(rs):
+            pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
     return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
 
 
@@ -97,12 +104,12 @@ def join_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anch
     as those two calls (parameters as :func:`anchor_infill`'s), without unpacking the chains in
     between."""
     pts, lo = _packed(lines)
-    rs = None if (anchor <= 0 and anchor_max <= 0) or len(lo) < 2 else \
-        rings if isinstance(rings, RingSet) else RingSet(rings)
-    if rs is not None and len(rs):
-        if anchor_max > 0:
-            pts, lo = _anchored(pts, lo, rs, 0.0, anchor_max, width, tol, True)
-        pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, False)
+    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
+        rs = rings if isinstance(rings, RingSet) else RingSet(rings)  # built once for both passes
+        if len(rs):
+            if anchor_max > 0:
+                pts, lo = _anchored(pts, lo, rs, 0.0, anchor_max, width, tol, True)
+            pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, False)
     return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
 
 
