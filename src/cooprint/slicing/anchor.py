@@ -576,9 +576,10 @@ def _blocked(sa, sb, ra, rb, rparam, rlen, ring_of, ring_start, ring_len, key, b
     reach = tol + eps
     out = np.zeros(offset[-1], np.bool_)
     seen = np.full(ra.shape[0], -1, np.int64)
-    # an edge within 3/4 of a cell of a point is registered in the point's cell; the segment's
-    # own samples are half a cell apart: look this many cells further
-    more = max(0, int(math.ceil(reach / cell - 0.5)))
+    # the segment is walked in samples half a cell apart and every edge is registered in the
+    # 3 x 3 cells around its own such samples: an edge within reach of the segment lies in a cell
+    # within 1 + more of a sample's when reach + cell / 2 < (1 + more) cell
+    more = int(reach / cell + 0.5)
     for s in range(sa.shape[0]):
         ax, ay = sa[s, 0], sa[s, 1]
         dx, dy = sb[s, 0] - ax, sb[s, 1] - ay
