@@ -47,7 +47,7 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, default_workers
 from cooprint.io.mesh import Solid
-from cooprint.slicing.anchor import anchor_infill
+from cooprint.slicing.anchor import join_infill
 from cooprint.slicing.bridge import bridge_angle
 from cooprint.slicing.gapfill import medial_lines
 from cooprint.slicing.infill import hatch
@@ -962,9 +962,7 @@ def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, a
     """``lines`` (ending ``JOIN_TOL`` spacings off ``contour``) joined along ``contour`` as
     PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
     the chains' ends shortest stretch first, with anchors (its connect_infill)."""
-    tol = 2 * JOIN_TOL * spacing
-    chains = anchor_infill(lines, contour, 0.0, anchor_max, width, tol, snake=True)
-    return anchor_infill(chains, contour, anchor, anchor_max, width, tol)
+    return join_infill(lines, contour, anchor, anchor_max, width, 2 * JOIN_TOL * spacing)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
