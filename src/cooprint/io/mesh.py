@@ -29,7 +29,7 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
+from cooprint.geometry import (MAX_COORD_MM, compact, edge_loops, edge_table, index_dtype, is_closed,
                                open_edges, signed_volume, winding_consistent)
 from cooprint.errors import MeshError, clip
 from cooprint.io.files import regular_file
@@ -600,24 +600,13 @@ def to_manifold(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold:
 
 def _proper_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(m,) bool: triangles with three distinct corners, non-zero area, and not a repeat of an
-    earlier triangle over the same three vertices."""
-    f = faces
-    keep = distinct_corners(f)
-    for lo in range(0, len(f), 1 << 16):  # in slices: no (m, 3) float temporaries
-        g = f[lo:lo + (1 << 16)]
-        area2 = np.linalg.norm(np.cross(verts[g[:, 1]] - verts[g[:, 0]], verts[g[:, 2]] - verts[g[:, 0]]), axis=1)
-        keep[lo:lo + len(g)] &= area2 > 0
-    if len(verts) < 2**21:  # three indices pack into one int64: a 1-D sort instead of rows
-        key = np.empty(len(f), dtype=np.int64)
-        for lo in range(0, len(f), 1 << 16):
-            sf = np.sort(f[lo:lo + (1 << 16)], axis=1).astype(np.int64)
-            key[lo:lo + len(sf)] = (sf[:, 0] << 42) | (sf[:, 1] << 21) | sf[:, 2]
-        _, first = np.unique(key, return_index=True)
-    else:
-        _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
-    unique = np.zeros(len(f), dtype=bool)
-    unique[first] = True
-    return keep & unique
+    earlier triangle over the same three vertices (one compiled pass with a hash table of the
+    triangles: :func:`~cooprint.io.mesh_kernels.proper_faces`)."""
+    from cooprint.io.mesh_kernels import proper_faces  # numba: on first use
+
+    keep = np.empty(len(faces), dtype=bool)
+    proper_faces(np.asarray(verts, dtype=np.float64), faces, max(4, math.ceil(math.log2(max(2 * len(faces), 2)))), keep)
+    return keep
 
 
 def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -> tuple[np.ndarray, np.ndarray]:
