@@ -30,7 +30,7 @@ import numpy as np
 
 from cooprint.config import MeshSettings
 from cooprint.geometry import (MAX_COORD_MM, compact, edge_loops, edge_table, index_dtype, is_closed,
-                               open_edges, signed_volume, winding_consistent)
+                               open_edges, signed_volume)
 from cooprint.errors import MeshError, clip
 from cooprint.io.files import regular_file
 
@@ -525,16 +525,6 @@ def _hole_hint(fraction: float) -> str:
     return f"set mesh.max_hole_fraction >= {need:.2f} (--set mesh.max_hole_fraction={typed:g}) to close it"
 
 
-def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
-    """Ordered vertex loops of the open boundary, following the faces' own edge direction.
-
-    Returns ``None`` when the boundary does not decompose into closed loops (an edge used by
-    more than two faces, or a dangling boundary edge).
-    """
-    edges = open_edges(faces)
-    return None if edges is None else edge_loops(*edges)
-
-
 #: The distinct vertices are ordered by a group chosen by a hash of their bits (one of this
 #: many), then by their bits: the vertex numbering the loader has always given.
 MERGE_GROUPS = 16
@@ -631,7 +621,8 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         verts, faces = compact(verts, faces)
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} connected triangles; not a solid")
-    if not winding_consistent(faces):
+    edges = open_edges(faces)  # None: a directed edge repeats, i.e. the winding is not consistent
+    if edges is None:
         import trimesh  # ~1 s to import (scipy): only for this rare repair
 
         tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
@@ -640,7 +631,8 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         flipped = int((fixed != faces).any(axis=1).sum())
         faces = fixed
         repairs.append(f"made triangle winding consistent ({flipped} triangles turned over)")
-    loops = _boundary_loops(faces)
+        edges = open_edges(faces)
+    loops = None if edges is None else edge_loops(*edges)  # None: the boundary is not closed loops
     if loops is None:
         raise MeshError(_describe_open(path, faces))
     if loops:
