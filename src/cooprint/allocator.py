@@ -5,8 +5,8 @@ dynamically up to 32 MiB) its own fresh pages from the kernel and returns them o
 trims the heap's top whenever 128 KiB of it is free. The slicer allocates and frees arrays of
 a few hundred KiB to a few MiB for every layer (samples along the rings, infill segments,
 search grids), so each of them paid page faults and zeroing in the kernel: on the 1.5 M-face
-large part of the benchmark 6.3 s of system time against 18.4 s of user time, 1.5 s with the
-settings below (peak memory +9%). :func:`tune` keeps those blocks in the heap, reused from one
+large part of the benchmark 4.3 s of system time against 16.2 s of user time; 1.3 s with the
+settings below, the same user time, and 4% more peak memory. :func:`tune` keeps those blocks in the heap, reused from one
 layer to the next.
 
 Only the ``cooprint`` command calls it, once, before any work (the worker processes it forks
