@@ -15,6 +15,9 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
+	# an editable install writes no bytecode, and PYTHONDONTWRITEBYTECODE=1 (set on some machines)
+	# means none is ever cached: every command would compile cooprint's source again (~0.1 s)
+	$(PY) -m compileall -q src
 	touch $(STAMP)
 
 $(VIEWER_JS): viewer/package.json viewer/package-lock.json $(VIEWER_SRC)

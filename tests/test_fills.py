@@ -16,10 +16,12 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from manifold3d import CrossSection
 
-from cooprint.slicing.anchor import anchor_infill
+from cooprint.slicing import anchor as anchor_mod
+from cooprint.slicing.anchor import anchor_infill, join_infill
 from cooprint.slicing.bridge import bridge_angle
 from cooprint.slicing.infill import hatch
 from cooprint.slicing.patterns import clip_polylines, gyroid
+from cooprint.slicing.rings import EdgeSet, RingSet
 
 
 def box(x0, y0, x1, y1):
@@ -344,6 +346,46 @@ def test_anchor_invariants(params, spacing, angle, anchor, anchor_max, curved, z
                 assert run <= anchor + 1e-6  # an anchor
             else:
                 assert run < anchor_max + 1e-6  # a join
+
+
+@settings(max_examples=30, deadline=None)
+@given(boxes, st.floats(0.3, 3.0), st.floats(0, 180), st.floats(0, 8), st.floats(0, 60),
+       st.booleans(), st.floats(0.2, 10))
+def test_join_infill_is_the_snake_pass_then_the_anchor_pass(params, spacing, angle, anchor, anchor_max, curved, z):
+    outer, hole = region(params)
+    rings = [outer, hole]
+    lines = gyroid(rings, spacing, z, angle) if curved else list(hatch(rings, spacing, angle))
+    tol = 0.05
+    chains = anchor_infill(lines, rings, 0.0, anchor_max, 0.45, tol, snake=True)
+    expected = anchor_infill(chains, RingSet(rings), anchor, anchor_max, 0.45, tol)
+    out = join_infill(lines, rings, anchor, anchor_max, 0.45, tol)
+    assert len(out) == len(expected) and all(np.array_equal(a, b) for a, b in zip(out, expected))
+
+
+@settings(max_examples=30, deadline=None)
+@given(boxes, st.floats(0.3, 3.0), st.floats(0, 180), st.booleans(), st.floats(0.2, 10), st.floats(0.1, 3.0))
+def test_blocked_ring_samples_are_those_near_a_segment(params, spacing, angle, curved, z, width):
+    """The blocked samples (anchor._blocked, which looks only near each segment) are exactly those
+    an exhaustive search finds: every sample of every ring against every segment."""
+    outer, hole = region(params)
+    rs = RingSet([outer, hole])
+    lines = gyroid([outer, hole], spacing, z, angle) if curved else list(hatch([outer, hole], spacing, angle))
+    assume(len(lines) > 0)
+    # the lines shifted by a third of a spacing across: some run along the rings, some end on them
+    a = np.concatenate([p[:-1] for p in lines]) + spacing / 3
+    b = np.concatenate([p[1:] for p in lines]) + spacing / 3
+    tol = 0.8 * width
+    counts = np.maximum(np.ceil(rs.ring_len / (0.5 * width)).astype(np.int64), 1)
+    offset = np.r_[0, np.cumsum(counts)]
+    big = float(rs.ring_len.max()) + 1.0
+    x0, y0, cell, nx, ny, start, ids = rs.grid
+    got = anchor_mod._blocked(a, b, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start, rs.ring_len,
+                              rs.ring_of.astype(np.float64) * big + rs.param, big, counts, offset,
+                              x0, y0, cell, nx, ny, start, ids, tol)
+    r_of = np.repeat(np.arange(len(counts)), counts)
+    k = np.arange(offset[-1]) - offset[r_of]
+    expected = EdgeSet(a, b).nearest(rs.points_at(r_of, k * (rs.ring_len / counts)[r_of]), tol)[0] >= 0
+    assert np.array_equal(got, expected)
 
 
 # --- bridge_angle ------------------------------------------------------------------------------

@@ -170,3 +170,30 @@ def test_any_few_missing_triangles_close_to_the_same_solid(missing):
                           fmt="obj")
     assert is_closed(s.faces)
     assert s.volume == pytest.approx(man.volume(), rel=5e-3)
+
+
+def test_the_loaders_fast_checks_agree_with_the_general_ones():
+    """The compiled triangle check and the sorted-key search for faces sharing no edge find
+    what the whole-array definitions find: repeats (in any corner order), zero-area and
+    collapsed triangles, and stray faces."""
+    from cooprint.geometry import distinct_corners
+    from cooprint.io.mesh import _proper_faces
+    from cooprint.io.repair import _edge_groups, _lone, _lone_unless_split
+
+    tm = trimesh.creation.icosphere(subdivisions=2)
+    v = np.vstack([tm.vertices, [[5.0, 0, 0], [6.0, 0, 0], [7.0, 0, 0], [5.0, 1.0, 0]]])
+    n = len(tm.vertices)
+    extra = [tm.faces[3][[1, 2, 0]], tm.faces[7][::-1], [n, n + 1, n + 2], [0, 0, 1], [n, n + 1, n + 3]]
+    f = np.vstack([tm.faces, extra]).astype(np.int32)
+    cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+    unique = np.zeros(len(f), dtype=bool)
+    unique[first] = True
+    want = distinct_corners(f) & (np.linalg.norm(cross, axis=1) > 0) & unique
+    assert np.array_equal(_proper_faces(v, f), want)
+    assert (~want).sum() == 4  # the two repeats, the flat triangle and the collapsed one
+    kept = f[want]
+    order, _, runs = _edge_groups(kept)
+    assert np.array_equal(_lone_unless_split(kept), _lone(order, runs))
+    assert _lone_unless_split(kept).sum() == 1  # the stray triangle off the sphere
+    assert _lone_unless_split(np.vstack([kept, kept[:1]])) is None  # three faces on an edge

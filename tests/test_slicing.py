@@ -14,6 +14,7 @@ from cooprint.program.gcode import gcode_text
 from cooprint.slicing import INFILL, PERIMETER_INNER, PERIMETER_OUTER, SKIN, TRAVEL, layer_tops, slice_solid
 from cooprint.slicing.infill import hatch, hatch_flat
 from cooprint.slicing.paths import BRIDGE, TOP_SKIN, extrusion_spacing, flow_area
+from cooprint.slicing.slicer import layer_range
 
 from solids import box, to_trimesh, tube
 
@@ -34,6 +35,36 @@ def test_layer_count_and_heights():
     assert len(tops) == 1 + math.ceil((10 - 0.3) / 0.2)
     assert tops[0] == pytest.approx(0.3) and np.allclose(np.diff(tops), 0.2)
     assert tops[-1] >= 10.0 - 1e-9
+
+
+#: A unit cube's corners and outward triangles (scaled to a box of any height, in float64: a top at
+#: exactly 10.1 mm is exactly the middle of the 51st 0.2 mm layer).
+CORNERS = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
+CUBE_FACES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                       [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
+
+
+@pytest.mark.parametrize("height, n", [(10.05, 50), (10.1, 51), (10.13, 51)])
+def test_the_last_layer_is_the_last_whose_middle_is_under_the_top(height, n):
+    """PrusaSlicer 2.5's layers (generate_object_layers): one more 0.2 mm layer while its middle
+    is under the top. A 10.05 mm box has 50 (the 0.05 mm over the 50th is not printed; the 51st
+    would be sliced above the box), a 10.13 mm box 51 (the 51st sliced at 10.1 mm, ending at
+    10.2), and a 10.1 mm box 51 too: the 51st layer's plane is on the top face, which gives the
+    section under it (as PrusaSlicer's slicer: occt_tr12j_housing, 320.5 mm, has 1,603 layers).
+    Every count holds for the whole box and for its layer range, and the last layer prints the
+    top: the outer loop round the whole 20 mm square, and top skin."""
+    s = SlicingSettings()
+    box20 = solid_from_arrays(CORNERS * [20.0, 20.0, height], CUBE_FACES)
+    assert len(layer_tops(height, s)) == n and layer_range(box20, s) == (0, n)
+    sliced = slice_solid(box20, s)
+    assert sliced.n_layers == n
+    last = sliced.layers[-1]
+    assert last.z == pytest.approx(0.2 * n)
+    outer = [last.path(k) for k in range(len(last)) if last.role[k] == PERIMETER_OUTER]
+    assert len(outer) == 1
+    span = outer[0].max(axis=0) - outer[0].min(axis=0)
+    assert span == pytest.approx([20 - 0.45, 20 - 0.45], abs=1e-3)
+    assert (last.role == TOP_SKIN).any()
 
 
 def test_cube_perimeters_are_exact_squares(cube):

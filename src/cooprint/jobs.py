@@ -16,16 +16,15 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator, Mapping, Se
 
 import numpy as np
 
-from cooprint.chunking import ChunkSet
-from cooprint.chunking.planes import safe_top_width
 from cooprint.config import JobSettings, SlicingSettings, load_settings
 from cooprint.errors import UserError, warn
 from cooprint.io.bundle import atomic_dir, open_output, program_files, write_json, write_stl
 from cooprint.io.mesh import Solid, load_mesh
 from cooprint.io.place import Placement, place
-from cooprint.scheduling import Assignment, Schedule
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the chunker and the scheduler are imported where they run: `slice` needs neither
+    from cooprint.chunking import ChunkSet
+    from cooprint.scheduling import Assignment, Schedule
     from cooprint.io.estimate import JobEstimate
     from cooprint.scheduling import ChunkDAG
     from cooprint.slicing import SlicedModel
@@ -125,6 +124,7 @@ def _chunk_placed(solid: Solid, placement: Placement, settings: JobSettings, rob
     """Lay out (:func:`choose_layout`), cut and schedule a placed solid; the chunks' work is
     estimated from their volume here. ``preliminary``: :func:`coop_job` schedules again from the
     sliced paths, so an exact schedule is left for then (a list schedule stands in)."""
+    from cooprint.chunking.planes import safe_top_width
     from cooprint.scheduling.graph import work_from_volume
 
     if not 1 <= robots <= MAX_ROBOTS:
@@ -245,6 +245,8 @@ def job_record(job: ChunkJob) -> dict[str, Any]:
     """The ``job.json`` content: settings, robots, chunk table (with each chunk's place, its
     constraints and its scheduled times), schedule (with the lower bound, the gap to it and the
     critical path), statistics."""
+    from cooprint.scheduling import Schedule
+
     ch, asg = job.chunks, job.assignment
     rows = []
     axis = np.asarray(ch.plan.axis)
@@ -560,6 +562,7 @@ def _fleet_plan(chunked: ChunkJob, store: Any, material: Any,
     own makespan means more robots are never slower than fewer (up to ``FLEET_TRIALS`` robots every
     smaller fleet is tried; above, N - 1, 3N/4, N/2, N/3 and N/4)."""
     from cooprint.program.fleet import fleet_streams
+    from cooprint.scheduling import Schedule
 
     settings = chunked.settings
     assert chunked.dag is not None

@@ -29,8 +29,8 @@ import manifold3d
 import numpy as np
 
 from cooprint.config import MeshSettings
-from cooprint.geometry import (MAX_COORD_MM, compact, distinct_corners, edge_loops, edge_table, index_dtype, is_closed,
-                               open_edges, signed_volume, winding_consistent)
+from cooprint.geometry import (MAX_COORD_MM, compact, edge_loops, edge_table, index_dtype, is_closed,
+                               open_edges, signed_volume)
 from cooprint.errors import MeshError, clip
 from cooprint.io.files import regular_file
 
@@ -525,16 +525,6 @@ def _hole_hint(fraction: float) -> str:
     return f"set mesh.max_hole_fraction >= {need:.2f} (--set mesh.max_hole_fraction={typed:g}) to close it"
 
 
-def _boundary_loops(faces: np.ndarray) -> list[np.ndarray] | None:
-    """Ordered vertex loops of the open boundary, following the faces' own edge direction.
-
-    Returns ``None`` when the boundary does not decompose into closed loops (an edge used by
-    more than two faces, or a dangling boundary edge).
-    """
-    edges = open_edges(faces)
-    return None if edges is None else edge_loops(*edges)
-
-
 #: The distinct vertices are ordered by a group chosen by a hash of their bits (one of this
 #: many), then by their bits: the vertex numbering the loader has always given.
 MERGE_GROUPS = 16
@@ -600,24 +590,13 @@ def to_manifold(vertices: np.ndarray, faces: np.ndarray) -> manifold3d.Manifold:
 
 def _proper_faces(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(m,) bool: triangles with three distinct corners, non-zero area, and not a repeat of an
-    earlier triangle over the same three vertices."""
-    f = faces
-    keep = distinct_corners(f)
-    for lo in range(0, len(f), 1 << 16):  # in slices: no (m, 3) float temporaries
-        g = f[lo:lo + (1 << 16)]
-        area2 = np.linalg.norm(np.cross(verts[g[:, 1]] - verts[g[:, 0]], verts[g[:, 2]] - verts[g[:, 0]]), axis=1)
-        keep[lo:lo + len(g)] &= area2 > 0
-    if len(verts) < 2**21:  # three indices pack into one int64: a 1-D sort instead of rows
-        key = np.empty(len(f), dtype=np.int64)
-        for lo in range(0, len(f), 1 << 16):
-            sf = np.sort(f[lo:lo + (1 << 16)], axis=1).astype(np.int64)
-            key[lo:lo + len(sf)] = (sf[:, 0] << 42) | (sf[:, 1] << 21) | sf[:, 2]
-        _, first = np.unique(key, return_index=True)
-    else:
-        _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
-    unique = np.zeros(len(f), dtype=bool)
-    unique[first] = True
-    return keep & unique
+    earlier triangle over the same three vertices (one compiled pass with a hash table of the
+    triangles: :func:`~cooprint.io.mesh_kernels.proper_faces`)."""
+    from cooprint.io.mesh_kernels import proper_faces  # numba: on first use
+
+    keep = np.empty(len(faces), dtype=bool)
+    proper_faces(np.asarray(verts, dtype=np.float64), faces, max(4, math.ceil(math.log2(max(2 * len(faces), 2)))), keep)
+    return keep
 
 
 def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -642,7 +621,8 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         verts, faces = compact(verts, faces)
     if len(faces) < 4:
         raise MeshError(f"{path}: only {len(faces)} connected triangles; not a solid")
-    if not winding_consistent(faces):
+    edges = open_edges(faces)  # None: a directed edge repeats, i.e. the winding is not consistent
+    if edges is None:
         import trimesh  # ~1 s to import (scipy): only for this rare repair
 
         tm = trimesh.Trimesh(verts, faces, process=False, validate=False)
@@ -651,7 +631,8 @@ def _repair(mesh: list, settings: MeshSettings, path: str, repairs: list[str]) -
         flipped = int((fixed != faces).any(axis=1).sum())
         faces = fixed
         repairs.append(f"made triangle winding consistent ({flipped} triangles turned over)")
-    loops = _boundary_loops(faces)
+        edges = open_edges(faces)
+    loops = None if edges is None else edge_loops(*edges)  # None: the boundary is not closed loops
     if loops is None:
         raise MeshError(_describe_open(path, faces))
     if loops:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import manifold3d
 import numpy as np
 
-from cooprint.geometry import index_dtype
+from cooprint.geometry import _edge_keys, _vertex_count, index_dtype
 from cooprint.io.holefill import MAX_LOOP, components, least_area_triangulation
 
 
@@ -72,11 +72,11 @@ def separate(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.nd
     faces that share no edge with another (a stray triangle). Returns the vertices (a copy per
     fan, at the vertex's position), the faces, the number of non-manifold edges split and the
     number of faces dropped."""
+    lone = _lone_unless_split(faces)
+    if lone is not None:  # no edge to split (the common case): only faces sharing no edge go
+        return vertices, faces[~lone], 0, int(lone.sum())
     order, starts, runs = _edge_groups(faces)
     multi = np.flatnonzero(runs > 2)
-    if len(multi) == 0:
-        lone = _lone(order, runs)
-        return vertices, faces[~lone], 0, int(lone.sum())
     n_he = 3 * len(faces)
     pa, pb = [], []
     two = runs == 2
@@ -126,6 +126,27 @@ def _cut_loose(faces: np.ndarray, near: np.ndarray) -> np.ndarray:
     loose = is_open & touched
     loose[int(np.argmax(size))] = False
     return loose[label] | _lone(order, runs)
+
+
+def _lone_unless_split(faces: np.ndarray) -> np.ndarray | None:
+    """(m,) bool: the faces sharing no edge with another face, as :func:`_lone` finds them, or
+    ``None`` when some edge is shared by more than two faces (:func:`separate` splits it). One
+    plain sort of the edge keys (:func:`~cooprint.geometry._edge_keys`), not the stable argsort
+    of :func:`_edge_groups`: the edges used once are few, and each face looks its up."""
+    n = _vertex_count(faces)
+    edge = _edge_keys(faces, n) >> 1  # sorted undirected keys min n + max
+    starts = np.flatnonzero(np.r_[True, edge[1:] != edge[:-1]])
+    runs = np.diff(np.r_[starts, len(edge)])
+    if len(runs) and runs.max() > 2:
+        return None
+    single = edge[starts[runs == 1]]
+    del edge, starts, runs
+    if len(single) == 0:
+        return np.zeros(len(faces), dtype=bool)
+    a = faces.astype(np.int64)
+    b = a[:, [1, 2, 0]]
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    return (single[np.minimum(np.searchsorted(single, key), len(single) - 1)] == key).all(axis=1)
 
 
 def _lone(order: np.ndarray, runs: np.ndarray) -> np.ndarray:

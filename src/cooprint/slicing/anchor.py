@@ -27,16 +27,24 @@ spacing outside it (``tol``), as PrusaSlicer 2.5 does, so joins and anchors lie 
 perimeter instead of on it. ``snake=True`` (solid infill) joins as PrusaSlicer's rectilinear solid
 fill does: a walk from line to line in print order, each time to the nearer free neighbouring
 end, which makes one polyline of a convex area where shortest-first leaves several.
+``join_infill`` (what the slicer calls) is that snake pass followed by ``anchor_infill`` on its
+chains, PrusaSlicer's two passes, on one :class:`~cooprint.slicing.rings.RingSet` and without
+unpacking the chains in between.
+
+The mask samples every ring each half width; only the samples near an infill segment are
+measured (``_blocked``: each segment asks the rings' grid for the edges within reach), which
+costs the segments' crossings with the rings instead of every sample against every line.
 """
 
 from __future__ import annotations
 
+import math
 
 import numba
 import numpy as np
 
 from cooprint.slicing.patterns import chain_order
-from cooprint.slicing.rings import EdgeSet, RingSet
+from cooprint.slicing.rings import RingSet
 
 #: A line end within this distance of a ring is on it, mm.
 END_TOL = 1e-3
@@ -49,7 +57,7 @@ END_CLEAR = 1.7
 LINE_WIDTH = 0.45
 
 
-def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: float, anchor_max: float,
+def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anchor: float, anchor_max: float,
                   width: float = LINE_WIDTH, tol: float = END_TOL, snake: bool = False) -> list[np.ndarray]:
     """``lines`` joined and anchored along ``rings`` (module docstring).
 
@@ -57,8 +65,9 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     ----------
     lines : list of (k, 2) float
         Infill polylines (k >= 2) in print order, ends on the rings.
-    rings : list of (m, 2) float
-        The region's closed rings (outlines and holes).
+    rings : list of (m, 2) float, or RingSet
+        The region's closed rings (outlines and holes); a :class:`~cooprint.slicing.rings.RingSet`
+        of them when several calls share the region (its search structures are built once).
     anchor : float
         Longest anchor, mm (PrusaSlicer's infill_anchor); 0: no anchors.
     anchor_max : float
@@ -80,15 +89,50 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray], anchor: floa
     list of (j, 2) float64
         The joined and anchored polylines, in nearest-next order from the first line's start.
     """
-    lines = [np.asarray(p, dtype=np.float64)[:, :2] for p in lines if len(p) >= 2]
-    if (anchor <= 0 and anchor_max <= 0) or not lines:
-        return list(lines)
-    rs = RingSet(rings)
-    if not len(rs):
-        return list(lines)
-    n = len(lines)
-    pts = np.concatenate(lines)
-    lo = np.r_[0, np.cumsum([len(p) for p in lines])].astype(np.int64)  # line i: pts[lo[i]:lo[i + 1]]
+    pts, lo = _packed(lines)
+    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
+        rs = rings if isinstance(rings, RingSet) else RingSet(rings)
+        if len(rs):
+            pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
+    return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
+
+
+def join_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anchor: float, anchor_max: float,
+                width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
+    """``lines`` joined as PrusaSlicer joins them: first snake-wise (``anchor_infill`` with
+    ``snake``, no anchors), then the chains' ends shortest stretch first, with anchors; the same
+    as those two calls (parameters as :func:`anchor_infill`'s), without unpacking the chains in
+    between."""
+    pts, lo = _packed(lines)
+    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
+        rs = rings if isinstance(rings, RingSet) else RingSet(rings)  # built once for both passes
+        if len(rs):
+            if anchor_max > 0:
+                pts, lo = _anchored(pts, lo, rs, 0.0, anchor_max, width, tol, True)
+            pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, False)
+    return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
+
+
+def _packed(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The polylines of two points or more, (x, y) only, concatenated: (points (N, 2) float64,
+    offsets (n + 1,) int64: line i is ``points[offsets[i]:offsets[i + 1]]``)."""
+    sizes = np.fromiter(map(len, lines), np.int64, len(lines))
+    if (sizes < 2).any():
+        lines = [p for p, k in zip(lines, sizes) if k >= 2]
+        sizes = sizes[sizes >= 2]
+    if not len(lines):
+        return np.zeros((0, 2)), np.zeros(1, np.int64)
+    try:
+        pts = np.concatenate(lines)
+    except ValueError:  # rows of different widths
+        pts = np.concatenate([np.asarray(p)[:, :2] for p in lines])
+    return np.ascontiguousarray(pts[:, :2], dtype=np.float64), np.r_[0, np.cumsum(sizes)]
+
+
+def _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake):
+    """:func:`anchor_infill` of the lines ``pts[lo[i]:lo[i + 1]]`` (at least one, each of two
+    points or more) along ``rs``: the resulting polylines packed the same way, (points, offsets)."""
+    n = len(lo) - 1
     ends = np.empty((2 * n, 2))
     ends[0::2] = pts[lo[:-1]]
     ends[1::2] = pts[lo[1:] - 1]
@@ -129,42 +173,23 @@ def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
     that runs along it would print that line twice."""
     m = len(on)
     fwd, bwd = np.full(m, np.inf), np.full(m, np.inf)
-    sizes = np.diff(lo)
-    first = lo[:-1]
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    cum = np.r_[0.0, np.cumsum(seg)]
-    s0 = cum[:-1] - np.repeat(cum[first], sizes)[:-1]  # along its line, at each segment's start
-    total = np.repeat(cum[first + sizes - 1] - cum[first], sizes)[:-1]
-    real = np.ones(len(seg), dtype=bool)
-    real[(first + sizes - 1)[:-1]] = False  # the joints between consecutive lines
-    start = np.maximum(s0, END_CLEAR * width)
-    stop = np.minimum(s0 + seg, total - END_CLEAR * width)
-    keep = real & (stop > start + 1e-9)
-    # only segments near the rings can block them (a long one always may)
-    short = seg <= 2.0
-    mid = 0.5 * (pts[:-1] + pts[1:])
-    check = keep & short
-    near = np.zeros(len(seg), dtype=bool)
-    if check.any():
-        near[check] = rs.nearest(mid[check], COLLIDE * width + 0.5 * seg[check].max())[0] >= 0
-    keep &= near | ~short
-    if not keep.any():
+    a, b = _clear_parts(pts, lo, END_CLEAR * width)
+    if not len(a):
         return fwd, bwd
-    i = np.flatnonzero(keep)
-    d = (pts[i + 1] - pts[i]) / seg[i, None]
-    a = pts[i] + d * (start[i] - s0[i])[:, None]
-    b = pts[i] + d * (stop[i] - s0[i])[:, None]
     # samples along the rings every half width: those near an infill line are blocked
     step = 0.5 * width
     counts = np.maximum(np.ceil(rs.ring_len / step).astype(np.int64), 1)
-    r_of = np.repeat(np.arange(len(counts)), counts)
-    k = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    sp = k * (rs.ring_len / counts)[r_of]
-    blocked = EdgeSet(a, b).nearest(rs.points_at(r_of, sp), COLLIDE * width)[0] >= 0
-    if not blocked.any():
-        return fwd, bwd
-    br, bp = r_of[blocked], sp[blocked]
+    offset = np.r_[0, np.cumsum(counts)]
     big = float(rs.ring_len.max()) + 1.0
+    key = rs.ring_of.astype(np.float64) * big + rs.param  # rs.points_at's search key
+    x0, y0, cell, nx, ny, gstart, gids = rs.grid
+    blocked = np.flatnonzero(_blocked(a, b, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start,
+                                      rs.ring_len, key, big, counts, offset, x0, y0, cell, nx, ny,
+                                      gstart, gids, COLLIDE * width))
+    if not len(blocked):
+        return fwd, bwd
+    br = np.searchsorted(offset, blocked, side="right") - 1
+    bp = (blocked - offset[br]) * (rs.ring_len / counts)[br]
     key = br * big + bp  # sorted: rings in order, arc length within each
     ring_first = np.searchsorted(br, np.arange(len(counts)), side="left")
     ring_last = np.searchsorted(br, np.arange(len(counts)), side="right") - 1
@@ -467,16 +492,193 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
     return buf[:m], off[:nc + 1], first[:nc]
 
 
-def _assemble(pts, lo, rs, ring, param, code, hook) -> list[np.ndarray]:
-    """Chains of lines joined by ring stretches, with their anchors, as polylines in
-    nearest-next order from the first line's chain."""
+def _assemble(pts, lo, rs, ring, param, code, hook) -> tuple[np.ndarray, np.ndarray]:
+    """Chains of lines joined by ring stretches, with their anchors, in nearest-next order from
+    the first line's chain: (points, offsets) as the lines came."""
     pts, off, first = _chains(pts, lo, ring, param, code, hook, rs.a, rs.b, rs.param,
                               rs.seg_len, rs.ring_start, rs.ring_len)
     if len(off) < 2:
-        return []
-    polys = np.split(pts, off[1:-1])
+        return pts, off
     by_first = np.argsort(first, kind="stable")
     heads, tails = pts[off[:-1]][by_first], pts[off[1:] - 1][by_first]
     order, rev = chain_order(heads, tails, heads[0])
-    chosen = by_first[order]
-    return [polys[k][::-1].copy() if r else polys[k] for k, r in zip(chosen, rev)]
+    return _reordered(pts, off, by_first[order], rev)
+
+
+@numba.njit(cache=True)
+def _reordered(pts, off, chosen, rev):
+    """The polylines ``pts[off[k]:off[k + 1]]`` for k in ``chosen``, reversed where ``rev``,
+    packed again: (points, offsets)."""
+    out = np.empty_like(pts)
+    lo = np.zeros(chosen.shape[0] + 1, np.int64)
+    m = 0
+    for j in range(chosen.shape[0]):
+        k = chosen[j]
+        size = off[k + 1] - off[k]
+        for i in range(size):
+            src = off[k + 1] - 1 - i if rev[j] else off[k] + i
+            out[m + i, 0] = pts[src, 0]
+            out[m + i, 1] = pts[src, 1]
+        m += size
+        lo[j + 1] = m
+    return out[:m], lo
+
+
+@numba.njit(cache=True)
+def _span(lo, hi, alpha, beta):
+    """The interval of t where lo <= alpha + beta * t <= hi: (t0, t1), empty when t0 > t1."""
+    if abs(beta) < 1e-15:
+        if lo <= alpha <= hi:
+            return -np.inf, np.inf
+        return np.inf, -np.inf
+    t0, t1 = (lo - alpha) / beta, (hi - alpha) / beta
+    return (t0, t1) if t0 <= t1 else (t1, t0)
+
+
+@numba.njit(cache=True)
+def _near_span(ex, ey, ux, uy, length, ax, ay, vx, vy, ls, reach):
+    """The stretch (t0, t1) of the edge ``(ex, ey) + t (ux, uy)``, 0 <= t <= ``length``, within
+    ``reach`` of the segment from ``(ax, ay)`` along the unit ``(vx, vy)`` for ``ls``: the edge's
+    line cut by the segment's capsule (two discs and the rectangle between them); empty when
+    t0 > t1."""
+    t0, t1 = np.inf, -np.inf
+    for k in range(2):
+        px, py = (ax, ay) if k == 0 else (ax + ls * vx, ay + ls * vy)
+        wx, wy = px - ex, py - ey
+        along = wx * ux + wy * uy
+        perp = wx * uy - wy * ux
+        h = reach * reach - perp * perp
+        if h >= 0.0:
+            r = math.sqrt(h)
+            t0, t1 = min(t0, along - r), max(t1, along + r)
+    s0, s1 = _span(0.0, ls, (ex - ax) * vx + (ey - ay) * vy, ux * vx + uy * vy)
+    n0, n1 = _span(-reach, reach, (ex - ax) * -vy + (ey - ay) * vx, ux * -vy + uy * vx)
+    lo, hi = max(s0, n0), min(s1, n1)
+    if lo <= hi:
+        t0, t1 = min(t0, lo), max(t1, hi)
+    return max(t0, 0.0), min(t1, length)
+
+
+@numba.njit(cache=True)
+def _blocked(sa, sb, ra, rb, rparam, rlen, ring_of, ring_start, ring_len, key, big, counts, offset,
+             x0, y0, cell, nx, ny, start, ids, tol):
+    """Which ring samples lie within ``tol`` of a segment ``sa -> sb``: (samples,) bool, ring
+    ``r``'s ``counts[r]`` samples (evenly spaced by arc length from its first vertex) at
+    ``offset[r]:offset[r + 1]``.
+
+    The same points and the same distance test as sampling every ring (``RingSet.points_at``)
+    and asking an :class:`~cooprint.slicing.rings.EdgeSet` of the segments for each sample, but
+    only the samples near a segment are looked at: every segment walks the rings' grid (``x0``
+    .. ``ids``, :attr:`RingSet.grid`) for the edges within reach, and only the samples on the
+    stretch of each such edge near the segment are tested (the infill lines cross the rings far
+    more often than they run along them)."""
+    eps = 1e-6  # the candidate stretches are widened by this much, mm: rounding never drops a sample
+    reach = tol + eps
+    out = np.zeros(offset[-1], np.bool_)
+    seen = np.full(ra.shape[0], -1, np.int64)
+    # the segment is walked in samples half a cell apart and every edge is registered in the
+    # 3 x 3 cells around its own such samples: an edge within reach of the segment lies in a cell
+    # within 1 + more of a sample's when reach + cell / 2 < (1 + more) cell
+    more = int(reach / cell + 0.5)
+    for s in range(sa.shape[0]):
+        ax, ay = sa[s, 0], sa[s, 1]
+        dx, dy = sb[s, 0] - ax, sb[s, 1] - ay
+        ls = math.sqrt(dx * dx + dy * dy)
+        l2 = dx * dx + dy * dy
+        vx, vy = dx / ls, dy / ls
+        steps = int(ls / (0.5 * cell)) + 1
+        lx, ly = -1 << 40, -1 << 40
+        for j in range(steps + 1):
+            f = j / steps
+            cx = int(math.floor((ax + f * dx - x0) / cell))
+            cy = int(math.floor((ay + f * dy - y0) / cell))
+            if cx == lx and cy == ly:
+                continue
+            lx, ly = cx, cy
+            for oy in range(max(cy - more, 0), min(cy + more + 1, ny)):
+                for ox in range(max(cx - more, 0), min(cx + more + 1, nx)):
+                    c = oy * nx + ox
+                    for jj in range(start[c], start[c + 1]):
+                        i = ids[jj]
+                        if seen[i] == s:
+                            continue
+                        seen[i] = s
+                        ex, ey = ra[i, 0], ra[i, 1]
+                        fx, fy = rb[i, 0], rb[i, 1]
+                        # far on one side of the segment's line, or beyond one of its ends
+                        c0 = (ex - ax) * vy - (ey - ay) * vx
+                        c1 = (fx - ax) * vy - (fy - ay) * vx
+                        if (c0 > reach and c1 > reach) or (c0 < -reach and c1 < -reach):
+                            continue
+                        c0 = (ex - ax) * vx + (ey - ay) * vy
+                        c1 = (fx - ax) * vx + (fy - ay) * vy
+                        if (c0 > ls + reach and c1 > ls + reach) or (c0 < -reach and c1 < -reach):
+                            continue
+                        le = rlen[i]
+                        if le > 0:
+                            t0, t1 = _near_span(ex, ey, (fx - ex) / le, (fy - ey) / le, le,
+                                                ax, ay, vx, vy, ls, reach)
+                        else:
+                            t0, t1 = _near_span(ex, ey, 1.0, 0.0, 0.0, ax, ay, vx, vy, ls, reach)
+                        if t0 > t1:
+                            continue
+                        r = ring_of[i]
+                        L = ring_len[r]
+                        n = counts[r]
+                        st = L / n
+                        k0 = max(int(math.ceil((rparam[i] + t0 - eps) / st)), 0)
+                        k1 = min(int(math.floor((rparam[i] + t1 + eps) / st)), n - 1)
+                        for k in range(k0, k1 + 1):
+                            g = offset[r] + k
+                            if out[g]:
+                                continue
+                            # the sample's point as RingSet.points_at puts it
+                            p = k * st
+                            q = r * big + p
+                            lo, hi = ring_start[r], ring_start[r + 1]
+                            while lo < hi:  # the first edge whose key exceeds q
+                                mid = (lo + hi) // 2
+                                if key[mid] <= q:
+                                    lo = mid + 1
+                                else:
+                                    hi = mid
+                            e = lo - 1
+                            t = (p - rparam[e]) / rlen[e] if rlen[e] > 0 else 0.0
+                            px = ra[e, 0] + t * (rb[e, 0] - ra[e, 0])
+                            py = ra[e, 1] + t * (rb[e, 1] - ra[e, 1])
+                            # the distance as EdgeSet.nearest measures it
+                            u = ((px - ax) * dx + (py - ay) * dy) / l2
+                            u = min(max(u, 0.0), 1.0)
+                            wx, wy = ax + u * dx - px, ay + u * dy - py
+                            if math.sqrt(wx * wx + wy * wy) <= tol:
+                                out[g] = True
+    return out
+
+
+@numba.njit(cache=True)
+def _clear_parts(pts, lo, clear):
+    """The parts of the lines ``pts[lo[i]:lo[i + 1]]`` farther than ``clear`` (along the line)
+    from both its ends, segment by segment: (start (s, 2), end (s, 2))."""
+    n = pts.shape[0]
+    a = np.empty((max(n - 1, 0), 2))
+    b = np.empty((max(n - 1, 0), 2))
+    cum = np.zeros(n)  # arc length from the first point, over the joints between lines too
+    for j in range(n - 1):
+        cum[j + 1] = cum[j] + math.hypot(pts[j + 1, 0] - pts[j, 0], pts[j + 1, 1] - pts[j, 1])
+    m = 0
+    for li in range(lo.shape[0] - 1):
+        first, last = lo[li], lo[li + 1] - 1
+        total = cum[last] - cum[first]
+        for j in range(first, last):
+            seg = math.hypot(pts[j + 1, 0] - pts[j, 0], pts[j + 1, 1] - pts[j, 1])
+            s0 = cum[j] - cum[first]
+            start = max(s0, clear)
+            stop = min(s0 + seg, total - clear)
+            if not stop > start + 1e-9:
+                continue
+            for k in range(2):
+                d = (pts[j + 1, k] - pts[j, k]) / seg
+                a[m, k] = pts[j, k] + d * (start - s0)
+                b[m, k] = pts[j, k] + d * (stop - s0)
+            m += 1
+    return a[:m], b[:m]

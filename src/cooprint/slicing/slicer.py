@@ -3,8 +3,10 @@ PrusaSlicer 2.5's regions (issue 17).
 
 Stages, each on whole layers (manifold3d CrossSection booleans and offsets, no Python per point):
 
-1. layer planes: a first layer of its own height, then equal layers; each sliced at mid-height
-   (:mod:`.sections`: closed polygons with holes and islands nested, a block of layers at once);
+1. layer planes: a first layer of its own height, then equal layers while their middle is under
+   the top (:func:`layer_tops`); each sliced at mid-height, a plane through a horizontal face
+   giving the section under it (:mod:`.sections`: closed polygons with holes and islands
+   nested, a block of layers at once);
 2. perimeters (PrusaSlicer's classic generator, per-role widths): islands smaller than
    ``min_area`` dropped; the outer loop half an external width inside the outline, the next
    ones a spacing further in, every loop's region opened by 0.6 x half a spacing; what that
@@ -45,7 +47,7 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, default_workers
 from cooprint.io.mesh import Solid
-from cooprint.slicing.anchor import anchor_infill
+from cooprint.slicing.anchor import join_infill
 from cooprint.slicing.bridge import bridge_angle
 from cooprint.slicing.gapfill import medial_lines
 from cooprint.slicing.infill import hatch, hatch_flat
@@ -72,11 +74,20 @@ class SlicedModel:
         return len(self.layers)
 
 
+#: Layers are sliced this far under their middle, mm: a plane through a horizontal face then gives
+#: the section under the face, as PrusaSlicer's mesh slicer does (a triangle owns its top edge, not
+#: its bottom one), whatever the rounding of the layer heights; far below any printed detail.
+BELOW_MIDDLE = 1e-6
+
+
 def layer_tops(height: float, settings: SlicingSettings) -> np.ndarray:
     """(n,) top of every layer above the object's base, mm: the first layer, then equal layers
-    until the object's height is covered."""
+    while a layer's slice plane (its middle, ``BELOW_MIDDLE`` under) is under the object's top,
+    as PrusaSlicer's generate_object_layers. The last layer may reach up to half a layer above
+    the top (an object 10.1 mm tall in 0.2 mm layers has 51, the last sliced just under its top
+    face), and a top less than half a layer above the last layer is not printed (10.05 mm: 50)."""
     first, h = settings.first_layer_height, settings.layer_height
-    n = 1 + max(0, math.ceil((height - first) / h - 1e-9))
+    n = 1 + max(0, math.ceil((height - first - h / 2 + BELOW_MIDDLE) / h))
     return first + h * np.arange(n, dtype=np.float64)
 
 
@@ -503,11 +514,12 @@ class _Job:
         self.sparse_spacing = extrusion_spacing(s.role_width("infill"), s.layer_height)
 
     def sections(self, layers: range | list[int], context: bool = False, clip: bool = True) -> dict[int, CrossSection]:
-        """Sections of ``layers`` (ascending) at their mid-heights, simplified (``context``: the
-        object's, clipped to the chunk's surroundings unless not ``clip``). Each layer's section
-        depends on that layer alone, whichever others are sliced with it."""
+        """Sections of ``layers`` (ascending) at their mid-heights (``BELOW_MIDDLE`` under),
+        simplified (``context``: the object's, clipped to the chunk's surroundings unless not
+        ``clip``). Each layer's section depends on that layer alone, whichever others are sliced
+        with it."""
         idx = np.asarray(layers, dtype=np.int64)
-        mids = self.zmin + self.tops[idx] - self.heights[idx] / 2
+        mids = self.zmin + self.tops[idx] - self.heights[idx] / 2 - BELOW_MIDDLE
         out = {}
         for i, rings in zip(idx.tolist(), (self.context if context else self.slicer).rings(mids)):
             rings = drop_collinear(rings)  # a tessellated flat face's vertices: cheap to drop first
@@ -966,9 +978,7 @@ def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, a
     """``lines`` (ending ``JOIN_TOL`` spacings off ``contour``) joined along ``contour`` as
     PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
     the chains' ends shortest stretch first, with anchors (its connect_infill)."""
-    tol = 2 * JOIN_TOL * spacing
-    chains = anchor_infill(lines, contour, 0.0, anchor_max, width, tol, snake=True)
-    return anchor_infill(chains, contour, anchor, anchor_max, width, tol)
+    return join_infill(lines, contour, anchor, anchor_max, width, 2 * JOIN_TOL * spacing)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
