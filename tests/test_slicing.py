@@ -273,3 +273,29 @@ def test_streamed_gcode_equals_the_whole_model_written(tmp_path):
     # the count is the layers the G-code prints (it said 39 for 38 ;LAYER lines when the slicer
     # made an empty layer at the top)
     assert n == (tmp_path / "a.gcode").read_text().count("\n;LAYER:")
+
+
+def test_a_cone_tip_too_small_for_a_loop_gets_one_bead():
+    """The top layers of a cone 4 mm across and 4 mm tall hold discs under a line width across:
+    no loop fits and a disc has no centre line, so PrusaSlicer's classic walls print nothing
+    there, its Arachne walls one bead. cooprint prints one bead as wide as the disc (its area
+    as width x length plus round ends), so every layer whose section is over ``min_area`` prints
+    something (the last, 0.1 mm across, is under it): the tip's beads lie on the axis and hold
+    their disc's volume."""
+    import manifold3d as m3d
+
+    s = SlicingSettings()
+    cone = solid(m3d.Manifold.cylinder(4.0, 2.0, 0.0, 256))
+    sliced = slice_solid(cone, s)
+    assert sliced.n_layers == len(layer_tops(4.0, s)) == 20
+    disc = [math.pi * (0.5 * (4.0 - (layer.z - 0.1))) ** 2 for layer in sliced.layers]  # at mid-layer
+    printed = [i for i, layer in enumerate(sliced.layers) if (layer.role != TRAVEL).any()]
+    assert printed == [i for i in range(20) if disc[i] >= s.min_area] == list(range(19))
+    for i in (17, 18):  # discs 0.5 and 0.3 mm across
+        layer = sliced.layers[i]
+        ks = [k for k in range(len(layer)) if layer.role[k] != TRAVEL]
+        assert len(ks) == 1 and layer.role[ks[0]] == PERIMETER_OUTER
+        bead, w = layer.path(ks[0]), float(layer.width[ks[0]])
+        assert np.allclose(bead.mean(axis=0), 0.0, atol=1e-3)
+        length = float(np.linalg.norm(bead[-1] - bead[0]))
+        assert flow_area(w, 0.2, PERIMETER_OUTER) * length == pytest.approx(disc[i] * 0.2, rel=0.1)  # (the thin region is opened first)

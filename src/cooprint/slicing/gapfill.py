@@ -582,3 +582,29 @@ def _simplify(pts, tol):
             stack[sp, 1] = b
             sp += 1
     return keep
+
+
+def single_bead(region: manifold3d.CrossSection, min_width: float, max_width: float
+                ) -> tuple[np.ndarray, float] | None:
+    """One straight bead for a small island that neither a loop nor a medial line prints (a tip
+    under a model's top, a spike's end): along the island's longest direction (the principal
+    axis of its outline) through the middle of its extent, as wide as the island is on average
+    across it (area / extent, held to ``[min_width, max_width]``) and as long as makes width x
+    length the island's area, so the bead lays the island's volume as a medial line's does.
+    This is what PrusaSlicer 2.5's Arachne walls print for such an island (one bead, where its
+    classic walls print nothing): without it the top sliver of a pointed part is lost and the
+    part is a layer short. ``None`` for an empty region."""
+    polys = [np.asarray(p, dtype=np.float64) for p in region.to_polygons() if len(p) >= 3]
+    area = float(region.area())
+    if not polys or area <= 0.0:
+        return None
+    pts = np.concatenate(polys)
+    centre = pts.mean(axis=0)
+    _, _, vt = np.linalg.svd(pts - centre, full_matrices=False)
+    axis = vt[0]
+    along = (pts - centre) @ axis
+    lo, hi = float(along.min()), float(along.max())
+    mid = centre + axis * (0.5 * (lo + hi))
+    width = float(np.clip(area / max(hi - lo, 1e-9), min_width, max_width))
+    half = 0.5 * area / width
+    return np.stack([mid - axis * half, mid + axis * half]), width

@@ -49,7 +49,7 @@ from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, defaul
 from cooprint.io.mesh import Solid
 from cooprint.slicing.anchor import join_infill
 from cooprint.slicing.bridge import bridge_angle
-from cooprint.slicing.gapfill import medial_lines
+from cooprint.slicing.gapfill import medial_lines, single_bead
 from cooprint.slicing.infill import hatch, hatch_flat
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER, SKIN,
                                     TOP_SKIN, TRAVEL, LayerPaths, extrusion_spacing)
@@ -853,8 +853,11 @@ class _Job:
         # gets its 0.3 x h of cross-section, not the less of a 0.3 mm wide bead
         bead = float(self.heights[layer]) * (1 - math.pi / 4)
         if isl.thin is not None and not isl.thin.is_empty():
-            for pts, width in medial_lines(isl.thin, s.nozzle_diameter / 3,
-                                           f.ext + (f.spacing(f.ext) + f.spacing(f.per)) / 2):
+            thin_w = (s.nozzle_diameter / 3, f.ext + (f.spacing(f.ext) + f.spacing(f.per)) / 2)
+            walls = medial_lines(isl.thin, *thin_w)
+            if not walls and not isl.loops:  # too small for a loop and for a centre line: one bead
+                walls = [b for b in [single_bead(isl.thin, *thin_w)] if b is not None]
+            for pts, width in walls:
                 paths.append((pts, PERIMETER_OUTER, width + bead))
         if isl.gaps is not None:
             lo_w, hi_w = GAP_MIN * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
