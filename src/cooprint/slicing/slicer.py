@@ -474,6 +474,55 @@ def _apart(a: tuple[float, float, float, float], b: tuple[float, float, float, f
     return a[0] > b[2] or b[0] > a[2] or a[1] > b[3] or b[1] > a[3]
 
 
+#: A thin wall's end this close to another chunk's material (mm) lies on a cut between them;
+#: slivers of the object's section beside a chunk's narrower than twice this are no chunk
+#: (the two sections are simplified apart, by up to ``SIMPLIFY`` each).
+CUT_TOL = 0.05
+
+
+def _off_cuts(lines: list[tuple[np.ndarray, float]], whole: CrossSection, own: CrossSection, bead: float,
+              min_length: float) -> list[tuple[np.ndarray, float]]:
+    """A chunk's thin-wall lines (``medial_lines``, widths less ``bead``) with every free end
+    that :func:`~cooprint.slicing.gapfill.medial_lines` carried to a cut (its end within
+    ``CUT_TOL`` of the object's section ``whole`` outside the island ``own``: another chunk's
+    material) pulled back along the line by half its bead, so that the bead ends at the cut;
+    lines left shorter than ``min_length`` are dropped. Why: an end carried to the part's outline
+    lays its half bead beyond it, as PrusaSlicer's; beyond a cut it is material in the
+    neighbouring chunk. Where the cut slopes over the earlier chunk, that chunk's layers above
+    the later one's then stick out over it, and the later chunk's nozzle runs into them (the
+    slab's centre row, a wedge whose top layers are thin walls cut across: 22 nozzle-in-material
+    findings for one robot)."""
+    if not lines:
+        return lines
+    lo = np.min([p.min(axis=0) for p, _ in lines], axis=0) - 1.0
+    hi = np.max([p.max(axis=0) for p, _ in lines], axis=0) + 1.0
+    box = CrossSection.square((float(hi[0] - lo[0]), float(hi[1] - lo[1]))).translate((float(lo[0]), float(lo[1])))
+    cut = _opening((whole ^ box) - own, CUT_TOL)
+    if cut.is_empty():
+        return lines
+    probe = CrossSection.square((2 * CUT_TOL, 2 * CUT_TOL), center=True)
+
+    def on_cut(p: np.ndarray) -> bool:
+        return not (cut ^ probe.translate((float(p[0]), float(p[1])))).is_empty()
+
+    out = []
+    for pts, width in lines:
+        if np.array_equal(pts[0], pts[-1]):  # a closed loop has no end
+            out.append((pts, width))
+            continue
+        half = (width + bead) / 2
+        a, b = (half if on_cut(pts[0]) else 0.0), (half if on_cut(pts[-1]) else 0.0)
+        if a == b == 0.0:
+            out.append((pts, width))
+            continue
+        s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(pts, axis=0).T))]  # arc length at each point
+        if s[-1] - a - b < min_length:
+            continue
+        t = np.r_[a, s[(s > a) & (s < s[-1] - b)], s[-1] - b]
+        out.append((np.column_stack([np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])]), width))
+    return out
+
+
 def _nonempty(cs: CrossSection | None) -> bool:
     return cs is not None and not cs.is_empty()
 
@@ -738,6 +787,7 @@ class _Job:
             around = {i: _union(_islands(cs, s.min_area))
                       for i, cs in self.sections(range(max(0, c_lo - 1), min(n, c_hi + 1)), context=True).items()}
             self._around = {i: self.exposed(i, around[i], around) for i in range(c_lo, c_hi)}
+        self._object = around
         surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi, around) for i in range(c_lo, c_hi)}
         self._sources: dict[tuple[int, bool], CrossSection] = {}
         final = {j: self.solid_sparse(j, surf) for j in range(f_lo, hi)}
@@ -768,7 +818,7 @@ class _Job:
                 isl = remaining.pop(k)
                 here = self.island_paths(isl, i, over, fills, len(surf[i].islands) == 1, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
-        del self._sources, self._around, self._whole
+        del self._sources, self._around, self._whole, self._object
         return out
 
     def fill_regions(self, i: int, surf: dict[int, _Surfaces], final: dict) -> list[tuple[CrossSection, int, float | None]]:
@@ -857,6 +907,8 @@ class _Job:
             walls = medial_lines(isl.thin, *thin_w)
             if not walls and not isl.loops:  # too small for a loop and for a centre line: one bead
                 walls = [b for b in [single_bead(isl.thin, *thin_w)] if b is not None]
+            if self._object is not None:  # a chunk: no bead over its cuts
+                walls = _off_cuts(walls, self._object[layer], isl.cs, bead, thin_w[0])
             for pts, width in walls:
                 paths.append((pts, PERIMETER_OUTER, width + bead))
         if isl.gaps is not None:
