@@ -490,8 +490,9 @@ def _off_cuts(lines: list[tuple[np.ndarray, float]], whole: CrossSection, own: C
     lays its half bead beyond it, as PrusaSlicer's; beyond a cut it is material in the
     neighbouring chunk. Where the cut slopes over the earlier chunk, that chunk's layers above
     the later one's then stick out over it, and the later chunk's nozzle runs into them (the
-    slab's centre row, a wedge whose top layers are thin walls cut across: 22 nozzle-in-material
-    findings for one robot)."""
+    bench's slab for one robot: its centre row is a wedge whose top layers are thin walls, cut
+    across between its two columns; the second column's nozzle ran through 11 cells of the
+    first's layer ends)."""
     if not lines:
         return lines
     lo = np.min([p.min(axis=0) for p, _ in lines], axis=0) - 1.0
