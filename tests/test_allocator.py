@@ -1,7 +1,5 @@
 """The allocator tuning the ``cooprint`` command applies (cooprint.allocator)."""
 
-import ctypes
-import ctypes.util
 import platform
 import subprocess
 import sys
