@@ -322,13 +322,18 @@ def test_anchor_snake_joins_solid_lines_along_the_shrunk_boundary_into_one_polyl
     assert len(anchor_infill(lines, contour, 0.0, 50.0, 0.45, snake=True)) == len(lines)
 
 
+def fill_lines(params, spacing, angle, curved, z):
+    """The region of ``params`` (outline, hole, both rings) and its gyroid or hatch lines."""
+    outer, hole = region(params)
+    rings = [outer, hole]
+    return outer, hole, rings, (gyroid(rings, spacing, z, angle) if curved else list(hatch(rings, spacing, angle)))
+
+
 @settings(max_examples=40, deadline=None)
 @given(boxes, st.floats(0.6, 5.0), st.floats(0, 180), st.floats(0, 8), st.floats(0, 60),
        st.booleans(), st.floats(0.2, 10))
 def test_anchor_invariants(params, spacing, angle, anchor, anchor_max, curved, z):
-    outer, hole = region(params)
-    rings = [outer, hole]
-    lines = gyroid(rings, spacing, z, angle) if curved else list(hatch(rings, spacing, angle))
+    outer, hole, rings, lines = fill_lines(params, spacing, angle, curved, z)
     # (a scanline exactly on an edge runs along the ring: not an infill line to anchor)
     lines = [p for p in lines if not on_boundary(0.5 * (p[:1] + p[1:2]), rings)[0]]
     out = anchor_infill(lines, rings, anchor, anchor_max)
@@ -352,9 +357,7 @@ def test_anchor_invariants(params, spacing, angle, anchor, anchor_max, curved, z
 @given(boxes, st.floats(0.3, 3.0), st.floats(0, 180), st.floats(0, 8), st.floats(0, 60),
        st.booleans(), st.floats(0.2, 10))
 def test_join_infill_is_the_snake_pass_then_the_anchor_pass(params, spacing, angle, anchor, anchor_max, curved, z):
-    outer, hole = region(params)
-    rings = [outer, hole]
-    lines = gyroid(rings, spacing, z, angle) if curved else list(hatch(rings, spacing, angle))
+    _, _, rings, lines = fill_lines(params, spacing, angle, curved, z)
     tol = 0.05
     chains = anchor_infill(lines, rings, 0.0, anchor_max, 0.45, tol, snake=True)
     expected = anchor_infill(chains, RingSet(rings), anchor, anchor_max, 0.45, tol)
