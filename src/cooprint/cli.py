@@ -21,7 +21,7 @@ from typing import Any, Iterator
 
 import click
 
-from cooprint import __version__
+from cooprint import __version__, allocator
 from cooprint.errors import UserError
 from cooprint.interrupts import blocked_sigint, check_interrupt, held_imports, interrupted, sticky_sigint
 
@@ -259,7 +259,7 @@ def _plan(make: Any, mesh: str, out: str, config: tuple[str, ...], overrides: di
     from cooprint.io.bundle import check_destination
     from cooprint.io.outputs import estimate_bytes
 
-    _lean_malloc()
+    allocator.lean()  # (the module says why)
     settings = _settings(config, overrides)
     check_destination(out, force, inputs=(mesh, *config), need_bytes=estimate_bytes([mesh], 0.5))  # before the work
     with stage_progress(not quiet) as progress:
@@ -348,7 +348,7 @@ def slice_cmd(mesh: str, out: str, config: tuple[str, ...], overrides: dict[str,
     from cooprint.jobs import slice_to_gcode
 
     check_executor_options(executor, scheduler)
-    _lean_malloc()
+    allocator.lean()  # (the module says why)
     settings = _settings(config, overrides)
     if center is not None and not settings.mesh.place:  # one would be ignored
         raise UserError(f"--center {center[:40]} puts the part on the bed, --no-place (mesh.place = false) keeps "
@@ -580,7 +580,7 @@ def simulate(inputs: tuple[str, ...], manifest: str | None, out: str | None, str
     for target in targets:  # before the work; cooprint's own earlier results need no --force
         check_file_destination(target, force, sources, need_bytes=_SMALL_OUTPUT, create_parents=2)
     target = targets[0]
-    _heap_malloc()
+    allocator.heap()  # (the module says why)
     perturbed = None
     with stage_progress(not quiet) as progress:  # bars on a terminal; Ctrl-C between runs
         # a bundle's programs read piece by piece while they are timed (held whole for the Monte-Carlo runs)
@@ -715,7 +715,7 @@ def render(inputs: tuple[str, ...], fmt: str | None, at: float | None, fps: floa
         check_sim_folder(_sim_folder(inputs, None), need_bytes=_SMALL_OUTPUT)
     else:
         raise UserError("rendering files: give --out FILE for the picture or animation")
-    _heap_malloc()
+    allocator.heap()  # (the module says why)
     with stage_progress(True) as progress:  # bars on a terminal only
         inp = read_with_progress(paths, manifest, _settings(config, {}) if config else None, progress,
                                  programs=False)
@@ -792,7 +792,7 @@ def view(folder: str, open_page: bool, force: bool) -> None:
         why = None if sources.changed is None else (f"{folder}: {sources.changed} since sim/summary.json was "
                                                     "written: simulating again")
     accel = bool(sources is not None and sources.accel)  # timed as it was simulated (else at constant speed)
-    _heap_malloc()
+    allocator.heap()  # (the module says why)
     if why is not None and bundle:
         inp = read_with_progress([str(root)], None, None, None, programs=False)  # job.json refused before a word
         click.echo(why)
@@ -966,51 +966,6 @@ def _check_render_options(fmt: str, inferred: bool, at: float | None, duration: 
         raise UserError(f"{given[0]} shapes an animation (--format mp4 or gif); {label} does not use it")
 
 
-def _lean_malloc() -> None:
-    """Large arrays straight from the OS and back (glibc's malloc otherwise raises its mmap
-    threshold after the first large free and keeps later freed arrays in its heap: 30 MB more
-    resident memory after loading a 200k-triangle STL). For the commands that cut and slice
-    meshes; the simulator's arrays are fewer and larger, and fresh pages from the OS cost it time
-    (nefertiti: 130k more page faults, +0.5 s). Not on glibc: nothing to do."""
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6").mallopt(-3, 1 << 17)  # M_MMAP_THRESHOLD = 128 KiB, fixed
-    except (OSError, AttributeError):
-        pass
-
-
-def _heap_malloc() -> None:
-    """Every array from glibc's heap, kept there when freed, for the next one (the simulator
-    makes and drops arrays of millions of samples stage after stage; each fresh page from the OS
-    costs a fault and zeroing: nefertiti 200k -> 145k page faults, 0.3-0.9 s less). Not on
-    glibc: nothing to do.
-
-    And numpy asks for no transparent huge pages: on a kernel that defragments memory for them
-    when asked (``defrag`` ``madvise``, the common default) each first touch of 2 MB of a large
-    array waits for compaction and zeroes the whole page. The simulator's heap of ~1 GB grows
-    page by page, so the 4 KB pages cost less in all: nefertiti's 2-robot plan 4.3-4.7 s CPU
-    (user + sys) instead of 5.8-6.3 s, same findings. One heap for all threads: 10 % fewer page
-    faults, 950 MB at peak instead of 1.07 GB."""
-    import numpy as np
-
-    core = getattr(np, "_core", None) or getattr(np, "core", None)  # numpy 2, numpy 1
-    no_huge_pages = getattr(getattr(core, "multiarray", None), "_set_madvise_hugepage", None)
-    if no_huge_pages is not None:
-        no_huge_pages(False)
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL("libc.so.6")
-        libc.mallopt(-4, 0)  # M_MMAP_MAX = 0: no allocation gets pages of its own
-        libc.mallopt(-1, 1 << 40)  # M_TRIM_THRESHOLD: the heap is not given back
-        # M_ARENA_MAX = 1: the checks' second thread allocates from the same heap (an arena of its
-        # own is made of 64 MB maps given back when freed: faulted in again; 115 MB more at peak)
-        libc.mallopt(-8, 1)
-    except (OSError, AttributeError):
-        pass
-
-
 def one_line(message: str, limit: int = 300) -> str:
     """A message as one line of at most ``limit`` characters: whitespace runs (newlines
     included) become one space, and a long message keeps its start and end (a 10 MB token in
@@ -1104,9 +1059,6 @@ def entry() -> None:
     """The ``cooprint`` command: :func:`main`, then out of the process without tearing the
     interpreter down. Everything a command writes is closed by then; what is left is unloading
     numba's compiled code one function at a time, 0.15-0.25 s for nothing."""
-    from cooprint.allocator import tune
-
-    tune()  # large arrays reused from the heap, not fresh pages for each (the module says why)
     code = main()
     _ignore_sigint()  # done: a Ctrl-C now must not turn into a traceback while leaving
     for stream in (sys.stdout, sys.stderr):
