@@ -89,12 +89,7 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, an
     list of (j, 2) float64
         The joined and anchored polylines, in nearest-next order from the first line's start.
     """
-    pts, lo = _packed(lines)
-    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
-        rs = rings if isinstance(rings, RingSet) else RingSet(rings)
-        if len(rs):
-            pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
-    return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
+    return _passes(lines, rings, ((anchor, snake),), anchor_max, width, tol)
 
 
 def join_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anchor: float, anchor_max: float,
@@ -103,13 +98,19 @@ def join_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anch
     ``snake``, no anchors), then the chains' ends shortest stretch first, with anchors; the same
     as those two calls (parameters as :func:`anchor_infill`'s), without unpacking the chains in
     between."""
+    return _passes(lines, rings, ((0.0, True), (anchor, False)), anchor_max, width, tol)
+
+
+def _passes(lines, rings, passes, anchor_max, width, tol) -> list[np.ndarray]:
+    """``lines`` through each ``(anchor, snake)`` pass of :func:`_anchored` in turn (a pass with
+    neither anchors nor joins is skipped), on one packed array and one RingSet of ``rings``."""
     pts, lo = _packed(lines)
-    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
-        rs = rings if isinstance(rings, RingSet) else RingSet(rings)  # built once for both passes
+    passes = [(anchor, snake) for anchor, snake in passes if anchor > 0 or anchor_max > 0]
+    if passes and len(lo) > 1:
+        rs = rings if isinstance(rings, RingSet) else RingSet(rings)  # built once for every pass
         if len(rs):
-            if anchor_max > 0:
-                pts, lo = _anchored(pts, lo, rs, 0.0, anchor_max, width, tol, True)
-            pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, False)
+            for anchor, snake in passes:
+                pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
     return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
 
 
@@ -399,15 +400,10 @@ def _walk(buf, m, a, b, rparam, seg_len, s, k, total, p0, p1, forward):
     at ``p1``."""
     eps = 1e-12
     p0m, p1m = p0 % total, p1 % total
-    j0 = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
-    sl0 = seg_len[s + j0]
-    t0 = (p0m - rparam[s + j0]) / sl0 if sl0 > 0 else 0.0
-    x0 = a[s + j0, 0] + t0 * (b[s + j0, 0] - a[s + j0, 0])
-    y0 = a[s + j0, 1] + t0 * (b[s + j0, 1] - a[s + j0, 1])
+    j, x0, y0 = _ring_point(a, b, rparam, seg_len, s, k, p0m)
     if m == 0 or abs(buf[m - 1, 0] - x0) + abs(buf[m - 1, 1] - y0) > 1e-9:
         buf, m = _push(buf, m, x0, y0)
     span = (p1 - p0) % total if forward else (p0 - p1) % total
-    j = np.searchsorted(rparam[s:s + k], p0m, side="right") - 1
     if forward:
         i = j + 1
         d = (rparam[s + i] if i < k else total) - p0m
@@ -424,12 +420,19 @@ def _walk(buf, m, a, b, rparam, seg_len, s, k, total, p0, p1, forward):
                 buf, m = _push(buf, m, a[s + i, 0], a[s + i, 1])
             i = (i - 1) % k
             d += seg_len[s + i]
-    jj = np.searchsorted(rparam[s:s + k], p1m, side="right") - 1
-    sl = seg_len[s + jj]
-    t = (p1m - rparam[s + jj]) / sl if sl > 0 else 0.0
-    buf, m = _push(buf, m, a[s + jj, 0] + t * (b[s + jj, 0] - a[s + jj, 0]),
-                   a[s + jj, 1] + t * (b[s + jj, 1] - a[s + jj, 1]))
+    _, x1, y1 = _ring_point(a, b, rparam, seg_len, s, k, p1m)
+    buf, m = _push(buf, m, x1, y1)
     return buf, m
+
+
+@numba.njit(cache=True)
+def _ring_point(a, b, rparam, seg_len, s, k, p):
+    """The point of the ring (edges s .. s + k) at arc length ``p`` (in [0, its length)): (the
+    edge it lies on, counted from s; x; y)."""
+    j = np.searchsorted(rparam[s:s + k], p, side="right") - 1
+    sl = seg_len[s + j]
+    t = (p - rparam[s + j]) / sl if sl > 0 else 0.0
+    return j, a[s + j, 0] + t * (b[s + j, 0] - a[s + j, 0]), a[s + j, 1] + t * (b[s + j, 1] - a[s + j, 1])
 
 
 @numba.njit(cache=True)

@@ -11,6 +11,8 @@ import math
 import numba
 import numpy as np
 
+from cooprint.slicing.rings import successors
+
 
 def hatch(polygons: list[np.ndarray], spacing: float, angle_deg: float) -> np.ndarray:
     """Lines at ``angle_deg`` every ``spacing`` mm, clipped to ``polygons`` (even-odd rule).
@@ -39,12 +41,8 @@ def hatch_flat(pts: np.ndarray, sizes: np.ndarray, spacing: float, angle_deg: fl
         return np.zeros((0, 2, 2))
     a = math.radians(angle_deg)
     rot = np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])  # world -> hatch frame
-    # each point's successor along its ring (the last one's: the ring's first)
-    nxt = np.arange(1, len(pts) + 1)
-    ends = np.cumsum(sizes)
-    nxt[ends[sizes > 0] - 1] = (ends - sizes)[sizes > 0]
     p0 = pts @ rot.T
-    p1 = pts[nxt] @ rot.T
+    p1 = pts[successors(sizes)] @ rot.T  # each point's successor along its ring
     seg = _scan(p0, p1, spacing)
     return seg @ rot  # back to world (rot is orthonormal: inverse = transpose)
 

@@ -76,6 +76,17 @@ class EdgeSet:
         return _nearest(pts, self.a, self.b, x0, y0, cell, nx, ny, start, ids, tol)
 
 
+def successors(sizes: np.ndarray) -> np.ndarray:
+    """For rings of ``sizes`` vertices stored one after the other, the index of every vertex's
+    successor along its ring (each ring's last vertex: its first); empty rings have none."""
+    sizes = np.asarray(sizes, dtype=np.int64)
+    ends = np.cumsum(sizes)
+    after = np.arange(1, int(ends[-1]) + 1 if len(ends) else 1)
+    full = sizes > 0
+    after[ends[full] - 1] = (ends - sizes)[full]
+    return after
+
+
 class RingSet(EdgeSet):
     """The edges of a region's closed rings with their search structures.
 
@@ -103,9 +114,7 @@ class RingSet(EdgeSet):
         self.ring_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
         if rings:
             a = np.concatenate(rings)
-            after = np.arange(1, len(a) + 1)
-            after[self.ring_start[1:] - 1] = self.ring_start[:-1]  # each ring's last vertex: back to its first
-            super().__init__(a, a[after])
+            super().__init__(a, a[successors(sizes)])
         else:
             super().__init__(np.zeros((0, 2)), np.zeros((0, 2)))
         self.ring_of = np.repeat(np.arange(len(rings), dtype=np.int64), sizes)

@@ -24,7 +24,7 @@ Stages, each on whole layers (manifold3d CrossSection booleans and offsets, no P
    solid over sparse infill is a bridge (bridge_over_infill);
 5. fill: solid lines at a spacing adjusted to fill each region evenly, bridges as round
    threads, sparse infill by pattern (hatch, or :func:`~cooprint.slicing.patterns.gyroid`)
-   anchored along the perimeters (:func:`~cooprint.slicing.anchor.anchor_infill`);
+   anchored along the perimeters (:func:`~cooprint.slicing.anchor.join_infill`);
 6. order: islands nearest-first, perimeters with a seam, gap fill, then the fills, with
    explicit travel paths between.
 
@@ -577,6 +577,11 @@ class _Job:
             out[i] = cs ^ self.clip if context and clip and not cs.is_empty() else cs
         return out
 
+    def object_sections(self, layers: range | list[int], clip: bool = True) -> dict[int, CrossSection]:
+        """A chunk's context: the object's :meth:`sections` of ``layers`` without their islands
+        under ``min_area`` (clipped to the chunk's surroundings unless not ``clip``)."""
+        return {i: _union(_islands(cs, self.s.min_area)) for i, cs in self.sections(layers, True, clip).items()}
+
     def flows(self, i: int) -> _Flows:
         s, first = self.s, i == 0
         return _Flows(s.role_width("external_perimeter", first), s.role_width("perimeter", first),
@@ -785,8 +790,7 @@ class _Job:
         around = None  # a chunk: the object's sections, and its top and bottom on every layer
         self._around: dict[int, tuple[CrossSection, CrossSection]] | None = None
         if self.context is not None:
-            around = {i: _union(_islands(cs, s.min_area))
-                      for i, cs in self.sections(range(max(0, c_lo - 1), min(n, c_hi + 1)), context=True).items()}
+            around = self.object_sections(range(max(0, c_lo - 1), min(n, c_hi + 1)))
             self._around = {i: self.exposed(i, around[i], around) for i in range(c_lo, c_hi)}
         self._object = around
         surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi, around) for i in range(c_lo, c_hi)}
@@ -796,8 +800,7 @@ class _Job:
         if self.context is not None:  # a chunk's bridges look at the object's whole layers (not
             # clipped: a bridge may be long) on and under them: sliced once, only where needed
             need = sorted({j for i in range(max(lo, 1), hi) if not surf[i].bridge_g.is_empty() for j in (i - 1, i)})
-            self._whole = {k: _union(_islands(cs, s.min_area))
-                           for k, cs in self.sections(need, context=True, clip=False).items()}
+            self._whole = self.object_sections(need, clip=False)
         here = self.start
         out = []
         for i in range(lo, hi):
@@ -942,7 +945,7 @@ class _Job:
         volume per area stays one layer height; PrusaSlicer's adjusted solid spacing). A bridge
         (round thread of diameter ``width``) keeps its ``BRIDGE_GAP`` between the threads.
         Solid and top lines (not bridges) end ``LINE_END`` spacings inside their piece and are
-        joined along it (:func:`~cooprint.slicing.anchor.anchor_infill`, ``snake``, no anchors)."""
+        joined along it (:func:`_joined`, without anchors)."""
         bridge = role == BRIDGE
         pieces = [(piece, r) for piece in region.decompose() for r in [_rings(piece)] if r]
         if not pieces:
@@ -988,7 +991,7 @@ class _Job:
     def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
         """Sparse infill of ``region`` in ``infill_pattern`` at ``infill_density`` (line
         distance: the infill line spacing at the layer height over the density, on a global
-        grid), anchored along its boundary (:func:`~cooprint.slicing.anchor.anchor_infill`)."""
+        grid), joined and anchored along its boundary (:func:`_joined`)."""
         s = self.s
         if s.infill_density <= 0:
             return
