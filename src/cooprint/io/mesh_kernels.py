@@ -6,9 +6,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 #: Multipliers of the vertex hash (odd 64-bit constants; the products wrap modulo 2**64). The
 #: loader's merge groups use the same mix.

@@ -23,9 +23,9 @@ from typing import Sequence
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 _FIELD = re.compile(r"%\.(\d)f")
 #: Beyond this, ``|v| * 10**N`` is not known to within 1e-6 of its rounding (doubles there are

@@ -19,10 +19,10 @@ import numba
 import numpy as np
 
 from cooprint.geometry import MAX_COORD_MM
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 from cooprint.program.commands import ANNOTATION_MAX_MM, MOVE, ROLE_WORDS, TOOL_OFF, TOOL_ON
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 #: Kinds of line the sweep tells apart.
 OTHER, MOVE_LINE, TOOL_ON_LINE, TOOL_OFF_LINE, SKIP, LAYER_LINE, PATH_LINE = range(7)

@@ -25,11 +25,11 @@ from typing import Iterator, Mapping, Sequence
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 from cooprint.program.commands import COLUMNS, MOVE, Program, program_rows, quantize
 from cooprint.slicing.paths import LayerPaths
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 
 #: The most commands a consumer of a stream takes at once (:meth:`RobotStream.programs`): a

@@ -36,14 +36,14 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT
 from cooprint.program.scan import POW10, decimal
 from cooprint.simulation.inputs import SimInputError
 from cooprint.slicing.paths import (BRIDGE, GAP_FILL, INFILL, OVERHANG, PERIMETER_INNER, PERIMETER_OUTER,
                                     ROUND_ROLES, SKIN, TOP_SKIN, TRAVEL, extrusion_width, round_width)
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 # the first word of a line, as the sweep tells them apart
 _OTHER, _G0, _G1, _G92, _G90, _G91, _M82, _M83, _HOST = range(9)

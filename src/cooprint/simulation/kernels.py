@@ -15,10 +15,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 from cooprint.program.commands import MOVE, TOOL_OFF, TOOL_ON
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 _jit = numba.njit(cache=True, nogil=True)
 #: For the small helpers called per sample: inlined into their callers (a call would pass each

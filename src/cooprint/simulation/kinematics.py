@@ -14,9 +14,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 
 @dataclass(frozen=True)

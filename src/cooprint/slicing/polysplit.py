@@ -10,9 +10,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 
 def split_by_region(line: np.ndarray, rings: list[np.ndarray]) -> list[tuple[np.ndarray, bool]]:

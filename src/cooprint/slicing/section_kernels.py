@@ -5,9 +5,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from cooprint.interrupts import hold_compiles
+from cooprint import jit
 
-hold_compiles()  # a Ctrl-C waits for numba to finish compiling (cooprint.interrupts)
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 
 @numba.njit(cache=True, nogil=True)
