@@ -220,3 +220,74 @@ def test_gcode_from_a_program_extrudes_the_flow_and_speaks_to_the_host():
     assert e_total == pytest.approx(vol / (np.pi * 0.875 ** 2), rel=1e-4)
     assert pos == {"X": 1000.0, "Y": pytest.approx(1 / 3, abs=1e-3), "Z": 5.0}
     assert re.search(r"G1 X10\.000 Y10\.000 E[0-9.]+\n", text)
+
+
+def _layer_program_numpy(layer, here, index=0):
+    """layer_program as it was written in numpy before its compiled pass: the reference."""
+    from cooprint.program.commands import make_program, quantize
+
+    z = float(quantize(layer.z))
+    m = len(layer)
+    pts, off, role = layer.points, layer.offsets, layer.role
+    n_pts = np.diff(off)
+    extr = role != TRAVEL
+    on = extr & ~np.r_[False, extr[:-1]]
+    offc = extr & ~np.r_[extr[1:], False]
+    count = on + (n_pts - 1) + offc
+    start = np.r_[0, np.cumsum(count)[:-1]]
+    total = int(count.sum())
+    kind = np.full(total, MOVE, dtype=np.uint8)
+    kind[start[on]] = TOOL_ON
+    kind[(start + count - 1)[offc]] = TOOL_OFF
+    keep_pt = np.ones(len(pts), dtype=bool)
+    keep_pt[off[:-1]] = False
+    xyz = np.zeros((total, 3))
+    xyz[kind == MOVE, :2] = pts[keep_pt]
+    xyz[:, 2] = z
+    k = np.arange(m)
+    nxt = np.minimum.accumulate(np.where(extr, k, m)[::-1])[::-1]
+    before = np.maximum.accumulate(np.where(extr, k, -1))
+    owner = np.where(nxt < m, nxt, before)
+    owner = np.where(owner >= 0, owner, k)
+    path_of = np.repeat(owner, count)
+    width = np.where(extr, layer.width, 0.0)[path_of]
+    lead = [np.r_[here[:2], z], np.r_[pts[0], z]] if np.isfinite(here).all() else [np.r_[pts[0], z]]
+    kind = np.r_[np.full(len(lead), MOVE, np.uint8), kind]
+    xyz = quantize(np.vstack([*lead, xyz]))
+    path_of = np.r_[np.full(len(lead), owner[0]), path_of]
+    width = np.r_[np.full(len(lead), width[0] if len(width) else 0.0), width]
+    mv = np.flatnonzero(kind == MOVE)
+    prev = np.vstack([quantize(here)[None], xyz[mv[:-1]]])
+    still = np.zeros(len(kind), dtype=bool)
+    still[mv[(xyz[mv] == prev).all(axis=1)]] = True
+    keep = ~still
+    prog = make_program("", kind[keep], xyz[keep], role=role[path_of][keep], width=width[keep], layer=index,
+                        height=layer.height)
+    return prog, xyz[mv[-1]]
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.integers(1, 4), st.sampled_from([TRAVEL, INFILL, PERIMETER_OUTER])), min_size=1, max_size=7),
+       st.lists(st.integers(0, 3), min_size=40, max_size=40),
+       st.sampled_from(["nowhere", "first point", "elsewhere"]))
+def test_layer_program_matches_its_numpy_form(paths, coords, start):
+    """The compiled layer_program makes the same commands as the whole-array version it
+    replaced, whatever the paths: travels first or last or alone, one-point paths, repeated
+    points (moves that go nowhere are dropped), a nozzle from nowhere, on the first point or
+    elsewhere."""
+    from cooprint.program.build import layer_program
+    from cooprint.slicing.paths import LayerPaths
+
+    grid = np.array(coords, dtype=np.float64).reshape(-1, 2) * 0.7
+    made, at = [], 0
+    for n, role in paths:
+        pts = np.array([grid[(at + i) % len(grid)] for i in range(n)])
+        at += n
+        made.append((pts, role, 0.0 if role == TRAVEL else 0.45))
+    layer = LayerPaths.build(0.6, 0.2, made)
+    here = {"nowhere": np.full(3, np.nan), "first point": np.r_[layer.points[0], 0.6],
+            "elsewhere": np.array([5.0, -3.0, 0.4])}[start]
+    got, got_end = layer_program(layer, here, index=3)
+    want, want_end = _layer_program_numpy(layer, here, index=3)
+    assert got == want
+    assert np.array_equal(got_end, want_end)

@@ -22,13 +22,17 @@ import math
 from dataclasses import dataclass
 from typing import Iterable, Iterator, Mapping, NamedTuple, Sequence
 
+import numba
 import numpy as np
 
+from cooprint import jit
 from cooprint.config import outline_rects
 from cooprint.geometry import unit_deg, unit_xy
 from cooprint.program.commands import MOVE, NOTIFY, TOOL_OFF, TOOL_ON, WAIT, Program, make_program, quantize
 from cooprint.program.stream import ChunkPiece, ChunkStore, RobotStream
 from cooprint.slicing.paths import TRAVEL, LayerPaths
+
+jit.setup()  # Ctrl-C held while numba compiles; LLVM calls untimed (cooprint.jit)
 
 
 def layer_program(layer: LayerPaths, here: np.ndarray, *, robot: str = "", index: int = 0,
@@ -37,60 +41,105 @@ def layer_program(layer: LayerPaths, here: np.ndarray, *, robot: str = "", index
     program piece and the position where it ends.
 
     The moves are the layer's points after each path's first (the nozzle is there already); a
-    move that goes nowhere (on the 1 µm grid) is left out.
+    move that goes nowhere (on the 1 µm grid) is left out. One compiled pass
+    (:func:`_layer_rows`) makes the rows.
     """
-    z = float(quantize(layer.z))
-    m = len(layer)
-    if m == 0:
+    if len(layer) == 0:
         return Program.empty(robot), here
-    pts, off, role = layer.points, layer.offsets, layer.role
-    n_pts = np.diff(off)
-    extr = role != TRAVEL
-    prev_extr = np.r_[False, extr[:-1]]
-    next_extr = np.r_[extr[1:], False]
-    on = extr & ~prev_extr
-    offc = extr & ~next_extr
-    count = on + (n_pts - 1) + offc
-    start = np.r_[0, np.cumsum(count)[:-1]]
-    total = int(count.sum())
-    kind = np.full(total, MOVE, dtype=np.uint8)
-    kind[start[on]] = TOOL_ON
-    kind[(start + count - 1)[offc]] = TOOL_OFF
-    moving = kind == MOVE
-    keep_pt = np.ones(len(pts), dtype=bool)
-    keep_pt[off[:-1]] = False  # each path's first point: the nozzle is there
-    xyz = np.zeros((total, 3))
-    xyz[moving, :2] = pts[keep_pt]
-    xyz[:, 2] = z
-    # a travel takes the role and width of the path it leads to (of the one before, at the end):
-    # the tool is off on it anyway, and the annotations change only where the printing does
-    k = np.arange(m)
-    nxt = np.minimum.accumulate(np.where(extr, k, m)[::-1])[::-1]
-    before = np.maximum.accumulate(np.where(extr, k, -1))
-    owner = np.where(nxt < m, nxt, before)
-    owner = np.where(owner >= 0, owner, k)
-    path_of = np.repeat(owner, count)
-    width = np.where(extr, layer.width, 0.0)[path_of]
-    # the way in: up to the layer's height, then over to its first point (either is left out
-    # below when the nozzle is there already)
-    lead = [np.r_[here[:2], z], np.r_[pts[0], z]] if np.isfinite(here).all() else [np.r_[pts[0], z]]
-    kind = np.r_[np.full(len(lead), MOVE, np.uint8), kind]
-    xyz = np.vstack([*lead, xyz])
-    path_of = np.r_[np.full(len(lead), owner[0]), path_of]
-    width = np.r_[np.full(len(lead), width[0] if len(width) else 0.0), width]
-    xyz = quantize(xyz)
-    # drop moves to where the nozzle already is
-    mv = np.flatnonzero(kind == MOVE)
-    prev = np.vstack([quantize(here)[None], xyz[mv[:-1]]])
-    still = np.zeros(len(kind), dtype=bool)
-    still[mv[(xyz[mv] == prev).all(axis=1)]] = True
-    keep = ~still
-    roles = role[path_of]
-    prog = make_program(robot, kind[keep], xyz[keep], role=roles[keep], width=width[keep], layer=index,
+    extr = layer.role != TRAVEL
+    kind, xyz, path_of, n_in, lead, last = _layer_rows(layer.points, layer.offsets.astype(np.int64), extr,
+                                                       np.asarray(here, dtype=np.float64), float(quantize(layer.z)))
+    widths = np.where(extr, layer.width, 0.0)
+    width = widths[path_of]
+    width[:n_in] = widths[lead] if lead >= 0 else 0.0
+    prog = make_program(robot, kind, xyz, role=layer.role[path_of], width=width, layer=index,
                         height=layer.height, chunk=0 if chunk is not None else -1,
                         chunks=(chunk,) if chunk is not None else ())
-    last = xyz[mv[-1]] if len(mv) else here
     return prog, last
+
+
+@numba.njit(cache=True, nogil=True)
+def _layer_rows(pts, off, extr, here, z):
+    """The rows of :func:`layer_program` for paths ``off`` (m + 1 offsets into ``pts``), of
+    which ``extr`` extrude, at height ``z`` (on the 1 µm grid), from ``here``: per command its
+    kind, its position (on the grid; NaN but for MOVEs) and the path whose role and width it
+    takes; the number of moves of the way in, the path whose width they take (that of the
+    first command after them; -1: none), and the last move's position.
+
+    The way in comes first: up to the layer's height where the nozzle is, then over to the first
+    point (only the latter when ``here`` is not known). Then path by path: ``TOOL ON`` before the
+    first path of each run of extruding paths, a move to each point after the path's first,
+    ``TOOL OFF`` after the run's last path. A travel takes the role and width of the next
+    extruding path (of the one before when none follows): the tool is off on it anyway, and the
+    annotations change only where the printing does. A move to where the nozzle already is is
+    left out."""
+    m = len(off) - 1
+    owner = np.empty(m, np.int64)
+    follow = m
+    for p in range(m - 1, -1, -1):
+        if extr[p]:
+            follow = p
+        owner[p] = follow
+    before = -1
+    for p in range(m):
+        if extr[p]:
+            before = p
+        elif owner[p] == m:
+            owner[p] = before if before >= 0 else p
+    known = np.isfinite(here[0]) and np.isfinite(here[1]) and np.isfinite(here[2])
+    n_lead = 2 if known else 1
+    total = n_lead
+    first_path = -1  # the first path with a command: the way in takes its owner's width
+    for p in range(m):
+        c = off[p + 1] - off[p] - 1
+        if extr[p]:
+            c += (p == 0 or not extr[p - 1]) + (p == m - 1 or not extr[p + 1])
+        if c > 0 and first_path < 0:
+            first_path = p
+        total += c
+    kind = np.empty(total, np.uint8)
+    xyz = np.full((total, 3), np.nan)
+    path_of = np.empty(total, np.int64)
+    px, py = np.nan, np.nan  # the nozzle (on the grid) before the next move
+    pz = np.nan
+    if known:
+        px, py, pz = np.rint(here[0] * 1000.0) / 1000.0, np.rint(here[1] * 1000.0) / 1000.0, np.rint(here[2] * 1000.0) / 1000.0
+    lead_path = owner[first_path] if first_path >= 0 else -1
+    w = 0
+    lx, ly, lz = np.nan, np.nan, np.nan
+    for k in range(n_lead):
+        if k == 0 and known:
+            x, y = here[0], here[1]
+        else:
+            x, y = pts[off[0], 0], pts[off[0], 1]
+        x, y = np.rint(x * 1000.0) / 1000.0, np.rint(y * 1000.0) / 1000.0
+        lx, ly, lz = x, y, z
+        if not (x == px and y == py and z == pz):
+            kind[w] = MOVE
+            xyz[w, 0], xyz[w, 1], xyz[w, 2] = x, y, z
+            path_of[w] = owner[0]
+            w += 1
+        px, py, pz = x, y, z
+    n_in = w
+    for p in range(m):
+        if extr[p] and (p == 0 or not extr[p - 1]):
+            kind[w] = TOOL_ON
+            path_of[w] = owner[p]
+            w += 1
+        for i in range(off[p] + 1, off[p + 1]):
+            x, y = np.rint(pts[i, 0] * 1000.0) / 1000.0, np.rint(pts[i, 1] * 1000.0) / 1000.0
+            lx, ly, lz = x, y, z
+            if not (x == px and y == py and z == pz):
+                kind[w] = MOVE
+                xyz[w, 0], xyz[w, 1], xyz[w, 2] = x, y, z
+                path_of[w] = owner[p]
+                w += 1
+            px, py, pz = x, y, z
+        if extr[p] and (p == m - 1 or not extr[p + 1]):
+            kind[w] = TOOL_OFF
+            path_of[w] = owner[p]
+            w += 1
+    return kind[:w], xyz[:w], path_of[:w], n_in, lead_path, np.array([lx, ly, lz])
 
 
 def layer_pieces(layers: Iterable[LayerPaths], robot: str = "") -> Iterator[Program]:
