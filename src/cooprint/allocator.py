@@ -1,14 +1,17 @@
 """The C allocator set for what a command does: glibc's malloc, two policies.
 
 * :func:`lean` (``slice``, ``run``, ``chunk``: cutting and slicing meshes): every block above
-  128 KiB comes from the OS and goes back when freed. glibc would otherwise raise its mmap
+  1 MiB comes from the OS and goes back when freed. glibc would otherwise raise its mmap
   threshold after the first large free and keep later freed arrays in its heap (30 MB more
   resident memory after loading a 200k-triangle STL). Below that size, the heap's free top is
   kept up to 256 MiB instead of being given back whenever 128 KiB of it is free, and the heap
   grows 16 MiB at a time: the slicer makes and drops many blocks of tens of KiB for every
   layer, and each time the top was trimmed their pages were faulted in and zeroed again. On the
   1.5 M-face large part of the benchmark that was 4.3 s of system time against 16.2 s of user
-  time; 1.3 s with the trim and pad below, the same user time, peak memory +4%.
+  time; 1.3 s with the trim and pad below, the same user time, peak memory +4%. The threshold
+  was glibc's initial 128 KiB until the large part's layers (points, segment groups of a few
+  hundred KiB) showed what it cost: 245k page faults and 0.7-1.0 s of system time; with 1 MiB,
+  91k and 0.4-0.7 s, and the same peak memory there and on benchy (4 MiB: benchy +7 MB).
 * :func:`heap` (``simulate``, ``view``, ``validate``): every array from the heap, kept there when
   freed, for the next one (the simulator makes and drops arrays of millions of samples stage
   after stage; each fresh page from the OS costs a fault and zeroing: nefertiti 200k -> 145k
@@ -31,9 +34,8 @@ import ctypes.util
 
 #: mallopt's parameters (glibc's malloc.h).
 M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_THRESHOLD, M_MMAP_MAX, M_ARENA_MAX = -1, -2, -3, -4, -8
-#: :func:`lean`: blocks above this size come from the OS and go back to it, bytes (glibc's
-#: initial threshold, held fixed).
-LEAN_MMAP_THRESHOLD = 128 << 10
+#: :func:`lean`: blocks above this size come from the OS and go back to it, bytes (held fixed).
+LEAN_MMAP_THRESHOLD = 1 << 20
 #: :func:`lean`: free memory at the heap's top kept rather than given back, bytes.
 LEAN_TRIM_THRESHOLD = 256 << 20
 #: :func:`lean`: extra bytes asked of the OS whenever the heap grows.
