@@ -577,7 +577,7 @@ def _merge_vertices(v: np.ndarray, f: np.ndarray | None) -> tuple[np.ndarray, np
         local[lo:lo + (1 << 16)] = rank[local[lo:lo + (1 << 16)]]
     inverse = local
     del rank
-    verts = v[first[order]].astype(np.float64)
+    verts = np.take(v, first[order], axis=0).astype(np.float64)  # (take: 2-3x faster than indexing rows)
     return verts, (inverse.reshape(-1, 3) if f is None else inverse[f])
 
 
