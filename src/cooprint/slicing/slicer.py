@@ -99,6 +99,12 @@ def _rings(cs: CrossSection) -> list[np.ndarray]:
     return [np.asarray(p, dtype=np.float64) for p in cs.to_polygons() if len(p) >= 3]
 
 
+def _equal(a: CrossSection, b: CrossSection) -> bool:
+    """Whether ``a`` and ``b`` have the same contours, vertex for vertex."""
+    pa, pb = a.to_polygons(), b.to_polygons()
+    return len(pa) == len(pb) and all(np.array_equal(x, y) for x, y in zip(pa, pb))
+
+
 def _union(sections: list[CrossSection]) -> CrossSection:
     if len(sections) == 1:
         return sections[0]
@@ -571,10 +577,16 @@ class _Job:
         idx = np.asarray(layers, dtype=np.int64)
         mids = self.zmin + self.tops[idx] - self.heights[idx] / 2 - BELOW_MIDDLE
         out = {}
+        seen: dict[tuple[int, float], list[tuple[CrossSection, CrossSection]]] = {}
         for i, rings in zip(idx.tolist(), (self.context if context else self.slicer).rings(mids)):
             rings = drop_collinear(rings)  # a tessellated flat face's vertices: cheap to drop first
             cs = CrossSection(rings, manifold3d.FillRule.Positive).simplify(SIMPLIFY) if rings else CrossSection()
-            out[i] = cs ^ self.clip if context and clip and not cs.is_empty() else cs
+            same = seen.setdefault((cs.num_vert(), cs.area()), [])
+            got = next((o for c, o in same if _equal(c, cs)), None)
+            if got is None:
+                got = cs ^ self.clip if context and clip and not cs.is_empty() else cs
+                same.append((cs, got))
+            out[i] = got
         return out
 
     def object_sections(self, layers: range | list[int], clip: bool = True) -> dict[int, CrossSection]:
@@ -673,7 +685,12 @@ class _Job:
         neighbours' (``kept``: the sections without their too small islands; ``around``: the
         object's, for a chunk: what covers it and what it stands on)."""
         s = self.s
-        shells = [self.shells(isl, i, printed) for isl in islands]
+        shells = []
+        for isl in islands:  # an island equal to one of another layer's (same object): its shells
+            key = (id(isl), i == 0, printed)
+            if key not in self._shells:
+                self._shells[key] = self.shells(isl, i, printed)
+            shells.append(self._shells[key])
         fill = _union([sh.fill for sh in shells if not sh.fill.is_empty()])
         top, bottom = self.exposed(i, kept[i], kept if around is None else around)
         empty = CrossSection()
@@ -785,8 +802,14 @@ class _Job:
         f_lo = max(0, lo - 2)
         c_lo, c_hi = max(0, f_lo - max(s.bottom_layers - 1, 0)), min(n, hi + max(s.top_layers - 1, 0))
         sections = self.sections(range(max(0, c_lo - 1), min(n, c_hi + 1)))
-        islands = {i: _islands(cs, s.min_area) for i, cs in sections.items()}
-        kept = {i: _union(isl) for i, isl in islands.items()}
+        by_cs: dict[int, tuple[list[CrossSection], CrossSection]] = {}  # equal sections are one object
+        for cs in sections.values():
+            if id(cs) not in by_cs:
+                isl = _islands(cs, s.min_area)
+                by_cs[id(cs)] = isl, _union(isl)
+        islands = {i: by_cs[id(cs)][0] for i, cs in sections.items()}
+        kept = {i: by_cs[id(cs)][1] for i, cs in sections.items()}
+        self._shells: dict[tuple[int, bool, bool], _Island] = {}
         around = None  # a chunk: the object's sections, and its top and bottom on every layer
         self._around: dict[int, tuple[CrossSection, CrossSection]] | None = None
         if self.context is not None:
@@ -822,7 +845,7 @@ class _Job:
                 isl = remaining.pop(k)
                 here = self.island_paths(isl, i, over, fills, len(surf[i].islands) == 1, paths, here)
             out.append(_with_travel(self.zmin + float(self.tops[i]), float(self.heights[i]), paths))
-        del self._sources, self._around, self._whole, self._object
+        del self._sources, self._around, self._whole, self._object, self._shells
         return out
 
     def fill_regions(self, i: int, surf: dict[int, _Surfaces], final: dict) -> list[tuple[CrossSection, int, float | None]]:
