@@ -592,7 +592,12 @@ class _Job:
     def object_sections(self, layers: range | list[int], clip: bool = True) -> dict[int, CrossSection]:
         """A chunk's context: the object's :meth:`sections` of ``layers`` without their islands
         under ``min_area`` (clipped to the chunk's surroundings unless not ``clip``)."""
-        return {i: _union(_islands(cs, self.s.min_area)) for i, cs in self.sections(layers, True, clip).items()}
+        out, by_cs = {}, {}
+        for i, cs in self.sections(layers, True, clip).items():
+            if id(cs) not in by_cs:  # equal sections are one object, and so are their results
+                by_cs[id(cs)] = _union(_islands(cs, self.s.min_area))
+            out[i] = by_cs[id(cs)]
+        return out
 
     def flows(self, i: int) -> _Flows:
         s, first = self.s, i == 0
@@ -673,8 +678,12 @@ class _Job:
         width dropped); a membrane (both) is a bottom."""
         n = len(self.tops)
         sliver = self.s.role_width("external_perimeter", i == 0) / 10
-        top = _opening(here - around[i + 1], sliver) if i + 1 < n else here
-        bottom = _opening(here - around[i - 1], sliver) if i > 0 else here
+
+        def uncovered(by: CrossSection) -> CrossSection:  # an equal section is the same object
+            return CrossSection() if by is here else _opening(here - by, sliver)
+
+        top = uncovered(around[i + 1]) if i + 1 < n else here
+        bottom = uncovered(around[i - 1]) if i > 0 else here
         if _nonempty(top) and _nonempty(bottom):
             top = top - bottom  # a membrane: bottom (bridged)
         return top, bottom
@@ -816,7 +825,15 @@ class _Job:
             around = self.object_sections(range(max(0, c_lo - 1), min(n, c_hi + 1)))
             self._around = {i: self.exposed(i, around[i], around) for i in range(c_lo, c_hi)}
         self._object = around
-        surf = {i: self.surfaces(i, kept, islands[i], lo <= i < hi, around) for i in range(c_lo, c_hi)}
+        near = kept if around is None else around
+        surf: dict[int, _Surfaces] = {}
+        same: dict[tuple, _Surfaces] = {}  # a layer between the same sections as another: its surfaces
+        for i in range(c_lo, c_hi):
+            key = (i == 0, lo <= i < hi, id(kept[i]), id(near[i - 1]) if i > 0 else None,
+                   id(near[i + 1]) if i + 1 < n else None)
+            if key not in same:
+                same[key] = self.surfaces(i, kept, islands[i], lo <= i < hi, around)
+            surf[i] = same[key]
         self._sources: dict[tuple[int, bool], CrossSection] = {}
         final = {j: self.solid_sparse(j, surf) for j in range(f_lo, hi)}
         self._whole: dict[int, CrossSection] = {}
