@@ -582,7 +582,8 @@ class _Job:
         """Sections of ``layers`` (ascending) at their mid-heights (``BELOW_MIDDLE`` under),
         simplified (``context``: the object's, clipped to the chunk's surroundings unless not
         ``clip``). Each layer's section depends on that layer alone, whichever others are sliced
-        with it."""
+        with it. Equal sections (vertex for vertex: a prismatic part's layers) are one object, so
+        that :meth:`block` works on each of them once."""
         idx = np.asarray(layers, dtype=np.int64)
         mids = self.zmin + self.tops[idx] - self.heights[idx] / 2 - BELOW_MIDDLE
         out = {}
@@ -700,7 +701,8 @@ class _Job:
                  printed: bool, around: dict[int, CrossSection] | None = None) -> _Surfaces:
         """Layer ``i``'s typed surfaces (:class:`_Surfaces`), from its section and its
         neighbours' (``kept``: the sections without their too small islands; ``around``: the
-        object's, for a chunk: what covers it and what it stands on)."""
+        object's, for a chunk: what covers it and what it stands on). An island of an equal
+        section (the same object, :meth:`sections`) gets the shells already found for it."""
         s = self.s
         shells = []
         for isl in islands:  # an island equal to one of another layer's (same object): its shells
@@ -814,7 +816,8 @@ class _Job:
         """Layers ``lo .. hi - 1``, with the neighbours their surfaces need: a layer's solid
         comes from the top and bottom surfaces up to ``top_layers - 1`` / ``bottom_layers - 1``
         layers away, and its bridges over infill look at the sparse areas of the two layers
-        under it."""
+        under it. Layers between equal sections (the same objects) share their islands, shells
+        and surfaces."""
         s, n = self.s, len(self.tops)
         f_lo = max(0, lo - 2)
         c_lo, c_hi = max(0, f_lo - max(s.bottom_layers - 1, 0)), min(n, hi + max(s.top_layers - 1, 0))
