@@ -450,23 +450,3 @@ def test_bridge_angle_is_fast():
     pads = rect(-10, 0, 0, 50) + rect(50, 0, 60, 50)
     t = best_of(lambda: bridge_angle(rect(0, 0, 50, 50), pads, 0.45))
     assert t < 2 * 0.020  # budget 20 ms
-
-
-def test_drop_collinear_keeps_the_outline_and_drops_a_tessellation():
-    """A square whose sides carry 1,000 vertices each (a finely tessellated flat face's section,
-    with float noise) keeps its 4 corners; a fine circle (sagitta far below the tolerance) keeps
-    its area within the promised drift; rings without such vertices come back as they were."""
-    from cooprint.slicing.rings import drop_collinear
-
-    t = np.linspace(0.0, 1.0, 1000, endpoint=False)
-    side = [np.c_[t, 0 * t], np.c_[1 + 0 * t, t], np.c_[1 - t, 1 + 0 * t], np.c_[0 * t, 1 - t]]
-    square = 50.0 * np.concatenate(side) + np.random.default_rng(1).normal(0, 1e-9, (4000, 2))
-    (out,) = drop_collinear([square])
-    assert len(out) == 4 and np.allclose(out, [[0, 0], [50, 0], [50, 50], [0, 50]], atol=1e-6)
-    a = np.linspace(0.0, 2 * np.pi, 20000, endpoint=False)
-    circle = np.c_[np.cos(a), np.sin(a)] * 10.0
-    (c,) = drop_collinear([circle])
-    area = 0.5 * abs(np.sum(c[:, 0] * np.roll(c[:, 1], -1) - np.roll(c[:, 0], -1) * c[:, 1]))
-    assert len(c) < len(circle) and abs(area - np.pi * 100) < 2 * np.pi * 10 * 1024 * 1e-6
-    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-    assert drop_collinear([tri])[0] is tri and drop_collinear([]) == []

@@ -69,7 +69,7 @@ def test_walk_gives_each_cycle_from_its_smallest_member(lengths, rnd):
         cycles.append(members)
     # each element's point is (its number, 2 x its number), its layer 3 x its number
     start = np.stack([np.arange(n), 2 * np.arange(n)], axis=1).astype(np.float64)
-    pts, ring_at, ring_layer = walk(nxt, start, 3 * np.arange(n, dtype=np.int64))
+    pts, ring_at, ring_layer = walk(nxt, start, 3 * np.arange(n, dtype=np.int64), 0.0, 0)
     assert np.array_equal(pts[:, 1], 2 * pts[:, 0])
     order = pts[:, 0].astype(np.int64)
     walked = [order[a:b].tolist() for a, b in zip(ring_at[:-1], ring_at[1:])]
@@ -84,6 +84,32 @@ def test_walk_gives_each_cycle_from_its_smallest_member(lengths, rnd):
     assert walked == expected
 
 
+def test_walk_drops_collinear_points_and_keeps_the_outline():
+    """A square whose sides carry 1,000 vertices each (a finely tessellated flat face's section,
+    with float noise) keeps its 4 corners; a fine circle (sagitta far below the tolerance) keeps
+    its area within the promised drift; a triangle, and a ring after a compacted one, stay as
+    they were; without ``eps`` nothing is dropped."""
+    t = np.linspace(0.0, 1.0, 1000, endpoint=False)
+    side = [np.c_[t, 0 * t], np.c_[1 + 0 * t, t], np.c_[1 - t, 1 + 0 * t], np.c_[0 * t, 1 - t]]
+    square = 50.0 * np.concatenate(side) + np.random.default_rng(1).normal(0, 1e-9, (4000, 2))
+    a = np.linspace(0.0, 2 * np.pi, 20000, endpoint=False)
+    circle = np.c_[np.cos(a), np.sin(a)] * 10.0
+    tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    rings = [square, circle, tri]
+    start = np.concatenate(rings)
+    at = np.cumsum([0] + [len(r) for r in rings])
+    nxt = np.arange(1, len(start) + 1, dtype=np.int64)
+    nxt[at[1:] - 1] = at[:-1]  # each ring a cycle from its first point
+    layer = np.zeros(len(start), np.int64)
+    pts, ring_at, _ = walk(nxt, start, layer, 1e-6, sections.COLLINEAR_RUN)
+    sq, c, tr = (pts[a:b] for a, b in zip(ring_at[:-1], ring_at[1:]))
+    assert len(sq) == 4 and np.allclose(sq, [[0, 0], [50, 0], [50, 50], [0, 50]], atol=1e-6)
+    assert len(c) < len(circle) and abs(abs(ring_area(c)) - np.pi * 100) < 2 * np.pi * 10 * 1024 * 1e-6
+    assert np.array_equal(tr, tri)
+    pts, ring_at, _ = walk(nxt, start, layer, 0.0, sections.COLLINEAR_RUN)
+    assert np.array_equal(pts, start) and ring_at.tolist() == at.tolist()
+
+
 def test_link_finds_the_next_segment_and_refuses_open_chains():
     s_key = np.array([30, 10, 20], np.int64)
     e_key = np.array([10, 20, 30], np.int64)
@@ -93,7 +119,7 @@ def test_link_finds_the_next_segment_and_refuses_open_chains():
     with pytest.raises(ValueError, match="not closed"):
         link(np.array([10, 10], np.int64), np.array([10, 10], np.int64))  # two segments start on one edge
     with pytest.raises(ValueError, match="not closed"):
-        walk(np.array([1, 1], np.int64), np.zeros((2, 2)), np.zeros(2, np.int64))  # not a permutation
+        walk(np.array([1, 1], np.int64), np.zeros((2, 2)), np.zeros(2, np.int64), 0.0, 0)  # not a permutation
 
 
 def test_segment_groups_change_nothing(monkeypatch):

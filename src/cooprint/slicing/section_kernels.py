@@ -110,13 +110,18 @@ def link(s_key, e_key):
 
 
 @numba.njit(cache=True, nogil=True)
-def walk(nxt, start, layer):
+def walk(nxt, start, layer, eps, run):
     """The cycles of the permutation ``nxt`` (the segments' links) as rings: ``pts`` lists the
     segments' start points cycle by cycle, cycles in the order of their smallest member, each
     from that member along ``nxt``; cycle ``r`` is ``pts[ring_at[r]:ring_at[r + 1]]``, on layer
     ``ring_layer[r]`` (its segments'). (Walking up from element 0, every element not yet seen
     starts a cycle whose other members are all larger.) The points are gathered here, as the
-    cycles are walked: a separate ``start[order]`` costs as much as the walk."""
+    cycles are walked: a separate ``start[order]`` costs as much as the walk.
+
+    With ``eps > 0``, a ring of 4 points or more is walked without the points that lie on the
+    segment between the last point kept and the next one (within ``eps``; at most ``run`` in a
+    row; its first point kept): a tessellated flat face's vertices, dropped as the ring is
+    gathered rather than in a pass over copies of the rings."""
     n = len(nxt)
     seen = np.zeros(n, np.bool_)
     pts = np.empty((n, 2))
@@ -130,6 +135,7 @@ def walk(nxt, start, layer):
         ring_at[r] = w
         ring_layer[r] = layer[i]
         r += 1
+        s = w
         j = i
         while not seen[j]:
             seen[j] = True
@@ -139,5 +145,27 @@ def walk(nxt, start, layer):
             j = nxt[j]
         if j != i:
             raise ValueError("the mesh is not closed: a section does not form loops")
+        if eps > 0.0 and w - s >= 4:  # compacted in place: a point kept moves to k <= its index
+            ax, ay = pts[s, 0], pts[s, 1]  # the last point kept
+            k = s + 1
+            dropped = 0
+            for j in range(s + 1, w):
+                nx, ny = (pts[j + 1, 0], pts[j + 1, 1]) if j + 1 < w else (pts[s, 0], pts[s, 1])
+                dx, dy = nx - ax, ny - ay
+                l2 = dx * dx + dy * dy
+                px, py = pts[j, 0] - ax, pts[j, 1] - ay
+                if dropped < run and l2 > 0.0:
+                    t = (px * dx + py * dy) / l2
+                    cross = px * dy - py * dx
+                    if 0.0 <= t <= 1.0 and cross * cross <= eps * eps * l2:
+                        dropped += 1
+                        continue
+                ax, ay = pts[j, 0], pts[j, 1]
+                pts[k, 0] = ax
+                pts[k, 1] = ay
+                k += 1
+                dropped = 0
+            w = k
     ring_at[r] = w
-    return pts, ring_at[:r + 1], ring_layer[:r]
+    return pts[:w], ring_at[:r + 1], ring_layer[:r]
+

@@ -24,6 +24,9 @@ from cooprint.geometry import STEP, index_dtype
 #: Segments made in one pass (about 100 bytes each: points made and walked, keys, links, hash table): bounds
 #: the memory of a block of layers without changing its sections.
 SEGMENTS = 1 << 15
+#: At most this many points in a row are dropped as collinear (:meth:`LayerSlicer.rings`), so that
+#: the dropped ones stay within ``COLLINEAR_RUN x eps`` of the ring.
+COLLINEAR_RUN = 1024
 
 
 class LayerSlicer:
@@ -52,8 +55,11 @@ class LayerSlicer:
         del faces
         self.vertices = np.take(vertices, self.number, axis=0)  # (2-4x faster than indexing rows)
 
-    def rings(self, heights: np.ndarray) -> list[list[np.ndarray]]:
-        """For every height (ascending), the closed rings (k, 2) of the section there.
+    def rings(self, heights: np.ndarray, eps: float = 0.0) -> list[list[np.ndarray]]:
+        """For every height (ascending), the closed rings (k, 2) of the section there; with
+        ``eps > 0``, without the points that lie on the segment between the last point kept and
+        the next one (within ``eps``, at most ``COLLINEAR_RUN`` in a row: a tessellated flat
+        face's vertices), and without the rings this leaves under 3 points.
 
         The segments are made in groups of consecutive layers of at most ``SEGMENTS`` segments
         (a layer is never split): each layer's loops depend on that layer alone, so the groups
@@ -76,14 +82,14 @@ class LayerSlicer:
         while lo < n:
             hi = lo + max(1, int(np.searchsorted(np.cumsum(per_layer[lo:]), SEGMENTS, side="right")))
             sel = (first < hi) & (last > lo)
-            self._group_rings(heights, cand[sel], np.maximum(first[sel], lo), np.minimum(last[sel], hi), out)
+            self._group_rings(heights, cand[sel], np.maximum(first[sel], lo), np.minimum(last[sel], hi), eps, out)
             lo = hi
         return out
 
     def _group_rings(self, heights: np.ndarray, cand: np.ndarray, first: np.ndarray, last: np.ndarray,
-                     out: list[list[np.ndarray]]) -> None:
+                     eps: float, out: list[list[np.ndarray]]) -> None:
         """Append to ``out`` the rings of triangles ``cand``, each crossing layers ``first`` to
-        ``last - 1``."""
+        ``last - 1`` (collinear points within ``eps`` dropped, :meth:`rings`)."""
         from cooprint.slicing.section_kernels import link, segments, walk
 
         if len(cand) == 0:
@@ -92,7 +98,7 @@ class LayerSlicer:
                                                cand.astype(np.int64), first.astype(np.int64), last.astype(np.int64))
         nxt = link(s_key, e_key)
         del s_key, e_key
-        pts, ring_at, ring_layer = walk(nxt, start, layer)
+        pts, ring_at, ring_layer = walk(nxt, start, layer, float(eps), COLLINEAR_RUN)
         del start, nxt
         ring_layer = ring_layer.tolist()
         for k, (s, e) in enumerate(zip(ring_at[:-1].tolist(), ring_at[1:].tolist())):
