@@ -34,8 +34,11 @@ def _untimed_llvm_lock() -> None:
     ``unregister_lock_callback``; the registered pairs are read from the lock, which llvmlite
     does not document: with another layout nothing is removed, and the kernels only load as
     slowly as before)."""
-    import numba.core.base  # noqa: F401  registers the callbacks on import
+    import importlib
+
     from llvmlite.binding import ffi
+
+    importlib.import_module("numba.core.base")  # registers the callbacks on import
 
     pairs = getattr(getattr(getattr(ffi, "lib", None), "_lock", None), "_cblist", None)
     if not isinstance(pairs, list):
