@@ -127,88 +127,176 @@ def _packed(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         pts = np.concatenate(lines)
     except ValueError:  # rows of different widths
         pts = np.concatenate([np.asarray(p)[:, :2] for p in lines])
-    return np.ascontiguousarray(pts[:, :2], dtype=np.float64), np.r_[0, np.cumsum(sizes)]
+    return np.ascontiguousarray(pts[:, :2], dtype=np.float64), np.concatenate(([0], np.cumsum(sizes)))
 
 
 def _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake):
     """:func:`anchor_infill` of the lines ``pts[lo[i]:lo[i + 1]]`` (at least one, each of two
-    points or more) along ``rs``: the resulting polylines packed the same way, (points, offsets)."""
+    points or more) along ``rs``: the resulting polylines packed the same way, (points, offsets),
+    in nearest-next order from the first line's chain. The ends are placed on the rings here,
+    the rest of the pass is one compiled call (:func:`_pass`)."""
     n = len(lo) - 1
     ends = np.empty((2 * n, 2))
     ends[0::2] = pts[lo[:-1]]
     ends[1::2] = pts[lo[1:] - 1]
     edge, t, _ = rs.nearest(ends, max(tol, END_TOL))
-    on = edge >= 0
-    ring = np.where(on, rs.ring_of[np.maximum(edge, 0)], -1)
-    param = np.where(on, rs.param[np.maximum(edge, 0)] + t * rs.seg_len[np.maximum(edge, 0)], 0.0)
-    # neighbours along each ring: sort the ends on rings by (ring, arc length)
-    idx = np.flatnonzero(on)
-    idx = idx[np.lexsort((param[idx], ring[idx]))]
-    nxt = np.full(2 * n, -1, np.int64)
-    prv = np.full(2 * n, -1, np.int64)
-    if len(idx):
-        r = ring[idx]
-        first = np.r_[True, r[1:] != r[:-1]]
-        last = np.r_[r[1:] != r[:-1], True]
-        heads = np.maximum.accumulate(np.where(first, np.arange(len(idx)), 0))
-        after = np.where(last, heads, np.arange(len(idx)) + 1)
-        nxt[idx] = idx[after]
-        prv[idx[after]] = idx
-    ring_len = np.where(on, rs.ring_len[np.maximum(ring, 0)], 0.0)
-    arc = np.where(on, np.mod(param[np.maximum(nxt, 0)] - param, np.where(on, ring_len, 1.0)), 0.0)
-    arc = np.where(on & (nxt == np.arange(2 * n)), ring_len, arc)
-    nt_next, nt_prev = _free_along(pts, lo, rs, on, ring, param, prv, arc, float(width))
+    x0, y0, cell, nx, ny, gstart, gids = rs.grid
+    pts, off = _pass(pts, lo, edge, t, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start, rs.ring_len,
+                     x0, y0, cell, nx, ny, gstart, gids, float(anchor), float(anchor_max), float(width), snake)
+    if len(off) < 2:
+        return pts, off
+    # the chains come in order of their first line
+    order, rev = chain_order(pts[off[:-1]], pts[off[1:] - 1], pts[0])
+    return _reordered(pts, off, order, rev)
+
+
+@numba.njit(cache=True)
+def _pass(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell, nx, ny,
+          gstart, gids, anchor, anchor_max, width, snake):
+    """:func:`_anchored` once its line ends are placed on the rings (``edge``, ``t``: their
+    :meth:`RingSet.nearest <cooprint.slicing.rings.EdgeSet.nearest>`; ``a`` .. ``ring_len`` and
+    ``x0`` .. ``gids``: the RingSet and its grid): each end's neighbours along its ring, the
+    free stretches (:func:`_free_along`), the joins and anchors (:func:`_snake` or
+    :func:`_connect`), the chains (:func:`_chains`): (points, offsets), the chains in order of
+    their first line."""
+    m = edge.shape[0]
+    ring = np.full(m, -1, np.int64)
+    param = np.zeros(m)
+    nv = 0
+    for e in range(m):
+        i = edge[e]
+        if i >= 0:
+            ring[e] = ring_of[i]
+            param[e] = rparam[i] + t[e] * seg_len[i]
+            nv += 1
+    # neighbours along each ring: the ends on rings sorted by (ring, arc length), stably
+    idx = np.empty(nv, np.int64)
+    k = 0
+    for e in range(m):
+        if ring[e] >= 0:
+            idx[k] = e
+            k += 1
+    idx = idx[np.argsort(param[idx], kind="mergesort")]
+    idx = idx[np.argsort(ring[idx], kind="mergesort")]
+    nxt = np.full(m, -1, np.int64)
+    prv = np.full(m, -1, np.int64)
+    g = 0
+    while g < nv:
+        h = g
+        while h + 1 < nv and ring[idx[h + 1]] == ring[idx[g]]:
+            h += 1
+        for k in range(g, h + 1):
+            f = idx[k + 1] if k < h else idx[g]
+            nxt[idx[k]] = f
+            prv[f] = idx[k]
+        g = h + 1
+    # each end's ring length and the stretch of ring to its next neighbour
+    elen = np.zeros(m)
+    arc = np.zeros(m)
+    for e in range(m):
+        if ring[e] < 0:
+            continue
+        L = ring_len[ring[e]]
+        elen[e] = L
+        if nxt[e] == e:
+            arc[e] = L
+        elif L > 0:
+            arc[e] = (param[nxt[e]] - param[e]) % L
+        else:
+            arc[e] = np.nan
+    nt_next, nt_prev = _free_along(pts, lo, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell,
+                                   nx, ny, gstart, gids, ring, param, prv, arc, width)
     if snake:
-        join, hook = _snake(nxt, prv, arc, nt_next, nt_prev, float(anchor_max)), np.zeros(2 * n)
+        code, hook = _snake(nxt, prv, arc, nt_next, nt_prev, anchor_max), np.zeros(m)
     else:
-        join, hook = _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, float(anchor), float(anchor_max),
-                              0.5 * float(width))
-    return _assemble(pts, lo, rs, ring, param, join, hook)
+        code, hook = _connect(nxt, prv, arc, elen, nt_next, nt_prev, anchor, anchor_max, 0.5 * width)
+    return _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start, ring_len)
 
 
-def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
+@numba.njit(cache=True)
+def _free_along(pts, lo, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell, nx, ny,
+                gstart, gids, ring, param, prv, arc, width):
     """How far the ring is free from every line end forward and backward before it runs within
     ``COLLIDE`` widths of an infill line (one's last ``END_CLEAR`` widths aside, which meet the
     ring anyway): (forward (2n,), backward (2n,)), inf when free up to the neighbouring end.
     PrusaSlicer's mark_boundary_segments_touching_infill: a stretch of ring next to an infill line
-    that runs along it would print that line twice."""
-    m = len(on)
-    fwd, bwd = np.full(m, np.inf), np.full(m, np.inf)
-    a, b = _clear_parts(pts, lo, END_CLEAR * width)
-    if not len(a):
+    that runs along it would print that line twice. ``ring``, ``param``: each end's ring (-1:
+    none) and arc length on it; ``prv``, ``arc``: its previous neighbour, the stretch to its next."""
+    m = ring.shape[0]
+    fwd = np.full(m, np.inf)
+    bwd = np.full(m, np.inf)
+    sa, sb = _clear_parts(pts, lo, END_CLEAR * width)
+    if sa.shape[0] == 0:
         return fwd, bwd
     # samples along the rings every half width: those near an infill line are blocked
     step = 0.5 * width
-    counts = np.maximum(np.ceil(rs.ring_len / step).astype(np.int64), 1)
-    offset = np.r_[0, np.cumsum(counts)]
-    big = float(rs.ring_len.max()) + 1.0
-    key = rs.ring_of.astype(np.float64) * big + rs.param  # rs.points_at's search key
-    x0, y0, cell, nx, ny, gstart, gids = rs.grid
-    blocked = np.flatnonzero(_blocked(a, b, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start,
-                                      rs.ring_len, key, big, counts, offset, x0, y0, cell, nx, ny,
-                                      gstart, gids, COLLIDE * width))
-    if not len(blocked):
+    nr = ring_len.shape[0]
+    counts = np.empty(nr, np.int64)
+    offset = np.zeros(nr + 1, np.int64)
+    for r in range(nr):
+        counts[r] = max(int(math.ceil(ring_len[r] / step)), 1)
+        offset[r + 1] = offset[r] + counts[r]
+    big = ring_len.max() + 1.0
+    key = np.empty(a.shape[0])  # RingSet.points_at's search key
+    for i in range(a.shape[0]):
+        key[i] = ring_of[i] * big + rparam[i]
+    out = _blocked(sa, sb, a, b, rparam, seg_len, ring_of, ring_start, ring_len, key, big, counts, offset,
+                   x0, y0, cell, nx, ny, gstart, gids, COLLIDE * width)
+    # the blocked samples' rings and arc lengths, keyed as above (sorted: rings in order, arc
+    # length within each); every ring's first and last
+    nb = 0
+    for g in range(out.shape[0]):
+        if out[g]:
+            nb += 1
+    if nb == 0:
         return fwd, bwd
-    br = np.searchsorted(offset, blocked, side="right") - 1
-    bp = (blocked - offset[br]) * (rs.ring_len / counts)[br]
-    key = br * big + bp  # sorted: rings in order, arc length within each
-    ring_first = np.searchsorted(br, np.arange(len(counts)), side="left")
-    ring_last = np.searchsorted(br, np.arange(len(counts)), side="right") - 1
-    e = np.flatnonzero(on)
-    r = ring[e]
-    has = ring_last[r] >= ring_first[r]
-    e, r = e[has], r[has]
-    L = rs.ring_len[r]
-    q = r * big + param[e]
-    j = np.searchsorted(key, q, side="right")
-    ahead = np.where((j < len(bp)) & (br[np.minimum(j, len(bp) - 1)] == r),
-                     bp[np.minimum(j, len(bp) - 1)] - param[e], bp[ring_first[r]] + L - param[e])
-    j = np.searchsorted(key, q, side="left") - 1
-    behind = np.where((j >= 0) & (br[np.maximum(j, 0)] == r),
-                      param[e] - bp[np.maximum(j, 0)], param[e] + L - bp[ring_last[r]])
-    # only what lies before the neighbouring end matters
-    fwd[e] = np.where(ahead < arc[e], ahead, np.inf)
-    bwd[e] = np.where(behind < arc[prv[e]], behind, np.inf)
+    br = np.empty(nb, np.int64)
+    bp = np.empty(nb)
+    bkey = np.empty(nb)
+    ring_first = np.full(nr, -1, np.int64)
+    ring_last = np.full(nr, -1, np.int64)
+    j = 0
+    for r in range(nr):
+        st = ring_len[r] / counts[r]
+        for k in range(counts[r]):
+            if out[offset[r] + k]:
+                br[j] = r
+                bp[j] = k * st
+                bkey[j] = r * big + bp[j]
+                if ring_first[r] < 0:
+                    ring_first[r] = j
+                ring_last[r] = j
+                j += 1
+    for e in range(m):
+        r = ring[e]
+        if r < 0 or ring_first[r] < 0:
+            continue
+        L = ring_len[r]
+        pe = param[e]
+        q = r * big + pe
+        lo_, hi_ = 0, nb  # the first blocked sample past the end (np.searchsorted, side "right")
+        while lo_ < hi_:
+            mid = (lo_ + hi_) // 2
+            if bkey[mid] <= q:
+                lo_ = mid + 1
+            else:
+                hi_ = mid
+        j = lo_
+        ahead = bp[j] - pe if j < nb and br[j] == r else bp[ring_first[r]] + L - pe
+        lo_, hi_ = 0, nb  # the last one before it (side "left", minus one)
+        while lo_ < hi_:
+            mid = (lo_ + hi_) // 2
+            if bkey[mid] < q:
+                lo_ = mid + 1
+            else:
+                hi_ = mid
+        j = lo_ - 1
+        behind = pe - bp[j] if j >= 0 and br[j] == r else pe + L - bp[ring_last[r]]
+        # only what lies before the neighbouring end matters
+        if ahead < arc[e]:
+            fwd[e] = ahead
+        if behind < arc[prv[e]]:
+            bwd[e] = behind
     return fwd, bwd
 
 
@@ -437,20 +525,18 @@ def _ring_point(a, b, rparam, seg_len, s, k, p):
 
 @numba.njit(cache=True)
 def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start, ring_len):
-    """The chains of lines joined by ring stretches, with their anchors: (points, offsets,
-    first line of every chain)."""
+    """The chains of lines joined by ring stretches, with their anchors: (points, offsets), in
+    order of their first line."""
     n = lo.shape[0] - 1
     seen = np.zeros(n, np.bool_)
     buf = np.empty((2 * pts.shape[0] + 16, 2))
     m = 0
     off = np.zeros(n + 1, np.int64)
-    first = np.zeros(n, np.int64)
     nc = 0
     for st in range(2 * n):
         if code[st] >= 0 or seen[st // 2]:
             continue
         off[nc] = m
-        first[nc] = st // 2
         if hook[st] != 0.0:
             r = ring[st]
             s = ring_start[r]
@@ -492,20 +578,7 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             e = to
         nc += 1
     off[nc] = m
-    return buf[:m], off[:nc + 1], first[:nc]
-
-
-def _assemble(pts, lo, rs, ring, param, code, hook) -> tuple[np.ndarray, np.ndarray]:
-    """Chains of lines joined by ring stretches, with their anchors, in nearest-next order from
-    the first line's chain: (points, offsets) as the lines came."""
-    pts, off, first = _chains(pts, lo, ring, param, code, hook, rs.a, rs.b, rs.param,
-                              rs.seg_len, rs.ring_start, rs.ring_len)
-    if len(off) < 2:
-        return pts, off
-    by_first = np.argsort(first, kind="stable")
-    heads, tails = pts[off[:-1]][by_first], pts[off[1:] - 1][by_first]
-    order, rev = chain_order(heads, tails, heads[0])
-    return _reordered(pts, off, by_first[order], rev)
+    return buf[:m], off[:nc + 1]
 
 
 @numba.njit(cache=True)
