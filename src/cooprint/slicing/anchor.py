@@ -89,21 +89,38 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, an
     list of (j, 2) float64
         The joined and anchored polylines, in nearest-next order from the first line's start.
     """
-    return _passes(lines, rings, ((anchor, snake),), anchor_max, width, tol)
+    return unpacked(*_passes(lines, rings, ((anchor, snake),), anchor_max, width, tol))
 
 
-def join_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anchor: float, anchor_max: float,
-                width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
+def join_infill(lines: list[np.ndarray] | np.ndarray, rings: list[np.ndarray] | RingSet, anchor: float,
+                anchor_max: float, width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
     """``lines`` joined as PrusaSlicer joins them: first snake-wise (``anchor_infill`` with
     ``snake``, no anchors), then the chains' ends shortest stretch first, with anchors; the same
     as those two calls (parameters as :func:`anchor_infill`'s), without unpacking the chains in
     between."""
+    return unpacked(*join_packed(lines, rings, anchor, anchor_max, width, tol))
+
+
+def join_packed(lines: list[np.ndarray] | np.ndarray, rings: list[np.ndarray] | RingSet, anchor: float,
+                anchor_max: float, width: float = LINE_WIDTH, tol: float = END_TOL) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`join_infill`'s polylines packed: (points (N, 2) float64, offsets (n + 1,) int64,
+    polyline i is ``points[offsets[i]:offsets[i + 1]]``), for a caller that batches them
+    (the slicer: thousands of infill lines per region, most of them left as 2-point segments).
+    ``lines`` may also be an (m, k, 2) array: m polylines of k points (a batch of hatch
+    segments: no Python work per line)."""
     return _passes(lines, rings, ((0.0, True), (anchor, False)), anchor_max, width, tol)
 
 
-def _passes(lines, rings, passes, anchor_max, width, tol) -> list[np.ndarray]:
+def unpacked(pts: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
+    """The polylines ``pts[offsets[i]:offsets[i + 1]]`` as a list (views)."""
+    bounds = offsets.tolist()  # (np.split's per-part overhead is 3x this)
+    return [pts[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _passes(lines, rings, passes, anchor_max, width, tol) -> tuple[np.ndarray, np.ndarray]:
     """``lines`` through each ``(anchor, snake)`` pass of :func:`_anchored` in turn (a pass with
-    neither anchors nor joins is skipped), on one packed array and one RingSet of ``rings``."""
+    neither anchors nor joins is skipped), on one packed array and one RingSet of ``rings``:
+    (points, offsets) as :func:`_packed`."""
     pts, lo = _packed(lines)
     passes = [(anchor, snake) for anchor, snake in passes if anchor > 0 or anchor_max > 0]
     if passes and len(lo) > 1:
@@ -111,12 +128,19 @@ def _passes(lines, rings, passes, anchor_max, width, tol) -> list[np.ndarray]:
         if len(rs):
             for anchor, snake in passes:
                 pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
-    return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
+    return pts, lo
 
 
-def _packed(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def _packed(lines: list[np.ndarray] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The polylines of two points or more, (x, y) only, concatenated: (points (N, 2) float64,
-    offsets (n + 1,) int64: line i is ``points[offsets[i]:offsets[i + 1]]``)."""
+    offsets (n + 1,) int64: line i is ``points[offsets[i]:offsets[i + 1]]``); ``lines`` a list,
+    or an (m, k, 2) array of m polylines of k points."""
+    if isinstance(lines, np.ndarray):
+        m, k = lines.shape[:2]
+        if not m or k < 2:
+            return np.zeros((0, 2)), np.zeros(1, np.int64)
+        return (np.ascontiguousarray(lines[:, :, :2].reshape(-1, 2), dtype=np.float64),
+                np.arange(0, m * k + 1, k, dtype=np.int64))
     sizes = np.fromiter(map(len, lines), np.int64, len(lines))
     if (sizes < 2).any():
         lines = [p for p, k in zip(lines, sizes) if k >= 2]

@@ -47,7 +47,7 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, default_workers
 from cooprint.io.mesh import Solid
-from cooprint.slicing.anchor import join_infill
+from cooprint.slicing.anchor import join_packed, unpacked
 from cooprint.slicing.bridge import bridge_angle
 from cooprint.slicing.gapfill import medial_lines, single_bead
 from cooprint.slicing.infill import hatch, hatch_flat
@@ -985,7 +985,7 @@ class _Job:
         for q in np.unique(p):
             inner, contour = _line_rings(pieces[q][0], spacing)
             lines = clip_polylines(seg[p == q], inner)
-            lines = _joined(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]), spacing)
+            lines = unpacked(*_joined(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]), spacing))
             paths.extend((line, role, float(line_w[q])) for line in lines)
 
     def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
@@ -1009,13 +1009,12 @@ class _Job:
                         (s.infill_angle_deg + 90, 2 * sp / s.infill_density)]
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
-            # the segments as a list of (2, 2) views (list() of the array: no Python step per line)
-            lines = list(np.concatenate([hatch(rings, spacing, ang) for ang, spacing in dirs]))
-        lines = _joined(lines, contour, s.infill_anchor, s.infill_anchor_max, w, sp)
-        if lines and all(len(line) == 2 for line in lines):
-            paths.append((np.stack(lines), INFILL, w))  # a batch of segments
+            lines = np.concatenate([hatch(rings, spacing, ang) for ang, spacing in dirs])  # (m, 2, 2)
+        pts, off = _joined(lines, contour, s.infill_anchor, s.infill_anchor_max, w, sp)
+        if len(off) > 1 and (np.diff(off) == 2).all():
+            paths.append((pts.reshape(-1, 2, 2), INFILL, w))  # a batch of segments
         else:
-            paths.extend((line, INFILL, w) for line in lines)
+            paths.extend((line, INFILL, w) for line in unpacked(pts, off))
 
 
 #: Infill lines end this many spacings inside their region; joins and anchors follow the region
@@ -1032,12 +1031,13 @@ def _line_rings(region: CrossSection, spacing: float) -> tuple[list[np.ndarray],
             _rings(region.offset(-(LINE_END + JOIN_TOL) * spacing, _MITER)))
 
 
-def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, anchor_max: float,
-            width: float, spacing: float) -> list[np.ndarray]:
+def _joined(lines: list[np.ndarray] | np.ndarray, contour: list[np.ndarray], anchor: float, anchor_max: float,
+            width: float, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     """``lines`` (ending ``JOIN_TOL`` spacings off ``contour``) joined along ``contour`` as
     PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
-    the chains' ends shortest stretch first, with anchors (its connect_infill)."""
-    return join_infill(lines, contour, anchor, anchor_max, width, 2 * JOIN_TOL * spacing)
+    the chains' ends shortest stretch first, with anchors (its connect_infill); packed,
+    (points, offsets) as :func:`~cooprint.slicing.anchor.join_packed`."""
+    return join_packed(lines, contour, anchor, anchor_max, width, 2 * JOIN_TOL * spacing)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
