@@ -94,9 +94,9 @@ def _clip(polylines: list[np.ndarray] | np.ndarray, rs: RingSet) -> tuple[np.nda
     if not len(pa):
         return np.zeros((0, 2)), np.zeros(1, np.int64)
     # two kept pieces that meet (a touching, not crossing, boundary point) are one part
-    new = np.r_[True, pa[1:] != pb[:-1]]
+    new = np.concatenate(([True], pa[1:] != pb[:-1]))
     heads = np.flatnonzero(new)
-    ra, rb = pa[heads], pb[np.r_[heads[1:] - 1, len(pb) - 1]]
+    ra, rb = pa[heads], pb[np.concatenate((heads[1:] - 1, [len(pb) - 1]))]
     return _emit(flat, ra, rb)
 
 
@@ -253,7 +253,7 @@ def gyroid(rings: list[np.ndarray], spacing: float, z: float, angle_deg: float =
     if len(off) < 2:
         return []
     seg = np.hypot(*np.diff(pts, axis=0).T)
-    cum = np.r_[0.0, np.cumsum(seg)]
+    cum = np.concatenate(([0.0], np.cumsum(seg)))
     lengths = cum[off[1:] - 1] - cum[off[:-1]]
     keep = np.flatnonzero(lengths >= MIN_PIECE)
     if not len(keep):

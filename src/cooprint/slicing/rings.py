@@ -111,7 +111,7 @@ class RingSet(EdgeSet):
         rings = [np.asarray(r, dtype=np.float64)[:, :2] for r in rings if len(r) >= 2]
         self.rings = rings
         sizes = np.array([len(r) for r in rings], dtype=np.int64)
-        self.ring_start = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+        self.ring_start = np.concatenate(([0], np.cumsum(sizes)))
         if rings:
             a = np.concatenate(rings)
             super().__init__(a, a[successors(sizes)])
@@ -120,7 +120,7 @@ class RingSet(EdgeSet):
         self.ring_of = np.repeat(np.arange(len(rings), dtype=np.int64), sizes)
         seg = np.hypot(*(self.b - self.a).T) if len(self.a) else np.zeros(0)
         cum = np.cumsum(seg)
-        before = np.r_[0.0, cum[self.ring_start[1:-1] - 1]] if rings else np.zeros(0)
+        before = np.concatenate(([0.0], cum[self.ring_start[1:-1] - 1])) if rings else np.zeros(0)
         self.ring_len = cum[self.ring_start[1:] - 1] - before if rings else np.zeros(0)
         self.param = cum - seg - np.repeat(before, sizes)
         self.seg_len = seg

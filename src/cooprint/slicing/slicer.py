@@ -958,7 +958,7 @@ class _Job:
         piece = np.repeat(np.arange(len(rings)), [len(rs) for rs in rings])
         uv = np.concatenate(flat) @ rot.T
         owner = np.repeat(piece, sizes)
-        firsts = np.r_[0, np.flatnonzero(np.diff(owner)) + 1]
+        firsts = np.concatenate(([0], np.flatnonzero(np.diff(owner)) + 1))
         lo_, hi_ = np.minimum.reduceat(uv[:, 1], firsts), np.maximum.reduceat(uv[:, 1], firsts)
         spacing = width + BRIDGE_GAP if bridge else extrusion_spacing(width, height)
         span = hi_ - lo_
