@@ -27,9 +27,10 @@ spacing outside it (``tol``), as PrusaSlicer 2.5 does, so joins and anchors lie 
 perimeter instead of on it. ``snake=True`` (solid infill) joins as PrusaSlicer's rectilinear solid
 fill does: a walk from line to line in print order, each time to the nearer free neighbouring
 end, which makes one polyline of a convex area where shortest-first leaves several.
-``join_infill`` (what the slicer calls) is that snake pass followed by ``anchor_infill`` on its
-chains, PrusaSlicer's two passes, on one :class:`~cooprint.slicing.rings.RingSet` and without
-unpacking the chains in between.
+``join_infill`` (what the slicer calls, packed: ``join_packed``) is that snake pass followed by
+``anchor_infill`` on its chains, PrusaSlicer's two passes, on one
+:class:`~cooprint.slicing.rings.RingSet`, in one compiled call after the line ends are placed on
+the rings (``_join``; its chains' order is :func:`chain_order`'s, which the gyroid uses too).
 
 The mask samples every ring each half width; only the samples near an infill segment are
 measured (``_blocked``: each segment asks the rings' grid for the edges within reach), which
@@ -43,7 +44,6 @@ import math
 import numba
 import numpy as np
 
-from cooprint.slicing.patterns import chain_order
 from cooprint.slicing.rings import RingSet
 
 #: A line end within this distance of a ring is on it, mm.
@@ -89,7 +89,7 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, an
     list of (j, 2) float64
         The joined and anchored polylines, in nearest-next order from the first line's start.
     """
-    return unpacked(*_passes(lines, rings, ((anchor, snake),), anchor_max, width, tol))
+    return unpacked(*_passes(lines, rings, False, anchor, anchor_max, snake, width, tol))
 
 
 def join_infill(lines: list[np.ndarray] | np.ndarray, rings: list[np.ndarray] | RingSet, anchor: float,
@@ -108,7 +108,7 @@ def join_packed(lines: list[np.ndarray] | np.ndarray, rings: list[np.ndarray] | 
     (the slicer: thousands of infill lines per region, most of them left as 2-point segments).
     ``lines`` may also be an (m, k, 2) array: m polylines of k points (a batch of hatch
     segments: no Python work per line)."""
-    return _passes(lines, rings, ((0.0, True), (anchor, False)), anchor_max, width, tol)
+    return _passes(lines, rings, anchor_max > 0, anchor, anchor_max, False, width, tol)
 
 
 def unpacked(pts: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
@@ -117,17 +117,24 @@ def unpacked(pts: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
     return [pts[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def _passes(lines, rings, passes, anchor_max, width, tol) -> tuple[np.ndarray, np.ndarray]:
-    """``lines`` through each ``(anchor, snake)`` pass of :func:`_anchored` in turn (a pass with
-    neither anchors nor joins is skipped), on one packed array and one RingSet of ``rings``:
-    (points, offsets) as :func:`_packed`."""
+def _passes(lines, rings, snake_first, anchor, anchor_max, snake, width, tol) -> tuple[np.ndarray, np.ndarray]:
+    """``lines`` through a snake pass without anchors if ``snake_first``, then the ``(anchor,
+    snake)`` pass (neither runs without anchors or joins), on one packed array and one RingSet of
+    ``rings``: (points, offsets) as :func:`_packed`. The line ends are placed on the rings here,
+    the passes are one compiled call (:func:`_join`)."""
     pts, lo = _packed(lines)
-    passes = [(anchor, snake) for anchor, snake in passes if anchor > 0 or anchor_max > 0]
-    if passes and len(lo) > 1:
-        rs = rings if isinstance(rings, RingSet) else RingSet(rings)  # built once for every pass
+    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
+        rs = rings if isinstance(rings, RingSet) else RingSet(rings)
         if len(rs):
-            for anchor, snake in passes:
-                pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
+            n = len(lo) - 1
+            ends = np.empty((2 * n, 2))
+            ends[0::2] = pts[lo[:-1]]
+            ends[1::2] = pts[lo[1:] - 1]
+            edge, t, _ = rs.nearest(ends, max(tol, END_TOL))
+            x0, y0, cell, nx, ny, gstart, gids = rs.grid
+            pts, lo = _join(pts, lo, edge, t, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start,
+                            rs.ring_len, x0, y0, cell, nx, ny, gstart, gids, bool(snake_first and anchor_max > 0),
+                            float(anchor), float(anchor_max), bool(snake), float(width))
     return pts, lo
 
 
@@ -154,35 +161,57 @@ def _packed(lines: list[np.ndarray] | np.ndarray) -> tuple[np.ndarray, np.ndarra
     return np.ascontiguousarray(pts[:, :2], dtype=np.float64), np.concatenate(([0], np.cumsum(sizes)))
 
 
-def _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake):
-    """:func:`anchor_infill` of the lines ``pts[lo[i]:lo[i + 1]]`` (at least one, each of two
-    points or more) along ``rs``: the resulting polylines packed the same way, (points, offsets),
-    in nearest-next order from the first line's chain. The ends are placed on the rings here,
-    the rest of the pass is one compiled call (:func:`_pass`)."""
-    n = len(lo) - 1
-    ends = np.empty((2 * n, 2))
-    ends[0::2] = pts[lo[:-1]]
-    ends[1::2] = pts[lo[1:] - 1]
-    edge, t, _ = rs.nearest(ends, max(tol, END_TOL))
-    x0, y0, cell, nx, ny, gstart, gids = rs.grid
-    pts, off = _pass(pts, lo, edge, t, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start, rs.ring_len,
-                     x0, y0, cell, nx, ny, gstart, gids, float(anchor), float(anchor_max), float(width), snake)
-    if len(off) < 2:
-        return pts, off
-    # the chains come in order of their first line
-    order, rev = chain_order(pts[off[:-1]], pts[off[1:] - 1], pts[0])
-    return _reordered(pts, off, order, rev)
+@numba.njit(cache=True)
+def _join(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell, nx, ny,
+          gstart, gids, snake_first, anchor, anchor_max, snake, width):
+    """The passes of :func:`_passes` over the lines ``pts[lo[i]:lo[i + 1]]`` (at least one, each
+    of two points or more) whose ends (2 i: line i's first point, 2 i + 1: its last) lie on
+    ``edge`` at ``t`` (:meth:`RingSet.nearest <cooprint.slicing.rings.EdgeSet.nearest>`; ``a``
+    .. ``ring_len`` and ``x0`` .. ``gids``: the RingSet and its grid): each pass's chains in
+    nearest-next order from the first line's chain, (points, offsets). A snake pass adds no
+    anchors, so its chains end at line ends: the next pass takes their places on the rings from
+    those (the same query, the same answer) instead of asking the rings again."""
+    if snake_first:
+        pts, lo, head, tail = _pass(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len,
+                                    x0, y0, cell, nx, ny, gstart, gids, 0.0, anchor_max, width, True)
+        pts, lo, order, rev = _ordered(pts, lo)
+        k = order.shape[0]
+        e2 = np.empty(2 * k, np.int64)
+        t2 = np.empty(2 * k)
+        for j in range(k):
+            c = order[j]
+            first, last = (tail[c], head[c]) if rev[j] else (head[c], tail[c])
+            e2[2 * j], t2[2 * j] = edge[first], t[first]
+            e2[2 * j + 1], t2[2 * j + 1] = edge[last], t[last]
+        edge, t = e2, t2
+    pts, lo, _, _ = _pass(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len,
+                          x0, y0, cell, nx, ny, gstart, gids, anchor, anchor_max, width, snake)
+    pts, lo, _, _ = _ordered(pts, lo)
+    return pts, lo
+
+
+@numba.njit(cache=True)
+def _ordered(pts, off):
+    """The polylines ``pts[off[k]:off[k + 1]]`` (at least one) in nearest-next order from the
+    first one's start (:func:`chain_order`), packed again: (points, offsets, order, reversed)."""
+    k = off.shape[0] - 1
+    heads = np.empty((k, 2))
+    tails = np.empty((k, 2))
+    for j in range(k):
+        heads[j] = pts[off[j]]
+        tails[j] = pts[off[j + 1] - 1]
+    order, rev = _chain(heads, tails, pts[0])
+    out, lo = _reordered(pts, off, order, rev)
+    return out, lo, order, rev
 
 
 @numba.njit(cache=True)
 def _pass(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell, nx, ny,
           gstart, gids, anchor, anchor_max, width, snake):
-    """:func:`_anchored` once its line ends are placed on the rings (``edge``, ``t``: their
-    :meth:`RingSet.nearest <cooprint.slicing.rings.EdgeSet.nearest>`; ``a`` .. ``ring_len`` and
-    ``x0`` .. ``gids``: the RingSet and its grid): each end's neighbours along its ring, the
+    """One pass of :func:`_join` (its parameters): each end's neighbours along its ring, the
     free stretches (:func:`_free_along`), the joins and anchors (:func:`_snake` or
-    :func:`_connect`), the chains (:func:`_chains`): (points, offsets), the chains in order of
-    their first line."""
+    :func:`_connect`), the chains (:func:`_chains`): (points, offsets, first end, last end), the
+    chains in order of their first line."""
     m = edge.shape[0]
     ring = np.full(m, -1, np.int64)
     param = np.zeros(m)
@@ -549,18 +578,21 @@ def _ring_point(a, b, rparam, seg_len, s, k, p):
 
 @numba.njit(cache=True)
 def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start, ring_len):
-    """The chains of lines joined by ring stretches, with their anchors: (points, offsets), in
-    order of their first line."""
+    """The chains of lines joined by ring stretches, with their anchors: (points, offsets, the
+    line end each starts from, the line end it finishes at), in order of their first line."""
     n = lo.shape[0] - 1
     seen = np.zeros(n, np.bool_)
     buf = np.empty((2 * pts.shape[0] + 16, 2))
     m = 0
     off = np.zeros(n + 1, np.int64)
+    head = np.zeros(n, np.int64)
+    tail = np.zeros(n, np.int64)
     nc = 0
     for st in range(2 * n):
         if code[st] >= 0 or seen[st // 2]:
             continue
         off[nc] = m
+        head[nc] = st
         if hook[st] != 0.0:
             r = ring[st]
             s = ring_start[r]
@@ -587,6 +619,7 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             c = code[other]
             r = ring[other]
             if c < 0:
+                tail[nc] = other
                 if hook[other] != 0.0:
                     s = ring_start[r]
                     buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
@@ -602,7 +635,7 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             e = to
         nc += 1
     off[nc] = m
-    return buf[:m], off[:nc + 1]
+    return buf[:m], off[:nc + 1], head[:nc], tail[:nc]
 
 
 @numba.njit(cache=True)
@@ -782,3 +815,40 @@ def _clear_parts(pts, lo, clear):
                 b[m, k] = pts[j, k] + d * (stop - s0)
             m += 1
     return a[:m], b[:m]
+
+
+def chain_order(heads: np.ndarray, tails: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest-next order of polylines given their ends: (order (n,), reversed (n,) bool).
+
+    From ``start``, repeatedly the polyline with the end nearest the current position, entered
+    at that end (reversed when it is its tail)."""
+    return _chain(np.ascontiguousarray(heads, dtype=np.float64), np.ascontiguousarray(tails, dtype=np.float64),
+                  np.asarray(start, dtype=np.float64))
+
+
+@numba.njit(cache=True)
+def _chain(heads, tails, start):
+    n = heads.shape[0]
+    used = np.zeros(n, np.bool_)
+    order = np.empty(n, np.int64)
+    rev = np.zeros(n, np.bool_)
+    px, py = start[0], start[1]
+    for k in range(n):
+        best, bd, br = -1, np.inf, False
+        for i in range(n):
+            if used[i]:
+                continue
+            d = (heads[i, 0] - px) ** 2 + (heads[i, 1] - py) ** 2
+            if d < bd:
+                best, bd, br = i, d, False
+            d = (tails[i, 0] - px) ** 2 + (tails[i, 1] - py) ** 2
+            if d < bd:
+                best, bd, br = i, d, True
+        used[best] = True
+        order[k] = best
+        rev[k] = br
+        if br:
+            px, py = heads[best, 0], heads[best, 1]
+        else:
+            px, py = tails[best, 0], tails[best, 1]
+    return order, rev

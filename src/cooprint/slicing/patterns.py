@@ -28,6 +28,7 @@ import math
 import numba
 import numpy as np
 
+from cooprint.slicing.anchor import chain_order
 from cooprint.slicing.rings import RingSet, crossings
 
 #: PrusaSlicer's FillGyroid::DensityAdjust: pattern unit = line distance / this.
@@ -266,40 +267,3 @@ def gyroid(rings: list[np.ndarray], spacing: float, z: float, angle_deg: float =
         p = world[off[k]:off[k + 1]]
         out.append(p[::-1].copy() if r else p.copy())
     return out
-
-
-def chain_order(heads: np.ndarray, tails: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest-next order of polylines given their ends: (order (n,), reversed (n,) bool).
-
-    From ``start``, repeatedly the polyline with the end nearest the current position, entered
-    at that end (reversed when it is its tail)."""
-    return _chain(np.ascontiguousarray(heads, dtype=np.float64), np.ascontiguousarray(tails, dtype=np.float64),
-                  np.asarray(start, dtype=np.float64))
-
-
-@numba.njit(cache=True)
-def _chain(heads, tails, start):
-    n = heads.shape[0]
-    used = np.zeros(n, np.bool_)
-    order = np.empty(n, np.int64)
-    rev = np.zeros(n, np.bool_)
-    px, py = start[0], start[1]
-    for k in range(n):
-        best, bd, br = -1, np.inf, False
-        for i in range(n):
-            if used[i]:
-                continue
-            d = (heads[i, 0] - px) ** 2 + (heads[i, 1] - py) ** 2
-            if d < bd:
-                best, bd, br = i, d, False
-            d = (tails[i, 0] - px) ** 2 + (tails[i, 1] - py) ** 2
-            if d < bd:
-                best, bd, br = i, d, True
-        used[best] = True
-        order[k] = best
-        rev[k] = br
-        if br:
-            px, py = heads[best, 0], heads[best, 1]
-        else:
-            px, py = tails[best, 0], tails[best, 1]
-    return order, rev
