@@ -768,14 +768,18 @@ def _blocked(sa, sb, ra, rb, rparam, rlen, ring_of, ring_start, ring_len, key, b
                             # the sample's point as RingSet.points_at puts it
                             p = k * st
                             q = r * big + p
-                            lo, hi = ring_start[r], ring_start[r + 1]
-                            while lo < hi:  # the first edge whose key exceeds q
-                                mid = (lo + hi) // 2
-                                if key[mid] <= q:
-                                    lo = mid + 1
-                                else:
-                                    hi = mid
-                            e = lo - 1
+                            hi = ring_start[r + 1]
+                            if key[i] <= q and (i + 1 == hi or key[i + 1] > q):
+                                e = i  # mostly on the edge at hand: the search's answer, without it
+                            else:
+                                lo = ring_start[r]
+                                while lo < hi:  # the first edge whose key exceeds q
+                                    mid = (lo + hi) // 2
+                                    if key[mid] <= q:
+                                        lo = mid + 1
+                                    else:
+                                        hi = mid
+                                e = lo - 1
                             t = (p - rparam[e]) / rlen[e] if rlen[e] > 0 else 0.0
                             px = ra[e, 0] + t * (rb[e, 0] - ra[e, 0])
                             py = ra[e, 1] + t * (rb[e, 1] - ra[e, 1])
