@@ -27,9 +27,10 @@ spacing outside it (``tol``), as PrusaSlicer 2.5 does, so joins and anchors lie 
 perimeter instead of on it. ``snake=True`` (solid infill) joins as PrusaSlicer's rectilinear solid
 fill does: a walk from line to line in print order, each time to the nearer free neighbouring
 end, which makes one polyline of a convex area where shortest-first leaves several.
-``join_infill`` (what the slicer calls) is that snake pass followed by ``anchor_infill`` on its
-chains, PrusaSlicer's two passes, on one :class:`~cooprint.slicing.rings.RingSet` and without
-unpacking the chains in between.
+``join_infill`` (what the slicer calls, packed: ``join_packed``) is that snake pass followed by
+``anchor_infill`` on its chains, PrusaSlicer's two passes, on one
+:class:`~cooprint.slicing.rings.RingSet`, in one compiled call after the line ends are placed on
+the rings (``_join``; its chains' order is :func:`chain_order`'s, which the gyroid uses too).
 
 The mask samples every ring each half width; only the samples near an infill segment are
 measured (``_blocked``: each segment asks the rings' grid for the edges within reach), which
@@ -43,7 +44,6 @@ import math
 import numba
 import numpy as np
 
-from cooprint.slicing.patterns import chain_order
 from cooprint.slicing.rings import RingSet
 
 #: A line end within this distance of a ring is on it, mm.
@@ -89,34 +89,65 @@ def anchor_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, an
     list of (j, 2) float64
         The joined and anchored polylines, in nearest-next order from the first line's start.
     """
-    return _passes(lines, rings, ((anchor, snake),), anchor_max, width, tol)
+    return unpacked(*_passes(lines, rings, False, anchor, anchor_max, snake, width, tol))
 
 
-def join_infill(lines: list[np.ndarray], rings: list[np.ndarray] | RingSet, anchor: float, anchor_max: float,
-                width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
+def join_infill(lines: list[np.ndarray] | np.ndarray, rings: list[np.ndarray] | RingSet, anchor: float,
+                anchor_max: float, width: float = LINE_WIDTH, tol: float = END_TOL) -> list[np.ndarray]:
     """``lines`` joined as PrusaSlicer joins them: first snake-wise (``anchor_infill`` with
     ``snake``, no anchors), then the chains' ends shortest stretch first, with anchors; the same
     as those two calls (parameters as :func:`anchor_infill`'s), without unpacking the chains in
     between."""
-    return _passes(lines, rings, ((0.0, True), (anchor, False)), anchor_max, width, tol)
+    return unpacked(*join_packed(lines, rings, anchor, anchor_max, width, tol))
 
 
-def _passes(lines, rings, passes, anchor_max, width, tol) -> list[np.ndarray]:
-    """``lines`` through each ``(anchor, snake)`` pass of :func:`_anchored` in turn (a pass with
-    neither anchors nor joins is skipped), on one packed array and one RingSet of ``rings``."""
+def join_packed(lines: list[np.ndarray] | np.ndarray, rings: list[np.ndarray] | RingSet, anchor: float,
+                anchor_max: float, width: float = LINE_WIDTH, tol: float = END_TOL) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`join_infill`'s polylines packed: (points (N, 2) float64, offsets (n + 1,) int64,
+    polyline i is ``points[offsets[i]:offsets[i + 1]]``), for a caller that batches them
+    (the slicer: thousands of infill lines per region, most of them left as 2-point segments).
+    ``lines`` may also be an (m, k, 2) array: m polylines of k points (a batch of hatch
+    segments: no Python work per line)."""
+    return _passes(lines, rings, anchor_max > 0, anchor, anchor_max, False, width, tol)
+
+
+def unpacked(pts: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
+    """The polylines ``pts[offsets[i]:offsets[i + 1]]`` as a list (views)."""
+    bounds = offsets.tolist()  # (np.split's per-part overhead is 3x this)
+    return [pts[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _passes(lines, rings, snake_first, anchor, anchor_max, snake, width, tol) -> tuple[np.ndarray, np.ndarray]:
+    """``lines`` through a snake pass without anchors if ``snake_first``, then the ``(anchor,
+    snake)`` pass (neither runs without anchors or joins), on one packed array and one RingSet of
+    ``rings``: (points, offsets) as :func:`_packed`. The line ends are placed on the rings here,
+    the passes are one compiled call (:func:`_join`)."""
     pts, lo = _packed(lines)
-    passes = [(anchor, snake) for anchor, snake in passes if anchor > 0 or anchor_max > 0]
-    if passes and len(lo) > 1:
-        rs = rings if isinstance(rings, RingSet) else RingSet(rings)  # built once for every pass
+    if (anchor > 0 or anchor_max > 0) and len(lo) > 1:
+        rs = rings if isinstance(rings, RingSet) else RingSet(rings)
         if len(rs):
-            for anchor, snake in passes:
-                pts, lo = _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake)
-    return np.split(pts, lo[1:-1]) if len(lo) > 1 else []
+            n = len(lo) - 1
+            ends = np.empty((2 * n, 2))
+            ends[0::2] = pts[lo[:-1]]
+            ends[1::2] = pts[lo[1:] - 1]
+            edge, t, _ = rs.nearest(ends, max(tol, END_TOL))
+            x0, y0, cell, nx, ny, gstart, gids = rs.grid
+            pts, lo = _join(pts, lo, edge, t, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start,
+                            rs.ring_len, x0, y0, cell, nx, ny, gstart, gids, bool(snake_first and anchor_max > 0),
+                            float(anchor), float(anchor_max), bool(snake), float(width))
+    return pts, lo
 
 
-def _packed(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def _packed(lines: list[np.ndarray] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The polylines of two points or more, (x, y) only, concatenated: (points (N, 2) float64,
-    offsets (n + 1,) int64: line i is ``points[offsets[i]:offsets[i + 1]]``)."""
+    offsets (n + 1,) int64: line i is ``points[offsets[i]:offsets[i + 1]]``); ``lines`` a list,
+    or an (m, k, 2) array of m polylines of k points."""
+    if isinstance(lines, np.ndarray):
+        m, k = lines.shape[:2]
+        if not m or k < 2:
+            return np.zeros((0, 2)), np.zeros(1, np.int64)
+        return (np.ascontiguousarray(lines[:, :, :2].reshape(-1, 2), dtype=np.float64),
+                np.arange(0, m * k + 1, k, dtype=np.int64))
     sizes = np.fromiter(map(len, lines), np.int64, len(lines))
     if (sizes < 2).any():
         lines = [p for p, k in zip(lines, sizes) if k >= 2]
@@ -127,88 +158,198 @@ def _packed(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         pts = np.concatenate(lines)
     except ValueError:  # rows of different widths
         pts = np.concatenate([np.asarray(p)[:, :2] for p in lines])
-    return np.ascontiguousarray(pts[:, :2], dtype=np.float64), np.r_[0, np.cumsum(sizes)]
+    return np.ascontiguousarray(pts[:, :2], dtype=np.float64), np.concatenate(([0], np.cumsum(sizes)))
 
 
-def _anchored(pts, lo, rs, anchor, anchor_max, width, tol, snake):
-    """:func:`anchor_infill` of the lines ``pts[lo[i]:lo[i + 1]]`` (at least one, each of two
-    points or more) along ``rs``: the resulting polylines packed the same way, (points, offsets)."""
-    n = len(lo) - 1
-    ends = np.empty((2 * n, 2))
-    ends[0::2] = pts[lo[:-1]]
-    ends[1::2] = pts[lo[1:] - 1]
-    edge, t, _ = rs.nearest(ends, max(tol, END_TOL))
-    on = edge >= 0
-    ring = np.where(on, rs.ring_of[np.maximum(edge, 0)], -1)
-    param = np.where(on, rs.param[np.maximum(edge, 0)] + t * rs.seg_len[np.maximum(edge, 0)], 0.0)
-    # neighbours along each ring: sort the ends on rings by (ring, arc length)
-    idx = np.flatnonzero(on)
-    idx = idx[np.lexsort((param[idx], ring[idx]))]
-    nxt = np.full(2 * n, -1, np.int64)
-    prv = np.full(2 * n, -1, np.int64)
-    if len(idx):
-        r = ring[idx]
-        first = np.r_[True, r[1:] != r[:-1]]
-        last = np.r_[r[1:] != r[:-1], True]
-        heads = np.maximum.accumulate(np.where(first, np.arange(len(idx)), 0))
-        after = np.where(last, heads, np.arange(len(idx)) + 1)
-        nxt[idx] = idx[after]
-        prv[idx[after]] = idx
-    ring_len = np.where(on, rs.ring_len[np.maximum(ring, 0)], 0.0)
-    arc = np.where(on, np.mod(param[np.maximum(nxt, 0)] - param, np.where(on, ring_len, 1.0)), 0.0)
-    arc = np.where(on & (nxt == np.arange(2 * n)), ring_len, arc)
-    nt_next, nt_prev = _free_along(pts, lo, rs, on, ring, param, prv, arc, float(width))
+@numba.njit(cache=True)
+def _join(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell, nx, ny,
+          gstart, gids, snake_first, anchor, anchor_max, snake, width):
+    """The passes of :func:`_passes` over the lines ``pts[lo[i]:lo[i + 1]]`` (at least one, each
+    of two points or more) whose ends (2 i: line i's first point, 2 i + 1: its last) lie on
+    ``edge`` at ``t`` (:meth:`RingSet.nearest <cooprint.slicing.rings.EdgeSet.nearest>`; ``a``
+    .. ``ring_len`` and ``x0`` .. ``gids``: the RingSet and its grid): each pass's chains in
+    nearest-next order from the first line's chain, (points, offsets). A snake pass adds no
+    anchors, so its chains end at line ends: the next pass takes their places on the rings from
+    those (the same query, the same answer) instead of asking the rings again."""
+    if snake_first:
+        pts, lo, head, tail = _pass(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len,
+                                    x0, y0, cell, nx, ny, gstart, gids, 0.0, anchor_max, width, True)
+        pts, lo, order, rev = _ordered(pts, lo)
+        k = order.shape[0]
+        e2 = np.empty(2 * k, np.int64)
+        t2 = np.empty(2 * k)
+        for j in range(k):
+            c = order[j]
+            first, last = (tail[c], head[c]) if rev[j] else (head[c], tail[c])
+            e2[2 * j], t2[2 * j] = edge[first], t[first]
+            e2[2 * j + 1], t2[2 * j + 1] = edge[last], t[last]
+        edge, t = e2, t2
+    pts, lo, _, _ = _pass(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len,
+                          x0, y0, cell, nx, ny, gstart, gids, anchor, anchor_max, width, snake)
+    pts, lo, _, _ = _ordered(pts, lo)
+    return pts, lo
+
+
+@numba.njit(cache=True)
+def _ordered(pts, off):
+    """The polylines ``pts[off[k]:off[k + 1]]`` (at least one) in nearest-next order from the
+    first one's start (:func:`chain_order`), packed again: (points, offsets, order, reversed)."""
+    k = off.shape[0] - 1
+    heads = np.empty((k, 2))
+    tails = np.empty((k, 2))
+    for j in range(k):
+        heads[j] = pts[off[j]]
+        tails[j] = pts[off[j + 1] - 1]
+    order, rev = _chain(heads, tails, pts[0])
+    out, lo = _reordered(pts, off, order, rev)
+    return out, lo, order, rev
+
+
+@numba.njit(cache=True)
+def _pass(pts, lo, edge, t, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell, nx, ny,
+          gstart, gids, anchor, anchor_max, width, snake):
+    """One pass of :func:`_join` (its parameters): each end's neighbours along its ring, the
+    free stretches (:func:`_free_along`), the joins and anchors (:func:`_snake` or
+    :func:`_connect`), the chains (:func:`_chains`): (points, offsets, first end, last end), the
+    chains in order of their first line."""
+    m = edge.shape[0]
+    ring = np.full(m, -1, np.int64)
+    param = np.zeros(m)
+    nv = 0
+    for e in range(m):
+        i = edge[e]
+        if i >= 0:
+            ring[e] = ring_of[i]
+            param[e] = rparam[i] + t[e] * seg_len[i]
+            nv += 1
+    # neighbours along each ring: the ends on rings sorted by (ring, arc length), stably
+    idx = np.empty(nv, np.int64)
+    k = 0
+    for e in range(m):
+        if ring[e] >= 0:
+            idx[k] = e
+            k += 1
+    idx = idx[np.argsort(param[idx], kind="mergesort")]
+    idx = idx[np.argsort(ring[idx], kind="mergesort")]
+    nxt = np.full(m, -1, np.int64)
+    prv = np.full(m, -1, np.int64)
+    g = 0
+    while g < nv:
+        h = g
+        while h + 1 < nv and ring[idx[h + 1]] == ring[idx[g]]:
+            h += 1
+        for k in range(g, h + 1):
+            f = idx[k + 1] if k < h else idx[g]
+            nxt[idx[k]] = f
+            prv[f] = idx[k]
+        g = h + 1
+    # each end's ring length and the stretch of ring to its next neighbour
+    elen = np.zeros(m)
+    arc = np.zeros(m)
+    for e in range(m):
+        if ring[e] < 0:
+            continue
+        L = ring_len[ring[e]]
+        elen[e] = L
+        if nxt[e] == e:
+            arc[e] = L
+        elif L > 0:
+            arc[e] = (param[nxt[e]] - param[e]) % L
+        else:
+            arc[e] = np.nan
+    nt_next, nt_prev = _free_along(pts, lo, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell,
+                                   nx, ny, gstart, gids, ring, param, prv, arc, width)
     if snake:
-        join, hook = _snake(nxt, prv, arc, nt_next, nt_prev, float(anchor_max)), np.zeros(2 * n)
+        code, hook = _snake(nxt, prv, arc, nt_next, nt_prev, anchor_max), np.zeros(m)
     else:
-        join, hook = _connect(nxt, prv, arc, ring_len, nt_next, nt_prev, float(anchor), float(anchor_max),
-                              0.5 * float(width))
-    return _assemble(pts, lo, rs, ring, param, join, hook)
+        code, hook = _connect(nxt, prv, arc, elen, nt_next, nt_prev, anchor, anchor_max, 0.5 * width)
+    return _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start, ring_len)
 
 
-def _free_along(pts, lo, rs, on, ring, param, prv, arc, width):
+@numba.njit(cache=True)
+def _free_along(pts, lo, a, b, rparam, seg_len, ring_of, ring_start, ring_len, x0, y0, cell, nx, ny,
+                gstart, gids, ring, param, prv, arc, width):
     """How far the ring is free from every line end forward and backward before it runs within
     ``COLLIDE`` widths of an infill line (one's last ``END_CLEAR`` widths aside, which meet the
     ring anyway): (forward (2n,), backward (2n,)), inf when free up to the neighbouring end.
     PrusaSlicer's mark_boundary_segments_touching_infill: a stretch of ring next to an infill line
-    that runs along it would print that line twice."""
-    m = len(on)
-    fwd, bwd = np.full(m, np.inf), np.full(m, np.inf)
-    a, b = _clear_parts(pts, lo, END_CLEAR * width)
-    if not len(a):
+    that runs along it would print that line twice. ``ring``, ``param``: each end's ring (-1:
+    none) and arc length on it; ``prv``, ``arc``: its previous neighbour, the stretch to its next."""
+    m = ring.shape[0]
+    fwd = np.full(m, np.inf)
+    bwd = np.full(m, np.inf)
+    sa, sb = _clear_parts(pts, lo, END_CLEAR * width)
+    if sa.shape[0] == 0:
         return fwd, bwd
     # samples along the rings every half width: those near an infill line are blocked
     step = 0.5 * width
-    counts = np.maximum(np.ceil(rs.ring_len / step).astype(np.int64), 1)
-    offset = np.r_[0, np.cumsum(counts)]
-    big = float(rs.ring_len.max()) + 1.0
-    key = rs.ring_of.astype(np.float64) * big + rs.param  # rs.points_at's search key
-    x0, y0, cell, nx, ny, gstart, gids = rs.grid
-    blocked = np.flatnonzero(_blocked(a, b, rs.a, rs.b, rs.param, rs.seg_len, rs.ring_of, rs.ring_start,
-                                      rs.ring_len, key, big, counts, offset, x0, y0, cell, nx, ny,
-                                      gstart, gids, COLLIDE * width))
-    if not len(blocked):
+    nr = ring_len.shape[0]
+    counts = np.empty(nr, np.int64)
+    offset = np.zeros(nr + 1, np.int64)
+    for r in range(nr):
+        counts[r] = max(int(math.ceil(ring_len[r] / step)), 1)
+        offset[r + 1] = offset[r] + counts[r]
+    big = ring_len.max() + 1.0
+    key = np.empty(a.shape[0])  # RingSet.points_at's search key
+    for i in range(a.shape[0]):
+        key[i] = ring_of[i] * big + rparam[i]
+    out = _blocked(sa, sb, a, b, rparam, seg_len, ring_of, ring_start, ring_len, key, big, counts, offset,
+                   x0, y0, cell, nx, ny, gstart, gids, COLLIDE * width)
+    # the blocked samples' rings and arc lengths, keyed as above (sorted: rings in order, arc
+    # length within each); every ring's first and last
+    nb = 0
+    for g in range(out.shape[0]):
+        if out[g]:
+            nb += 1
+    if nb == 0:
         return fwd, bwd
-    br = np.searchsorted(offset, blocked, side="right") - 1
-    bp = (blocked - offset[br]) * (rs.ring_len / counts)[br]
-    key = br * big + bp  # sorted: rings in order, arc length within each
-    ring_first = np.searchsorted(br, np.arange(len(counts)), side="left")
-    ring_last = np.searchsorted(br, np.arange(len(counts)), side="right") - 1
-    e = np.flatnonzero(on)
-    r = ring[e]
-    has = ring_last[r] >= ring_first[r]
-    e, r = e[has], r[has]
-    L = rs.ring_len[r]
-    q = r * big + param[e]
-    j = np.searchsorted(key, q, side="right")
-    ahead = np.where((j < len(bp)) & (br[np.minimum(j, len(bp) - 1)] == r),
-                     bp[np.minimum(j, len(bp) - 1)] - param[e], bp[ring_first[r]] + L - param[e])
-    j = np.searchsorted(key, q, side="left") - 1
-    behind = np.where((j >= 0) & (br[np.maximum(j, 0)] == r),
-                      param[e] - bp[np.maximum(j, 0)], param[e] + L - bp[ring_last[r]])
-    # only what lies before the neighbouring end matters
-    fwd[e] = np.where(ahead < arc[e], ahead, np.inf)
-    bwd[e] = np.where(behind < arc[prv[e]], behind, np.inf)
+    br = np.empty(nb, np.int64)
+    bp = np.empty(nb)
+    bkey = np.empty(nb)
+    ring_first = np.full(nr, -1, np.int64)
+    ring_last = np.full(nr, -1, np.int64)
+    j = 0
+    for r in range(nr):
+        st = ring_len[r] / counts[r]
+        for k in range(counts[r]):
+            if out[offset[r] + k]:
+                br[j] = r
+                bp[j] = k * st
+                bkey[j] = r * big + bp[j]
+                if ring_first[r] < 0:
+                    ring_first[r] = j
+                ring_last[r] = j
+                j += 1
+    for e in range(m):
+        r = ring[e]
+        if r < 0 or ring_first[r] < 0:
+            continue
+        L = ring_len[r]
+        pe = param[e]
+        q = r * big + pe
+        lo_, hi_ = 0, nb  # the first blocked sample past the end (np.searchsorted, side "right")
+        while lo_ < hi_:
+            mid = (lo_ + hi_) // 2
+            if bkey[mid] <= q:
+                lo_ = mid + 1
+            else:
+                hi_ = mid
+        j = lo_
+        ahead = bp[j] - pe if j < nb and br[j] == r else bp[ring_first[r]] + L - pe
+        lo_, hi_ = 0, nb  # the last one before it (side "left", minus one)
+        while lo_ < hi_:
+            mid = (lo_ + hi_) // 2
+            if bkey[mid] < q:
+                lo_ = mid + 1
+            else:
+                hi_ = mid
+        j = lo_ - 1
+        behind = pe - bp[j] if j >= 0 and br[j] == r else pe + L - bp[ring_last[r]]
+        # only what lies before the neighbouring end matters
+        if ahead < arc[e]:
+            fwd[e] = ahead
+        if behind < arc[prv[e]]:
+            bwd[e] = behind
     return fwd, bwd
 
 
@@ -437,20 +578,21 @@ def _ring_point(a, b, rparam, seg_len, s, k, p):
 
 @numba.njit(cache=True)
 def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start, ring_len):
-    """The chains of lines joined by ring stretches, with their anchors: (points, offsets,
-    first line of every chain)."""
+    """The chains of lines joined by ring stretches, with their anchors: (points, offsets, the
+    line end each starts from, the line end it finishes at), in order of their first line."""
     n = lo.shape[0] - 1
     seen = np.zeros(n, np.bool_)
     buf = np.empty((2 * pts.shape[0] + 16, 2))
     m = 0
     off = np.zeros(n + 1, np.int64)
-    first = np.zeros(n, np.int64)
+    head = np.zeros(n, np.int64)
+    tail = np.zeros(n, np.int64)
     nc = 0
     for st in range(2 * n):
         if code[st] >= 0 or seen[st // 2]:
             continue
         off[nc] = m
-        first[nc] = st // 2
+        head[nc] = st
         if hook[st] != 0.0:
             r = ring[st]
             s = ring_start[r]
@@ -477,6 +619,7 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             c = code[other]
             r = ring[other]
             if c < 0:
+                tail[nc] = other
                 if hook[other] != 0.0:
                     s = ring_start[r]
                     buf, m = _walk(buf, m, a, b, rparam, seg_len, s, ring_start[r + 1] - s, ring_len[r],
@@ -492,20 +635,7 @@ def _chains(pts, lo, ring, param, code, hook, a, b, rparam, seg_len, ring_start,
             e = to
         nc += 1
     off[nc] = m
-    return buf[:m], off[:nc + 1], first[:nc]
-
-
-def _assemble(pts, lo, rs, ring, param, code, hook) -> tuple[np.ndarray, np.ndarray]:
-    """Chains of lines joined by ring stretches, with their anchors, in nearest-next order from
-    the first line's chain: (points, offsets) as the lines came."""
-    pts, off, first = _chains(pts, lo, ring, param, code, hook, rs.a, rs.b, rs.param,
-                              rs.seg_len, rs.ring_start, rs.ring_len)
-    if len(off) < 2:
-        return pts, off
-    by_first = np.argsort(first, kind="stable")
-    heads, tails = pts[off[:-1]][by_first], pts[off[1:] - 1][by_first]
-    order, rev = chain_order(heads, tails, heads[0])
-    return _reordered(pts, off, by_first[order], rev)
+    return buf[:m], off[:nc + 1], head[:nc], tail[:nc]
 
 
 @numba.njit(cache=True)
@@ -638,14 +768,18 @@ def _blocked(sa, sb, ra, rb, rparam, rlen, ring_of, ring_start, ring_len, key, b
                             # the sample's point as RingSet.points_at puts it
                             p = k * st
                             q = r * big + p
-                            lo, hi = ring_start[r], ring_start[r + 1]
-                            while lo < hi:  # the first edge whose key exceeds q
-                                mid = (lo + hi) // 2
-                                if key[mid] <= q:
-                                    lo = mid + 1
-                                else:
-                                    hi = mid
-                            e = lo - 1
+                            hi = ring_start[r + 1]
+                            if key[i] <= q and (i + 1 == hi or key[i + 1] > q):
+                                e = i  # mostly on the edge at hand: the search's answer, without it
+                            else:
+                                lo = ring_start[r]
+                                while lo < hi:  # the first edge whose key exceeds q
+                                    mid = (lo + hi) // 2
+                                    if key[mid] <= q:
+                                        lo = mid + 1
+                                    else:
+                                        hi = mid
+                                e = lo - 1
                             t = (p - rparam[e]) / rlen[e] if rlen[e] > 0 else 0.0
                             px = ra[e, 0] + t * (rb[e, 0] - ra[e, 0])
                             py = ra[e, 1] + t * (rb[e, 1] - ra[e, 1])
@@ -685,3 +819,40 @@ def _clear_parts(pts, lo, clear):
                 b[m, k] = pts[j, k] + d * (stop - s0)
             m += 1
     return a[:m], b[:m]
+
+
+def chain_order(heads: np.ndarray, tails: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest-next order of polylines given their ends: (order (n,), reversed (n,) bool).
+
+    From ``start``, repeatedly the polyline with the end nearest the current position, entered
+    at that end (reversed when it is its tail)."""
+    return _chain(np.ascontiguousarray(heads, dtype=np.float64), np.ascontiguousarray(tails, dtype=np.float64),
+                  np.asarray(start, dtype=np.float64))
+
+
+@numba.njit(cache=True)
+def _chain(heads, tails, start):
+    n = heads.shape[0]
+    used = np.zeros(n, np.bool_)
+    order = np.empty(n, np.int64)
+    rev = np.zeros(n, np.bool_)
+    px, py = start[0], start[1]
+    for k in range(n):
+        best, bd, br = -1, np.inf, False
+        for i in range(n):
+            if used[i]:
+                continue
+            d = (heads[i, 0] - px) ** 2 + (heads[i, 1] - py) ** 2
+            if d < bd:
+                best, bd, br = i, d, False
+            d = (tails[i, 0] - px) ** 2 + (tails[i, 1] - py) ** 2
+            if d < bd:
+                best, bd, br = i, d, True
+        used[best] = True
+        order[k] = best
+        rev[k] = br
+        if br:
+            px, py = heads[best, 0], heads[best, 1]
+        else:
+            px, py = tails[best, 0], tails[best, 1]
+    return order, rev

@@ -67,21 +67,36 @@ def medial_lines(region: manifold3d.CrossSection, min_width: float, max_width: f
         return []
     h = float(np.clip(min_width / 3.0, 0.05, 0.08))
     r_max = 0.5 * max_width * 1.05
-    pts, nrm, edge, point_like, cstart, seg_a, seg_b = _sample_boundary(polys, h, r_max)
-    grid = _grid(pts, r_max, h)
-    radius, partner = _inscribed_discs(pts, nrm, r_max, h, *grid)
-    centres = pts + radius[:, None] * nrm
+    sizes = np.array([len(p) for p in polys], dtype=np.int64)
+    out_pts, out_offs, out_w = _medial(np.concatenate(polys), sizes, h, r_max, float(min_width), float(max_width))
+    bounds = out_offs.tolist()
+    return [(out_pts[bounds[k]:bounds[k + 1]], w) for k, w in enumerate(out_w.tolist())]
+
+
+@numba.njit(cache=True)
+def _medial(v, sizes, h, r_max, min_width, max_width):
+    """:func:`medial_lines` of the contours ``v[:sizes[0]]``, the next ``sizes[1]`` points, ...
+    with samples every ``h`` and discs up to ``r_max``, in one compiled call (the steps of the
+    module docstring): (points (p, 2), offsets (q + 1,), widths (q,)) as :func:`_finish`."""
+    pts, nrm, edge, point_like, cstart, seg_a, seg_b = _sample_nb(v, sizes, h, h / r_max)
+    spts, order, start, x0, y0, ny, cell = _grid(pts, r_max, h)
+    radius, partner = _inscribed_discs(pts, nrm, r_max, h, spts, order, start, x0, y0, ny, cell)
+    centres = np.empty_like(pts)
+    for i in range(pts.shape[0]):
+        centres[i, 0] = pts[i, 0] + radius[i] * nrm[i, 0]
+        centres[i, 1] = pts[i, 1] + radius[i] * nrm[i, 1]
     widths = 2.0 * radius
     keep = _keep_mask(pts, centres, radius, partner, point_like, min_width, max_width)
     idx, offs = _chain_nb(centres, widths, keep, cstart, h)
     idx, offs, closed = _join_nb(centres, widths, idx, offs, h)
-    out_pts, out_offs, out_w = _finish(centres, widths, idx, offs, closed, edge, seg_a, seg_b,
-                                       min_width, h, *grid)
-    return [(out_pts[out_offs[k]:out_offs[k + 1]], float(out_w[k])) for k in range(len(out_w))]
+    return _finish(centres, widths, idx, offs, closed, edge, seg_a, seg_b, min_width, h,
+                   spts, order, start, x0, y0, ny, cell)
 
 
-def _sample_boundary(polys: list[np.ndarray], h: float, r_max: float):
-    """Boundary samples every <= ``h`` with inward normals, fanned at reflex corners.
+@numba.njit(cache=True)
+def _sample_nb(v, sizes, h, fan_step):
+    """Boundary samples of the concatenated contours ``v`` (m, 2) every <= ``h`` with inward
+    normals, fanned at reflex corners (``fan_step`` radians apart).
 
     Returns ``pts`` (n, 2), ``nrm`` (n, 2) unit inward normals, ``edge`` (n,) the boundary edge
     of each sample, ``point_like`` (n,) bool (at or within 1.5 h of a reflex corner that is a
@@ -89,13 +104,6 @@ def _sample_boundary(polys: list[np.ndarray], h: float, r_max: float):
     end points ``seg_a``, ``seg_b`` (m, 2).
     The region lies left of each contour (manifold3d: outer contours counter-clockwise).
     """
-    sizes = np.array([len(p) for p in polys], dtype=np.int64)
-    return _sample_nb(np.concatenate(polys), sizes, h, h / r_max)
-
-
-@numba.njit(cache=True)
-def _sample_nb(v, sizes, h, fan_step):
-    """:func:`_sample_boundary` on the concatenated contours ``v`` (m, 2)."""
     m = v.shape[0]
     nxt = np.empty(m, np.int64)
     prv = np.empty(m, np.int64)

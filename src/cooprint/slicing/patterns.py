@@ -28,6 +28,7 @@ import math
 import numba
 import numpy as np
 
+from cooprint.slicing.anchor import chain_order
 from cooprint.slicing.rings import RingSet, crossings
 
 #: PrusaSlicer's FillGyroid::DensityAdjust: pattern unit = line distance / this.
@@ -94,9 +95,9 @@ def _clip(polylines: list[np.ndarray] | np.ndarray, rs: RingSet) -> tuple[np.nda
     if not len(pa):
         return np.zeros((0, 2)), np.zeros(1, np.int64)
     # two kept pieces that meet (a touching, not crossing, boundary point) are one part
-    new = np.r_[True, pa[1:] != pb[:-1]]
+    new = np.concatenate(([True], pa[1:] != pb[:-1]))
     heads = np.flatnonzero(new)
-    ra, rb = pa[heads], pb[np.r_[heads[1:] - 1, len(pb) - 1]]
+    ra, rb = pa[heads], pb[np.concatenate((heads[1:] - 1, [len(pb) - 1]))]
     return _emit(flat, ra, rb)
 
 
@@ -253,7 +254,7 @@ def gyroid(rings: list[np.ndarray], spacing: float, z: float, angle_deg: float =
     if len(off) < 2:
         return []
     seg = np.hypot(*np.diff(pts, axis=0).T)
-    cum = np.r_[0.0, np.cumsum(seg)]
+    cum = np.concatenate(([0.0], np.cumsum(seg)))
     lengths = cum[off[1:] - 1] - cum[off[:-1]]
     keep = np.flatnonzero(lengths >= MIN_PIECE)
     if not len(keep):
@@ -266,40 +267,3 @@ def gyroid(rings: list[np.ndarray], spacing: float, z: float, angle_deg: float =
         p = world[off[k]:off[k + 1]]
         out.append(p[::-1].copy() if r else p.copy())
     return out
-
-
-def chain_order(heads: np.ndarray, tails: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest-next order of polylines given their ends: (order (n,), reversed (n,) bool).
-
-    From ``start``, repeatedly the polyline with the end nearest the current position, entered
-    at that end (reversed when it is its tail)."""
-    return _chain(np.ascontiguousarray(heads, dtype=np.float64), np.ascontiguousarray(tails, dtype=np.float64),
-                  np.asarray(start, dtype=np.float64))
-
-
-@numba.njit(cache=True)
-def _chain(heads, tails, start):
-    n = heads.shape[0]
-    used = np.zeros(n, np.bool_)
-    order = np.empty(n, np.int64)
-    rev = np.zeros(n, np.bool_)
-    px, py = start[0], start[1]
-    for k in range(n):
-        best, bd, br = -1, np.inf, False
-        for i in range(n):
-            if used[i]:
-                continue
-            d = (heads[i, 0] - px) ** 2 + (heads[i, 1] - py) ** 2
-            if d < bd:
-                best, bd, br = i, d, False
-            d = (tails[i, 0] - px) ** 2 + (tails[i, 1] - py) ** 2
-            if d < bd:
-                best, bd, br = i, d, True
-        used[best] = True
-        order[k] = best
-        rev[k] = br
-        if br:
-            px, py = heads[best, 0], heads[best, 1]
-        else:
-            px, py = tails[best, 0], tails[best, 1]
-    return order, rev

@@ -47,7 +47,7 @@ import numpy as np
 from cooprint.config import SlicingSettings
 from cooprint.executors import Executor, InlineExecutor, ProcessExecutor, default_workers
 from cooprint.io.mesh import Solid
-from cooprint.slicing.anchor import join_infill
+from cooprint.slicing.anchor import join_packed, unpacked
 from cooprint.slicing.bridge import bridge_angle
 from cooprint.slicing.gapfill import medial_lines, single_bead
 from cooprint.slicing.infill import hatch, hatch_flat
@@ -577,6 +577,7 @@ class _Job:
         s = settings
         self.bridge_w = s.nozzle_diameter * math.sqrt(s.bridge_flow_ratio)
         self.sparse_spacing = extrusion_spacing(s.role_width("infill"), s.layer_height)
+        self._repeats: OrderedDict = OrderedDict()
 
     def sections(self, layers: range | list[int], context: bool = False, clip: bool = True) -> dict[int, CrossSection]:
         """Sections of ``layers`` (ascending) at their mid-heights (``BELOW_MIDDLE`` under),
@@ -932,6 +933,23 @@ class _Job:
             out.append((sparse, INFILL, None))
         return [(r, role, a) for r, role, a in out if not r.is_empty() and r.area() >= s.min_area]
 
+    def repeated(self, params: tuple, region: CrossSection, compute: Callable[[], list]) -> list:
+        """``compute()``, the paths of ``region`` (``params``: whatever else they depend on), or
+        what it returned for the same region (the same outline, point for point) and ``params``
+        among the last ``REPEATS`` calls. A prismatic part repeats its layers: on the generated
+        large benchmark part 63% of the sparse infill regions and 98% of the gap fill regions
+        come again within 4 layers, and a repeat then costs a lookup instead of offsetting,
+        hatching and joining, or a medial axis. The paths are shared, never modified."""
+        key = (params, tuple(p.tobytes() for p in region.to_polygons()))
+        got = self._repeats.get(key)
+        if got is None:
+            got = self._repeats[key] = compute()
+            if len(self._repeats) > REPEATS:
+                self._repeats.popitem(last=False)
+        else:
+            self._repeats.move_to_end(key)
+        return got
+
     def island_paths(self, isl: _Island, layer: int, over: CrossSection | None,
                      fills: list[tuple[CrossSection, int, float | None]], alone: bool,
                      paths: list, here: np.ndarray) -> np.ndarray:
@@ -959,7 +977,7 @@ class _Job:
         bead = float(self.heights[layer]) * (1 - math.pi / 4)
         if isl.thin is not None and not isl.thin.is_empty():
             thin_w = (s.nozzle_diameter / 3, f.ext + (f.spacing(f.ext) + f.spacing(f.per)) / 2)
-            walls = medial_lines(isl.thin, *thin_w)
+            walls = self.repeated(("thin",) + thin_w, isl.thin, lambda: medial_lines(isl.thin, *thin_w))
             if not walls and not isl.loops:  # too small for a loop and for a centre line: one bead
                 walls = [b for b in [single_bead(isl.thin, *thin_w)] if b is not None]
             if self._object is not None:  # a chunk: no bead over its cuts
@@ -968,7 +986,7 @@ class _Job:
                 paths.append((pts, PERIMETER_OUTER, width + bead))
         if isl.gaps is not None:
             lo_w, hi_w = GAP_MIN * f.per * (1 - INSET_OVERLAP), 2 * f.spacing(f.per)
-            for pts, width in medial_lines(isl.gaps, lo_w, hi_w):
+            for pts, width in self.repeated(("gaps", lo_w, hi_w), isl.gaps, lambda: medial_lines(isl.gaps, lo_w, hi_w)):
                 paths.append((pts, GAP_FILL, width + bead))
         if isl.fill.is_empty():
             return _last_point(paths, here)
@@ -1009,7 +1027,7 @@ class _Job:
         piece = np.repeat(np.arange(len(rings)), [len(rs) for rs in rings])
         uv = np.concatenate(flat) @ rot.T
         owner = np.repeat(piece, sizes)
-        firsts = np.r_[0, np.flatnonzero(np.diff(owner)) + 1]
+        firsts = np.concatenate(([0], np.flatnonzero(np.diff(owner)) + 1))
         lo_, hi_ = np.minimum.reduceat(uv[:, 1], firsts), np.maximum.reduceat(uv[:, 1], firsts)
         spacing = width + BRIDGE_GAP if bridge else extrusion_spacing(width, height)
         span = hi_ - lo_
@@ -1036,21 +1054,29 @@ class _Job:
         for q in np.unique(p):
             inner, contour = _line_rings(pieces[q][0], spacing)
             lines = clip_polylines(seg[p == q], inner)
-            lines = _joined(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]), spacing)
+            lines = unpacked(*_joined(lines, contour, 0.0, self.s.infill_anchor_max, float(line_w[q]), spacing))
             paths.extend((line, role, float(line_w[q])) for line in lines)
 
     def sparse_paths(self, region: CrossSection, layer: int, angle: float, paths: list) -> None:
         """Sparse infill of ``region`` in ``infill_pattern`` at ``infill_density`` (line
         distance: the infill line spacing at the layer height over the density, on a global
-        grid), joined and anchored along its boundary (:func:`_joined`)."""
+        grid), joined and anchored along its boundary (:func:`_joined`); a region repeated from
+        a recent layer takes that layer's paths (:meth:`repeated`)."""
         s = self.s
         if s.infill_density <= 0:
             return
+        w = s.role_width("infill", layer == 0)
+        z = self.zmin + float(self.tops[layer]) if s.infill_pattern == "gyroid" else None
+        paths.extend(self.repeated(("sparse", angle, w, z), region, lambda: self._sparse(region, angle, w, z)))
+
+    def _sparse(self, region: CrossSection, angle: float, w: float, z: float | None) -> list:
+        """:meth:`sparse_paths` of ``region`` at ``angle`` (rectilinear), line width ``w``,
+        height ``z`` (gyroid): the paths to append."""
+        s, paths = self.s, []
         sp = self.sparse_spacing
         rings, contour = _line_rings(region, sp)
-        w = s.role_width("infill", layer == 0)
         if s.infill_pattern == "gyroid":
-            lines = gyroid(rings, sp / s.infill_density, self.zmin + float(self.tops[layer]),
+            lines = gyroid(rings, sp / s.infill_density, z,
                            s.infill_angle_deg + CORRECTION_DEG)  # PrusaSlicer's turn of its gyroid
         else:
             if s.infill_pattern == "rectilinear":
@@ -1060,14 +1086,18 @@ class _Job:
                         (s.infill_angle_deg + 90, 2 * sp / s.infill_density)]
             else:  # triangles
                 dirs = [(s.infill_angle_deg + d, 3 * sp / s.infill_density) for d in (0.0, 60.0, 120.0)]
-            # the segments as a list of (2, 2) views (list() of the array: no Python step per line)
-            lines = list(np.concatenate([hatch(rings, spacing, ang) for ang, spacing in dirs]))
-        lines = _joined(lines, contour, s.infill_anchor, s.infill_anchor_max, w, sp)
-        if lines and all(len(line) == 2 for line in lines):
-            paths.append((np.stack(lines), INFILL, w))  # a batch of segments
+            lines = np.concatenate([hatch(rings, spacing, ang) for ang, spacing in dirs])  # (m, 2, 2)
+        pts, off = _joined(lines, contour, s.infill_anchor, s.infill_anchor_max, w, sp)
+        if len(off) > 1 and (np.diff(off) == 2).all():
+            paths.append((pts.reshape(-1, 2, 2), INFILL, w))  # a batch of segments
         else:
-            paths.extend((line, INFILL, w) for line in lines)
+            paths.extend((line, INFILL, w) for line in unpacked(pts, off))
+        return paths
 
+
+#: How many recent fill results (sparse infill, gap fill, thin walls) a block job keeps for
+#: repeated layers (:meth:`_Job.repeated`); a repeat comes 1-2 layers later, a layer has a few.
+REPEATS = 16
 
 #: Infill lines end this many spacings inside their region; joins and anchors follow the region
 #: shrunk by ``LINE_END + JOIN_TOL`` spacings (PrusaSlicer 2.5's FillRectilinear: 0.4 and 0.5),
@@ -1083,12 +1113,13 @@ def _line_rings(region: CrossSection, spacing: float) -> tuple[list[np.ndarray],
             _rings(region.offset(-(LINE_END + JOIN_TOL) * spacing, _MITER)))
 
 
-def _joined(lines: list[np.ndarray], contour: list[np.ndarray], anchor: float, anchor_max: float,
-            width: float, spacing: float) -> list[np.ndarray]:
+def _joined(lines: list[np.ndarray] | np.ndarray, contour: list[np.ndarray], anchor: float, anchor_max: float,
+            width: float, spacing: float) -> tuple[np.ndarray, np.ndarray]:
     """``lines`` (ending ``JOIN_TOL`` spacings off ``contour``) joined along ``contour`` as
     PrusaSlicer does: first snake-wise from line to line (its rectilinear fill's traversal), then
-    the chains' ends shortest stretch first, with anchors (its connect_infill)."""
-    return join_infill(lines, contour, anchor, anchor_max, width, 2 * JOIN_TOL * spacing)
+    the chains' ends shortest stretch first, with anchors (its connect_infill); packed,
+    (points, offsets) as :func:`~cooprint.slicing.anchor.join_packed`."""
+    return join_packed(lines, contour, anchor, anchor_max, width, 2 * JOIN_TOL * spacing)
 
 
 def _last_point(paths: list, here: np.ndarray) -> np.ndarray:
