@@ -210,6 +210,16 @@ def test_gcode_reads_back(cube):
     assert float(m.group(1)) == pytest.approx(e_total, rel=1e-4)
 
 
+def test_layers_grouped_into_pieces_write_the_same_gcode(cube):
+    """layer_pieces hands the writer several layers a piece (fewer calls); any grouping, one
+    layer a piece included, writes the same bytes."""
+    one = gcode_text(layer_pieces(cube.layers, group=1), cube.settings, name="cube")
+    for group in (7, 16, 1000):
+        pieces = list(layer_pieces(cube.layers, group=group))
+        assert len(pieces) == -(-len(cube.layers) // group)
+        assert gcode_text(pieces, cube.settings, name="cube") == one
+
+
 def test_slice_cli(tmp_path, capsys):
     stl = tmp_path / "c.stl"
     to_trimesh(box(20, 20, 10)).export(stl)

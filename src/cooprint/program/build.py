@@ -142,13 +142,26 @@ def _layer_rows(pts, off, extr, here, z):
     return kind[:w], xyz[:w], path_of[:w], n_in, lead_path, np.array([lx, ly, lz])
 
 
-def layer_pieces(layers: Iterable[LayerPaths], robot: str = "") -> Iterator[Program]:
-    """The commands of consecutive layers of one model (``cooprint slice``), layer by layer as
-    they come: layer ``i`` of the iterable is layer ``i`` of the model."""
+#: Layers per program piece of :func:`layer_pieces`: a writer's call costs about 0.5 ms besides
+#: its commands (benchy's 240 layers one by one: 0.2 s of G-code writing, 0.1 s of it after the
+#: last block was sliced), and 16 layers of a large part are a few MB of commands.
+LAYERS_PER_PIECE = 16
+
+
+def layer_pieces(layers: Iterable[LayerPaths], robot: str = "", group: int = LAYERS_PER_PIECE) -> Iterator[Program]:
+    """The commands of consecutive layers of one model (``cooprint slice``), ``group`` layers
+    a piece as they come (the last piece the rest): layer ``i`` of the iterable is layer ``i``
+    of the model. A writer writes the same bytes for any split into pieces."""
     here = np.full(3, np.nan)
+    parts: list[Program] = []
     for i, layer in enumerate(layers):
         piece, here = layer_program(layer, here, robot=robot, index=i)
-        yield piece
+        parts.append(piece)
+        if len(parts) >= group:
+            yield Program.concat(robot, parts)
+            parts = []
+    if parts:
+        yield Program.concat(robot, parts)
 
 
 @dataclass(frozen=True)
