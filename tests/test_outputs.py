@@ -213,11 +213,12 @@ def test_a_write_failure_mid_slice_stops_the_workers(tmp_path, capsys, monkeypat
     mesh = tmp_path / "tall.stl"
     to_trimesh(box(20, 20, 40)).export(mesh)  # 200 layers: 5 blocks, sliced by worker processes
     real = cooprint.program.gcode.write_gcode
+    from cooprint.program.build import LAYERS_PER_PIECE
 
     def fails_after_a_while(fh, pieces, *args, **kwargs):
         def some(pieces):
             for k, piece in enumerate(pieces):
-                if k == 60:
+                if k == 60 // LAYERS_PER_PIECE:  # ~60 layers written, later blocks still slicing
                     raise OSError(errno.ENOSPC, "No space left on device")
                 yield piece
         return real(fh, some(pieces), *args, **kwargs)
