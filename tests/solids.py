@@ -24,6 +24,11 @@ def cylinder(r: float = 20.0, h: float = 120.0, segments: int = 96) -> m3d.Manif
     return m3d.Manifold.cylinder(h, r, r, segments)
 
 
+def ball(r: float = 50.0, segments: int = 256) -> m3d.Manifold:
+    """A sphere standing on z = 0: every layer's section differs from the others."""
+    return m3d.Manifold.sphere(r, segments).translate((0.0, 0.0, r))
+
+
 def tube(r_out: float = 25.0, r_in: float = 10.0, h: float = 60.0, segments: int = 96) -> m3d.Manifold:
     """A pipe: every horizontal section has a hole."""
     return cylinder(r_out, h, segments) - cylinder(r_in, h + 2, segments).translate((0, 0, -1))

@@ -19,7 +19,7 @@ import pytest
 from badinput import assert_rejected
 from cooprint.cli import main
 
-from solids import box, to_trimesh, tube
+from solids import ball, box, to_trimesh
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
@@ -304,15 +304,16 @@ def test_ctrl_c_leaves_no_process_and_no_temporary_file(tmp_path):
     moments, the signal sent to the process alone or to its whole group as a terminal does:
     exit 130 and one line (or 0 if it had finished), no process of it left, nothing hidden or
     half-written beside the outputs."""
-    to_trimesh(tube(30, 22, 100, 128)).export(tmp_path / "tube.stl")  # 500 layers: ~4 s to slice
-    to_trimesh(box(60, 300, 100)).export(tmp_path / "block.stl")  # 3 chunks of 500 layers: ~7 s to plan
+    # every layer a different section (prismatic parts slice from their first layers' work: ~1 s)
+    to_trimesh(ball(100)).export(tmp_path / "ball.stl")  # 1000 layers: ~3.4 s to slice
+    to_trimesh(ball(80)).export(tmp_path / "small_ball.stl")  # ~5 s to plan
     env = dict(os.environ, PYTHONPATH=str(SRC) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     delays = [0.4, 0.7, 1.0, 1.5, 2.1, 2.9, 4.0, 5.5]  # from 0.4 s: Python itself is up
     outcomes = []
     for k, delay in enumerate(delays):
         procs = {}
-        for cmd, args in (("slice", ["tube.stl", "--out", f"s{k}.gcode", "-q"]),
-                          ("run", ["block.stl", "--out", f"r{k}", "-q", "--no-picture"])):
+        for cmd, args in (("slice", ["ball.stl", "--out", f"s{k}.gcode", "-q"]),
+                          ("run", ["small_ball.stl", "--out", f"r{k}", "-q", "--no-picture"])):
             procs[cmd] = subprocess.Popen(
                 [sys.executable, "-m", "cooprint", cmd, *args], cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
         time.sleep(delay)
