@@ -218,6 +218,17 @@ def test_layers_grouped_into_pieces_write_the_same_gcode(cube):
         pieces = list(layer_pieces(cube.layers, group=group))
         assert len(pieces) == -(-len(cube.layers) // group)
         assert gcode_text(pieces, cube.settings, name="cube") == one
+    # a cap on commands: a piece ends with the first layer that reaches it, whole layers only
+    sizes = [len(p) for p in layer_pieces(cube.layers, group=1)]
+    cap = int(np.median(sizes)) * 3
+    pieces = list(layer_pieces(cube.layers, group=1000, commands=cap))
+    layer_ends, piece_ends = np.cumsum(sizes), np.cumsum([len(p) for p in pieces])
+    last = np.searchsorted(layer_ends, piece_ends)  # each piece's last layer
+    assert np.array_equal(layer_ends[last], piece_ends)  # whole layers
+    assert 1 < len(pieces) < len(cube.layers) and last[-1] == len(sizes) - 1
+    for a, b in zip(np.r_[0, last[:-1] + 1], last):  # layers a..b make one piece
+        assert sum(sizes[a:b]) < cap and (sum(sizes[a:b + 1]) >= cap or b == len(sizes) - 1)
+    assert gcode_text(pieces, cube.settings, name="cube") == one
 
 
 def test_slice_cli(tmp_path, capsys):

@@ -144,22 +144,31 @@ def _layer_rows(pts, off, extr, here, z):
 
 #: Layers per program piece of :func:`layer_pieces`: a writer's call costs about 0.5 ms besides
 #: its commands (benchy's 240 layers one by one: 0.2 s of G-code writing, 0.1 s of it after the
-#: last block was sliced), and 16 layers of a large part are a few MB of commands.
+#: last block was sliced).
 LAYERS_PER_PIECE = 16
+#: ... unless fewer layers already make this many commands: a piece is built whole, then written,
+#: so its size is memory held at once. With layers alone the OCCT housing's parent process
+#: peaked at 247 MB instead of 202 (16 of its layers of solid infill: tens of MB of commands and
+#: text); a piece of 16,384 commands already takes the writer ~15 ms, the call's cost is 3% of it.
+COMMANDS_PER_PIECE = 16_384
 
 
-def layer_pieces(layers: Iterable[LayerPaths], robot: str = "", group: int = LAYERS_PER_PIECE) -> Iterator[Program]:
-    """The commands of consecutive layers of one model (``cooprint slice``), ``group`` layers
-    a piece as they come (the last piece the rest): layer ``i`` of the iterable is layer ``i``
-    of the model. A writer writes the same bytes for any split into pieces."""
+def layer_pieces(layers: Iterable[LayerPaths], robot: str = "", group: int = LAYERS_PER_PIECE,
+                 commands: int = COMMANDS_PER_PIECE) -> Iterator[Program]:
+    """The commands of consecutive layers of one model (``cooprint slice``), as they come, in
+    pieces of ``group`` layers or of fewer whole layers that reach ``commands`` commands (the
+    last piece the rest): layer ``i`` of the iterable is layer ``i`` of the model. A writer
+    writes the same bytes for any split into pieces."""
     here = np.full(3, np.nan)
     parts: list[Program] = []
+    held = 0
     for i, layer in enumerate(layers):
         piece, here = layer_program(layer, here, robot=robot, index=i)
         parts.append(piece)
-        if len(parts) >= group:
+        held += len(piece)
+        if len(parts) >= group or held >= commands:
             yield Program.concat(robot, parts)
-            parts = []
+            parts, held = [], 0
     if parts:
         yield Program.concat(robot, parts)
 
