@@ -20,7 +20,7 @@ from cooprint import executors
 from cooprint.cli import main
 from cooprint.config import load_settings
 from cooprint.executors import (DaskExecutor, ExecutorError, InlineExecutor, ProcessExecutor, _ordered,
-                                check_executor_options, parse_scheduler)
+                                check_executor_options, parse_scheduler, stop_pool)
 from cooprint.slicing import layer_tops, pack_layers, slice_chunks, unpack_layers
 from cooprint.slicing.slicer import BLOCK, layer_range
 
@@ -384,3 +384,30 @@ def test_the_local_cluster_ends_with_a_killed_parent(bar, tmp_path):
     while _tagged(tag) and time.monotonic() < end:
         time.sleep(0.1)
     assert _tagged(tag) == []
+
+
+def _echo(shared, task):
+    return task
+
+
+def test_stopping_a_pool_mid_result_leaves_no_thread_waiting_for_it():
+    """A worker stopped while it sends a result leaves the pool's thread reading the rest of it;
+    stop_pool ends that wait, so that nothing is left to hang the interpreter's exit (Python
+    waits for that thread when it exits). Here the half-sent result is written by hand."""
+    import multiprocessing
+    import struct
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork"))
+    assert pool.submit(_echo, None, 7).result(timeout=30) == 7
+    manager = pool._executor_manager_thread
+    before = {p.pid for p in multiprocessing.active_children()} - {p.pid for p in pool._processes.values()}
+    # the start of a 1,000-byte result (the pipe's framing: its length, then the bytes), cut short
+    os.write(pool._result_queue._writer.fileno(), struct.pack("!i", 1000) + b"x" * 10)
+    time.sleep(0.2)
+    assert manager.is_alive()  # waiting for the 990 bytes more
+    started = time.monotonic()
+    stop_pool(pool)
+    assert time.monotonic() - started < 5
+    assert not manager.is_alive()
+    assert {p.pid for p in multiprocessing.active_children()} <= before

@@ -244,6 +244,11 @@ def stop_pool(pool: ProcessPoolExecutor) -> None:
         # the pool's own list of its processes (Python < 3.14 has no public way to terminate
         # them), taken before shutdown() forgets it
         procs = list((getattr(pool, "_processes", None) or {}).values())
+        # ... and its thread: it reaps the workers too once they are gone, and shutdown(wait=True)
+        # after shutdown(wait=False) no longer waits for it; unjoined, a worker it had reaped but
+        # not yet marked dead still looked alive here after this returned (1 run in ~10)
+        manager = getattr(pool, "_executor_manager_thread", None)
+        results = getattr(pool, "_result_queue", None)
         pool.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
             if proc.is_alive():
@@ -253,7 +258,15 @@ def stop_pool(pool: ProcessPoolExecutor) -> None:
             if proc.is_alive():
                 proc.kill()
                 proc.join(1)
+        # a worker stopped while it sent a result leaves the thread waiting for the rest of it
+        # (forever: the parent holds the pipe's sending end too, and at exit Python waits for
+        # that thread); with every worker gone, closing that end ends the wait (end of file)
+        writer = getattr(results, "_writer", None)
+        if writer is not None and not any(proc.is_alive() for proc in procs):
+            writer.close()
         pool.shutdown(wait=True)
+        if manager is not None:
+            manager.join(5)
 
 
 def _run_dask(fn: Callable[[Any, Any], Any], shared: Any, task: Any) -> Any:
