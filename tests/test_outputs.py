@@ -211,7 +211,7 @@ def test_a_write_failure_mid_slice_stops_the_workers(tmp_path, capsys, monkeypat
     import cooprint.program.gcode
 
     mesh = tmp_path / "tall.stl"
-    to_trimesh(box(20, 20, 40)).export(mesh)  # 200 layers: 5 blocks, sliced by worker processes
+    to_trimesh(box(20, 20, 40)).export(mesh)  # 200 layers: 4 blocks, sliced by worker processes
     real = cooprint.program.gcode.write_gcode
     from cooprint.program.build import LAYERS_PER_PIECE
 
